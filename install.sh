@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Face Studio installer for a fresh Debian/Ubuntu machine.
+#   system packages: Mesa EGL/GL (headless rendering via moderngl) and the X/xkb/xcb libraries Qt needs
+#   python: a virtual environment in .venv with Face Studio and its test tools
+#   sample data: the menpo3d 0.8.6 source distribution (james scan + generic template), cached
+set -euo pipefail
+cd "$(dirname "$0")"
+
+APT_PACKAGES=(
+  python3 python3-venv python3-pip
+  libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2 libgbm1
+  libxkbcommon0 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-image0 libxcb-keysyms1
+  libxcb-randr0 libxcb-render-util0 libxcb-shape0 libxcb-xinerama0 libxcb-xkb1 libxrender1 libxi6
+  libfontconfig1 libdbus-1-3 libglib2.0-0
+)
+if command -v apt-get >/dev/null 2>&1; then
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  missing=()
+  for p in "${APT_PACKAGES[@]}"; do
+    dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+  done
+  if [ "${#missing[@]}" -gt 0 ]; then
+    echo "installing system packages: ${missing[*]}"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  fi
+else
+  echo "apt-get not found: install Mesa EGL/GL and Qt's X/xkb libraries with your package manager" >&2
+fi
+
+PY=${PYTHON:-python3}
+[ -x .venv/bin/python ] || "$PY" -m venv .venv
+.venv/bin/python -m pip install -q --upgrade pip setuptools wheel
+.venv/bin/python -m pip install -q -e '.[test]'
+# fetch, verify and cache the sample data now so tests and the studio start offline
+.venv/bin/python -m photomodel.sample_data
+echo "Face Studio installed. Run the tests with: .venv/bin/python -m pytest"

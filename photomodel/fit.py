@@ -1,0 +1,344 @@
+"""The modeling pipeline of §5.1: pose recovery → scattered-data interpolation → refinement.
+
+``fit_expression`` takes a project, the name of one expression (a set of photos of one
+facial expression taken with one rig) and the generic face mesh, and returns the
+recovered cameras, the 3D feature points and the fitted mesh:
+
+1. **Pose recovery** (§5.1.1, Appendix A) from the ``pose`` features (the initial ~13
+   clicks), starting from each photo's rough preset camera and the generic mesh's
+   feature vertices (:func:`photomodel.pose.recover_poses`).
+2. **Gauge.** Structure from motion recovers the scene only up to a similarity; we fix
+   it by aligning the recovered feature points onto the generic mesh's (Umeyama,
+   with scale), so results live in the generic head's frame and at its size
+   (photographs alone carry no absolute scale). *Beyond the paper*, which leaves the
+   gauge to the initial guess.
+3. **Scattered-data interpolation** (§5.1.2, Eq. 3): the generic mesh is deformed so
+   the feature vertices land on the recovered points (:mod:`photomodel.rbf`).
+4. **Refinement** (§5.1.3): with the cameras fixed, the other clicked correspondences
+   are triangulated, hand-drawn curves are converted into per-vertex observations by
+   arc length and triangulated too (:mod:`photomodel.refine`), and the RBF is re-run
+   from the generic mesh with every constraint. Curves are re-parameterised on the
+   refined mesh and the step repeated ``curve_passes`` times.
+
+No file I/O happens here; :func:`write_result` stores a result in a project.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .camera import Camera, focal_mm_to_px, preset_camera
+from .errors import FitError
+from .pose import PoseResult, recover_poses
+from .rbf import deform_vertices
+from .refine import refine_points
+
+#: Default distance of a preset camera from the head (mm) when the project gives none.
+PRESET_DISTANCE_MM = 600.0
+#: Default lens of a preset camera (mm, 36 mm-wide sensor) when the photo gives no guess.
+PRESET_FOCAL_MM = 50.0
+
+
+class Cancelled(Exception):
+    """Raised inside :func:`fit_expression` when the caller's ``cancel()`` returns True."""
+
+
+@dataclass
+class FitOptions:
+    refine: bool = True
+    curve_passes: int = 2
+    fixed_focal: bool = False
+    max_sweeps: int = 500
+
+
+@dataclass
+class FitResult:
+    """What the modeling pipeline recovers for one expression.
+
+    Attributes
+    ----------
+    photo_ids : list[str], order of ``cameras``.
+    cameras : list[Camera], one per photo.
+    feature_names : list[str], the features with a 3D position.
+    points_3d : (n, 3) float mm, recovered/triangulated feature positions.
+    initial_vertices : (N, 3) float mm, the generic mesh deformed by the pose features only.
+    vertices : (N, 3) float mm, the fitted mesh after refinement.
+    pose : PoseResult of the pose-recovery stage (in the fixed gauge).
+    report : dict, reprojection report (JSON-serialisable).
+    """
+
+    photo_ids: list[str]
+    cameras: list[Camera]
+    feature_names: list[str]
+    points_3d: np.ndarray
+    initial_vertices: np.ndarray
+    vertices: np.ndarray
+    pose: PoseResult
+    report: dict = field(default_factory=dict)
+
+    def camera(self, photo_id: str) -> Camera:
+        return self.cameras[self.photo_ids.index(photo_id)]
+
+
+def similarity_transform(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Least-squares similarity ``dst ≈ s R src + t`` (Umeyama 1991).
+
+    Parameters
+    ----------
+    src, dst : (n, 3) float, corresponding points (n ≥ 3, not collinear).
+
+    Returns
+    -------
+    s : float, R : (3, 3), t : (3,)
+    """
+    mu_s, mu_d = src.mean(0), dst.mean(0)
+    a, b = src - mu_s, dst - mu_d
+    U, S, Vt = np.linalg.svd(b.T @ a / len(src))
+    D = np.eye(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        D[2, 2] = -1.0
+    R = U @ D @ Vt
+    var = (a**2).sum() / len(src)
+    s = float(np.trace(np.diag(S) @ D) / var)
+    return s, R, mu_d - s * R @ mu_s
+
+
+def transform_cameras(cameras: list[Camera], s: float, R: np.ndarray, t: np.ndarray) -> list[Camera]:
+    """Cameras expressed in the frame ``X' = s R X + t`` (images unchanged)."""
+    out = []
+    for c in cameras:
+        Rn = c.R @ R.T
+        out.append(Camera(Rn, s * c.t - Rn @ t, c.f, c.width, c.height))
+    return out
+
+
+def initial_cameras(photos) -> list[Camera]:
+    """The artist's rough starting cameras: each photo's preset at a default distance/lens."""
+    cams = []
+    for p in photos:
+        focal = p.focal_mm_guess or PRESET_FOCAL_MM
+        c = preset_camera(p.preset, p.width, p.height, distance_mm=PRESET_DISTANCE_MM, focal_mm=focal)
+        # keep the lens guess as a focal in pixels of this photo
+        c.f = focal_mm_to_px(focal, p.width)
+        cams.append(c)
+    return cams
+
+
+def _rms(res: np.ndarray, axis=None) -> np.ndarray:
+    sq = np.nansum(res**2, axis=-1)
+    cnt = np.sum(np.isfinite(res[..., 0]), axis=axis)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.sqrt(np.nansum(sq, axis=axis) / cnt)
+
+
+def _reproject(cameras: list[Camera], points: np.ndarray, obs: np.ndarray) -> np.ndarray:
+    proj = np.stack([c.project(points) for c in cameras])
+    return proj - obs
+
+
+def fit_expression(
+    project,
+    expression_name: str,
+    mesh,
+    options: FitOptions | None = None,
+    progress: Callable[[str, float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> FitResult:
+    """Fit the generic mesh to one expression's photos (§5.1).
+
+    Parameters
+    ----------
+    project : photomodel.project.Project
+    expression_name : str
+    mesh : photomodel.generic_mesh.GenericMesh (``vertices`` (N, 3) mm, ``faces``)
+    options : FitOptions
+    progress : called as ``progress(stage, fraction)``.
+    cancel : polled between stages; return True to abort with :class:`Cancelled`.
+
+    Raises
+    ------
+    FitError
+        when the clicks cannot support a fit (the message names the feature/photo).
+    """
+    opt = options or FitOptions()
+    expr = project.expression(expression_name)
+    photos = expr.photos
+    if len(photos) < 2:
+        raise FitError(
+            f"expression {expression_name!r} has {len(photos)} photo(s); pose recovery needs at least 2 views"
+        )
+    report_progress = progress or (lambda stage, frac: None)
+
+    def check_cancel():
+        if cancel is not None and cancel():
+            raise Cancelled("fit cancelled")
+
+    n_vertices = len(mesh.vertices)
+    feat_vertex = {f.name: int(f.vertex) for f in project.features}
+    bad = [n for n, v in feat_vertex.items() if not 0 <= v < n_vertices]
+    if bad:
+        raise FitError(
+            f"feature(s) {', '.join(bad)} refer to vertices outside the generic mesh (0..{n_vertices - 1})"
+        )
+
+    # 1. pose recovery ---------------------------------------------------------------
+    report_progress("pose recovery", 0.0)
+    pose_names = [f.name for f in project.features if f.pose]
+    if not pose_names:
+        raise FitError("no feature is marked for pose recovery (features[].pose = true)")
+    obs_pose = project.observations(expression_name, pose_names)
+    photo_ids = [p.id for p in photos]
+    pose_idx = np.array([feat_vertex[n] for n in pose_names])
+    pose = recover_poses(
+        obs_pose,
+        initial_cameras(photos),
+        mesh.vertices[pose_idx],
+        fixed_focal=opt.fixed_focal,
+        max_sweeps=opt.max_sweeps,
+        names=pose_names,
+        view_names=photo_ids,
+    )
+    check_cancel()
+
+    # 2. gauge: similarity onto the generic feature vertices ---------------------------
+    s, R, t = similarity_transform(pose.points, mesh.vertices[pose_idx])
+    cameras = transform_cameras(pose.cameras, s, R, t)
+    pose_points = pose.points @ (s * R).T + t
+    pose = PoseResult(
+        cameras=cameras,
+        points=pose_points,
+        iterations=pose.iterations,
+        converged=pose.converged,
+        rms_px=pose.rms_px,
+        per_view_rms_px=pose.per_view_rms_px,
+        per_point_rms_px=pose.per_point_rms_px,
+        residuals_px=pose.residuals_px,
+    )
+
+    # 3. scattered-data interpolation from the pose features ----------------------------
+    report_progress("deforming the generic mesh", 0.4)
+    initial_vertices = deform_vertices(mesh.vertices, pose_idx, pose_points)
+    check_cancel()
+
+    names = list(pose_names)
+    points_3d = pose_points
+    dropped: list[str] = []
+    vertices = initial_vertices
+    curve_report: dict = {}
+
+    # 4. refinement with fixed cameras --------------------------------------------------
+    if opt.refine:
+        extra = [f for f in project.features if not f.pose]
+        extra_names = [f.name for f in extra]
+        extra_idx = np.array([f.vertex for f in extra], dtype=int)
+        obs_extra = project.observations(expression_name, extra_names) if extra else None
+        curves = [c for c in project.curves if sum(c.name in p.curves for p in photos) >= 2]
+        curve_args = [
+            (c.vertices, {k: p.curves[c.name] for k, p in enumerate(photos) if c.name in p.curves})
+            for c in curves
+        ]
+        pose_set = set(pose_idx.tolist())
+        n_passes = max(1, opt.curve_passes if curves else 1)
+        for n_pass in range(n_passes):
+            report_progress("refining: points and curves", 0.55 + 0.4 * n_pass / n_passes)
+            # curves are parameterised on the current fitted mesh, so later passes see a better one
+            targets = refine_points(
+                cameras,
+                vertices,
+                point_vertices=extra_idx if extra else None,
+                point_observations=obs_extra,
+                curves=curve_args,
+                point_names=extra_names,
+                curve_names=[c.name for c in curves],
+            )
+            keep = np.array([v not in pose_set for v in targets.vertices.tolist()], dtype=bool)
+            vertices = deform_vertices(
+                mesh.vertices,
+                np.concatenate([pose_idx, targets.vertices[keep]]),
+                np.concatenate([pose_points, targets.targets[keep]]),
+            )
+            check_cancel()
+        dropped = targets.dropped
+        vertex_of = {int(v): i for i, v in enumerate(targets.vertices.tolist())}
+        got = [(n, vertex_of[int(v)]) for n, v in zip(extra_names, extra_idx, strict=True)
+               if int(v) in vertex_of and int(v) not in pose_set]
+        names += [n for n, _ in got]
+        points_3d = np.concatenate([pose_points, targets.targets[[i for _, i in got]].reshape(-1, 3)])
+        curve_report = {c.name: {"views": len(d)} for c, (_, d) in zip(curves, curve_args, strict=True)}
+
+    all_names = names
+    report = build_report(photo_ids, cameras, pose, project, expression_name, all_names, points_3d)
+    report["dropped"] = dropped
+    report["curves"] = curve_report
+    report_progress("done", 1.0)
+    return FitResult(
+        photo_ids=photo_ids,
+        cameras=cameras,
+        feature_names=all_names,
+        points_3d=points_3d,
+        initial_vertices=initial_vertices,
+        vertices=vertices,
+        pose=pose,
+        report=report,
+    )
+
+
+def build_report(photo_ids, cameras, pose, project, expression_name, names, points_3d) -> dict:
+    """Per-view and per-point reprojection report (px) of every 3D feature."""
+    obs = project.observations(expression_name, names)
+    res = _reproject(cameras, points_3d, obs)
+    per_view = _rms(res, axis=1)
+    per_point = _rms(res, axis=0)
+    pose_names = set(n for n in names if any(f.name == n and f.pose for f in project.features))
+    return {
+        "pose": {
+            "rms_px": float(pose.rms_px),
+            "sweeps": int(pose.iterations),
+            "converged": bool(pose.converged),
+        },
+        "rms_px": float(_rms(res)),
+        "views": [
+            {
+                "photo": pid,
+                "rms_px": None if not np.isfinite(r) else float(r),
+                "points": int(np.isfinite(obs[k, :, 0]).sum()),
+                "focal_px": float(c.f),
+                "focal_mm": float(c.focal_mm),
+            }
+            for k, (pid, r, c) in enumerate(zip(photo_ids, per_view, cameras, strict=True))
+        ],
+        "points": [
+            {
+                "feature": n,
+                "pose": n in pose_names,
+                "rms_px": None if not np.isfinite(r) else float(r),
+                "views": int(np.isfinite(obs[:, i, 0]).sum()),
+            }
+            for i, (n, r) in enumerate(zip(names, per_point, strict=True))
+        ],
+    }
+
+
+def store_fit_result(project, expression_name: str, result: FitResult, faces: np.ndarray) -> None:
+    """Put ``result`` into ``project`` (in memory) and write the fitted mesh as OBJ and PLY
+    next to the project file (``results/<expression>.obj|.ply``, atomically). The caller
+    saves the project file."""
+    from .mesh_io import write_mesh
+    from .project import ExpressionResult
+
+    if project.path is None:
+        raise FitError("save the project before storing results (the mesh files go next to it)")
+    folder = project.path.parent
+    rel_obj, rel_ply = project.default_result_paths(expression_name)
+    write_mesh(folder / rel_obj, result.vertices, faces)
+    write_mesh(folder / rel_ply, result.vertices, faces)
+    project.expression(expression_name).result = ExpressionResult(
+        cameras={pid: c for pid, c in zip(result.photo_ids, result.cameras, strict=True)},
+        points_3d={n: p for n, p in zip(result.feature_names, result.points_3d, strict=True)},
+        mesh_obj=rel_obj,
+        mesh_ply=rel_ply,
+        report=result.report,
+    )

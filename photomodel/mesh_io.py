@@ -1,0 +1,45 @@
+"""Mesh files: OBJ and PLY written atomically with trimesh (a kept exporter, so
+Blender/MeshLab read what we write)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+
+def _atomic_write_bytes(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_mesh(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray) -> Path:
+    """Write ``(n, 3)`` mm vertices and ``(m, 3)`` faces as OBJ or PLY (by suffix), atomically."""
+    path = Path(path)
+    kind = path.suffix.lower().lstrip(".")
+    if kind not in ("obj", "ply"):
+        raise ValueError(f"{path}: mesh files must end in .obj or .ply")
+    mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64), process=False)
+    data = trimesh.exchange.export.export_mesh(mesh, file_type=kind)
+    if isinstance(data, str):
+        data = data.encode()
+    _atomic_write_bytes(path, data)
+    return path
+
+
+def read_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices (n, 3), faces (m, 3))`` of an OBJ/PLY file, vertex order preserved."""
+    mesh = trimesh.load(Path(path), process=False, force="mesh")
+    return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)

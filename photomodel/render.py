@@ -1,0 +1,638 @@
+"""The one renderer of Face Studio: triangle meshes seen through a :class:`~photomodel.camera.Camera`.
+
+Texturing (visibility and view-dependent weights, Pighin et al. 2002, §5.2), tracking
+(synthesising the model's appearance, §6), the GUI previews and the sample-project
+generator all draw through :meth:`Renderer.render`, so a pixel means the same thing
+everywhere.
+
+Why moderngl
+------------
+OpenGL rasterisation is what the paper's pipeline assumes (z-buffer visibility, texture
+lookups); ``moderngl`` is a small, kept Python binding that creates a *headless* context on
+EGL (Mesa ``llvmpipe`` on machines without a GPU), needs no window system and reads float
+render targets back into numpy. A hand-written numpy rasteriser would be slower and would
+re-implement the GL fill rules.
+
+Conventions (see :mod:`photomodel.camera`)
+------------------------------------------
+* Vertices are in world millimetres and go through ``X_cam = R X + t`` on the CPU in float64;
+  only camera coordinates (float32) reach the GPU, so large translations lose no precision.
+* Our pixel ``(u, v)`` (centres at integers, ``v`` down) is the GL pixel whose window
+  coordinates are ``(u + 0.5, v + 0.5)`` — GL samples at pixel centres ``i + 0.5``. The
+  projection of :func:`gl_projection` maps ``v`` *down* to window ``y`` *up*, so the
+  framebuffer's first row read back is image row 0 (the top of the image): no flip is needed
+  after reading. A consequence is that the mirror flips the winding: triangles that are
+  counter-clockwise seen from outside (OBJ convention) are clockwise in the window, hence
+  ``front_face='cw'`` when culling.
+* A rendered vertex lands exactly on :meth:`Camera.project` of it (to float32 and GL
+  sub-pixel precision, ~1/256 px on llvmpipe); a pixel is covered when its centre lies in the
+  projected triangle (GL fill rule on shared edges).
+* Texture coordinates have ``v`` up (OBJ/OpenGL): ``uv = (0, 0)`` is the bottom-left corner
+  of the texture image and ``(0, 1)`` its top-left, i.e. image row 0. Textures are sampled
+  bilinearly with clamp-to-edge.
+
+Threads
+-------
+An OpenGL context belongs to the thread that created it. :func:`get_renderer` therefore
+keeps one :class:`Renderer` *per thread* (``threading.local``); a :class:`Renderer` refuses
+(``RuntimeError``) to be used from another thread than the one that created it.
+
+Run ``python -m photomodel.render out.png`` to render the james sample scan from the front.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from photomodel.camera import Camera
+
+__all__ = [
+    "RenderResult",
+    "Renderer",
+    "get_renderer",
+    "gl_projection",
+    "auto_near_far",
+    "vertex_normals",
+    "write_png",
+]
+
+#: Framebuffers of this many distinct image sizes are kept alive (least recently used first out).
+_MAX_CACHED_SIZES = 4
+#: Ambient term of the head-light Lambert shading: a face seen edge-on is not black.
+_AMBIENT = 0.15
+#: Albedo of an untextured, uncoloured mesh under ``shading``.
+_ALBEDO = 0.8
+
+_VERTEX_SHADER = """
+#version 330
+uniform mat4 proj;
+in vec3 in_pos;      // camera coordinates, mm
+in vec4 in_attr;     // per-vertex attribute: colour channels, or uv in .xy
+in vec3 in_normal;   // camera coordinates (only read when shading == 1)
+out vec4 v_attr;
+out vec3 v_normal;
+out vec3 v_pos;
+void main() {
+    v_attr = in_attr;
+    v_normal = in_normal;
+    v_pos = in_pos;
+    gl_Position = proj * vec4(in_pos, 1.0);
+}
+"""
+
+_FRAGMENT_SHADER = """
+#version 330
+uniform int mode;       // 0: interpolated attribute, 1: texture at uv, 2: constant albedo
+uniform int shading;    // 0: none, 1: Lambert with vertex normals, 2: Lambert, flat
+uniform float ambient;
+uniform float albedo;
+uniform sampler2D tex;
+in vec4 v_attr;
+in vec3 v_normal;
+in vec3 v_pos;
+layout(location = 0) out vec4 out_color;
+layout(location = 1) out float out_depth;
+layout(location = 2) out int out_face;
+void main() {
+    vec4 c;
+    if (mode == 1) {
+        c = texture(tex, vec2(v_attr.x, 1.0 - v_attr.y));  // v up; row 0 uploaded first = t 0
+    } else if (mode == 0) {
+        c = v_attr;
+    } else {
+        c = vec4(albedo, albedo, albedo, 1.0);
+    }
+    if (shading != 0) {
+        vec3 n = (shading == 1) ? v_normal : cross(dFdx(v_pos), dFdy(v_pos));
+        float len = length(n);
+        // head-light along the optical axis: l = (0, 0, -1) in camera coordinates; two-sided
+        float lambert = (len > 0.0) ? abs(n.z) / len : 1.0;
+        c.rgb *= ambient + (1.0 - ambient) * lambert;
+    }
+    out_color = c;
+    out_depth = v_pos.z;
+    out_face = gl_PrimitiveID + 1;  // 0 is the cleared background
+}
+"""
+
+
+# ----------------------------------------------------------------------------- pure helpers
+
+
+def gl_projection(camera: Camera, near: float, far: float) -> np.ndarray:
+    """The (4, 4) OpenGL projection of ``camera`` acting on *camera* coordinates.
+
+    ``clip = P @ [X_cam, 1]`` gives, after the perspective division and the viewport
+    transform of a ``width × height`` viewport, window coordinates
+    ``(u + 0.5, v + 0.5)`` where ``(u, v) = camera.project(X)``; ``v`` down maps to window
+    ``y`` up, so framebuffer row ``i`` read back is image row ``i`` (top first). Depth:
+    ``Z_cam = near`` → NDC ``-1``, ``Z_cam = far`` → ``+1`` (standard perspective depth).
+
+    Parameters
+    ----------
+    camera : Camera
+        intrinsics ``f`` (px), principal point ``(c_x, c_y)``, image size ``W × H``.
+    near, far : float
+        clipping distances along the optical axis in mm, ``0 < near < far``.
+
+    Returns
+    -------
+    (4, 4) float64, row-major (transpose before handing it to GL as column-major).
+    """
+    if not (0.0 < near < far):
+        raise ValueError(f"need 0 < near < far, got near={near}, far={far}")
+    W, H, f = camera.width, camera.height, camera.f
+    cx, cy = camera.principal_point
+    # x_ndc = 2 (u + 0.5) / W - 1 with u = f X/Z + cx, times w_clip = Z
+    return np.array(
+        [
+            [2.0 * f / W, 0.0, 2.0 * (cx + 0.5) / W - 1.0, 0.0],
+            [0.0, 2.0 * f / H, 2.0 * (cy + 0.5) / H - 1.0, 0.0],
+            [0.0, 0.0, (far + near) / (far - near), -2.0 * far * near / (far - near)],
+            [0.0, 0.0, 1.0, 0.0],
+        ]
+    )
+
+
+def auto_near_far(z_cam: np.ndarray) -> tuple[float, float] | None:
+    """Near and far planes (mm) that enclose the depths ``z_cam`` (n,) of a mesh's vertices.
+
+    A 10 % margin on both sides; geometry behind the camera is clipped at ``near``.
+    Returns ``None`` when no vertex is in front of the camera.
+    """
+    z = np.asarray(z_cam, dtype=float)
+    z = z[z > 0]
+    if z.size == 0:
+        return None
+    zmin, zmax = float(z.min()), float(z.max())
+    # a near plane very close to the eye wastes depth-buffer precision; 1e-3·far is plenty
+    near = max(0.9 * zmin, 1e-3 * zmax)
+    far = 1.1 * zmax
+    if far <= near:  # a single depth: give the planes room
+        far = near * 2.0
+    return near, far
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(n, 3) unit vertex normals: area-weighted sums of the incident faces' normals.
+
+    Counter-clockwise faces (seen from outside) give outward normals; isolated vertices get 0.
+    """
+    v = np.asarray(vertices, dtype=float)
+    f = np.asarray(faces)
+    face_n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # |·| = 2 area
+    n = np.zeros_like(v)
+    for k in range(3):
+        n += np.stack([np.bincount(f[:, k], face_n[:, c], minlength=len(v)) for c in range(3)], axis=1)
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+
+def write_png(path, image: np.ndarray) -> Path:
+    """Write an RGB(A) or grey image as PNG (via OpenCV) and return the path.
+
+    Parameters
+    ----------
+    path : str or Path
+        destination; missing parent folders are created.
+    image : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4)
+        ``uint8``, or float in ``[0, 1]`` (clipped, then rounded to 8 bits). Channels are RGB(A);
+        they are swapped to OpenCV's BGR(A) on the way out. NaN and ±inf are written as 0/255
+        after clipping (NaN → 0).
+    """
+    import cv2
+
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (3, 4)):
+        raise ValueError(f"write_png needs an (H, W), (H, W, 3) or (H, W, 4) image, got shape {img.shape}")
+    if img.dtype != np.uint8:
+        if not np.issubdtype(img.dtype, np.floating):
+            raise ValueError(f"write_png needs uint8 or float (0..1) pixels, got {img.dtype}")
+        img = np.round(np.clip(np.nan_to_num(img, nan=0.0), 0.0, 1.0) * 255.0).astype(np.uint8)
+    if img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR if img.shape[2] == 3 else cv2.COLOR_RGBA2BGRA)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(path), img):
+        raise OSError(f"could not write PNG {path} (is the folder writable and the name *.png?)")
+    return path
+
+
+# ----------------------------------------------------------------------------- result
+
+
+@dataclass
+class RenderResult:
+    """What one :meth:`Renderer.render` call saw, one value per image pixel (row 0 = top).
+
+    Attributes
+    ----------
+    color : (H, W, C) float32
+        texture colour (``0..1`` for a ``uint8`` texture), interpolated per-vertex ``colors``
+        (any float values, perspective-correct, not clamped) or shading; ``background``
+        where nothing is drawn. ``C`` is the channel count of the texture / ``colors``
+        (3 for plain shading).
+    depth : (H, W) float32
+        camera-space ``Z_cam`` in mm of the visible surface; ``inf`` on the background.
+    mask : (H, W) bool
+        pixel centre covered by a triangle.
+    face_id : (H, W) int32
+        index into ``faces`` of the visible triangle; ``-1`` on the background.
+    coverage : (H, W) float32
+        fraction of sub-samples covered (``supersample > 1``); equals ``mask`` otherwise.
+    near, far : float
+        the clipping planes used (mm).
+    """
+
+    color: np.ndarray
+    depth: np.ndarray
+    mask: np.ndarray
+    face_id: np.ndarray
+    coverage: np.ndarray
+    near: float
+    far: float
+
+
+# ----------------------------------------------------------------------------- renderer
+
+
+def _create_context():
+    import moderngl
+
+    errors = []
+    for kwargs in ({"backend": "egl"}, {}):
+        try:
+            return moderngl.create_context(standalone=True, require=330, **kwargs)
+        except Exception as exc:  # noqa: BLE001 - every backend failure is reported together
+            errors.append(f"{kwargs.get('backend', 'default')}: {exc}")
+    raise RuntimeError(
+        "Face Studio could not create a headless OpenGL 3.3 context for rendering ("
+        + "; ".join(errors)
+        + "). Install an EGL/OpenGL driver, e.g. on Debian/Ubuntu `apt-get install libegl1 "
+        "libgl1-mesa-dri` (Mesa's llvmpipe renders on the CPU when there is no GPU)."
+    )
+
+
+class Renderer:
+    """A headless OpenGL renderer of triangle meshes through :class:`Camera` (see module notes).
+
+    Create it with :func:`get_renderer` (one per thread) rather than directly. It owns a
+    moderngl context, one compiled program and float framebuffers cached per image size;
+    vertex buffers are uploaded per call. Use it only from the thread that created it, and
+    call :meth:`release` to free the GL resources early.
+    """
+
+    def __init__(self):
+        import moderngl
+
+        self._moderngl = moderngl
+        self._thread = threading.get_ident()
+        self.ctx = _create_context()
+        with self.ctx:
+            self._prog = self.ctx.program(vertex_shader=_VERTEX_SHADER, fragment_shader=_FRAGMENT_SHADER)
+            self._prog["tex"].value = 0
+            self._prog["ambient"].value = _AMBIENT
+            self._prog["albedo"].value = _ALBEDO
+        self._fbos: OrderedDict[tuple[int, int], tuple] = OrderedDict()
+        self.max_size = int(self.ctx.info["GL_MAX_RENDERBUFFER_SIZE"])
+        self.released = False
+
+    # -- resources ----------------------------------------------------------------
+    def _check_usable(self):
+        if self.released:
+            raise RuntimeError("this Renderer was released; call get_renderer() for a new one")
+        if threading.get_ident() != self._thread:
+            raise RuntimeError(
+                "an OpenGL context belongs to the thread that created it: use get_renderer() "
+                "in this thread instead of sharing a Renderer between threads"
+            )
+
+    def _framebuffer(self, width: int, height: int):
+        key = (width, height)
+        if key in self._fbos:
+            self._fbos.move_to_end(key)
+            return self._fbos[key][0]
+        size = (width, height)
+        attachments = (
+            self.ctx.renderbuffer(size, components=4, dtype="f4"),  # colour
+            self.ctx.renderbuffer(size, components=1, dtype="f4"),  # Z_cam
+            self.ctx.renderbuffer(size, components=1, dtype="i4"),  # face index + 1
+        )
+        depth = self.ctx.depth_renderbuffer(size)
+        fbo = self.ctx.framebuffer(list(attachments), depth)
+        self._fbos[key] = (fbo, *attachments, depth)
+        while len(self._fbos) > _MAX_CACHED_SIZES:
+            _, old = self._fbos.popitem(last=False)
+            for obj in old:
+                obj.release()
+        return fbo
+
+    def release(self) -> None:
+        """Free every GL object and the context. The renderer cannot be used afterwards."""
+        if self.released:
+            return
+        for objs in self._fbos.values():
+            for obj in objs:
+                obj.release()
+        self._fbos.clear()
+        self._prog.release()
+        self.ctx.release()
+        self.released = True
+
+    # -- rendering ------------------------------------------------------------------
+    def render(
+        self,
+        camera: Camera,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        *,
+        uv: np.ndarray | None = None,
+        texture: np.ndarray | None = None,
+        colors: np.ndarray | None = None,
+        background=0.0,
+        cull_backfaces: bool = False,
+        shading: str | None = None,
+        near: float | None = None,
+        far: float | None = None,
+        supersample: int = 1,
+    ) -> RenderResult:
+        """Render a triangle mesh as ``camera`` sees it.
+
+        Parameters
+        ----------
+        camera : Camera
+            pose and intrinsics; the image is ``camera.height × camera.width``.
+        vertices : (n, 3) float
+            world positions in mm.
+        faces : (m, 3) int
+            triangles (indices into ``vertices``); ``face_id`` refers to rows of this array.
+        uv : (n, 2) float, optional
+            texture coordinates, ``v`` up (OBJ/OpenGL convention); required with ``texture``.
+        texture : (Ht, Wt) or (Ht, Wt, C) with C in 1..4, optional
+            ``uint8`` (read as ``0..1``), ``uint16`` (``0..1``) or float (values kept).
+        colors : (n,) or (n, k) float, optional
+            per-vertex attributes of any ``k ≥ 1`` and any float values, interpolated
+            perspective-correctly into float32 targets (no clamping) — e.g. vertex
+            indices, world positions or derivatives. Rendered 4 channels per pass.
+        background : float or (C,) sequence
+            ``color`` value of uncovered pixels.
+        cull_backfaces : bool
+            drop triangles seen from behind (clockwise seen from outside = back).
+        shading : None, ``'lambert'`` or ``'flat'``
+            multiply the colour (the texture, ``colors`` or a grey albedo of 0.8 when neither
+            is given) by a Lambert term ``0.15 + 0.85 |n·l|`` with a head-light along the
+            optical axis; ``'lambert'`` uses interpolated vertex normals, ``'flat'`` face normals.
+        near, far : float, optional
+            clipping distances in mm; by default the vertices' depth range plus 10 %
+            (:func:`auto_near_far`).
+        supersample : odd int
+            render at ``supersample``× the resolution and box-filter ``color`` (anti-aliased
+            edges, with ``coverage`` the covered fraction). ``depth``, ``mask`` and
+            ``face_id`` are those of the central sub-sample, which sits exactly on the pixel
+            centre, so they equal the ``supersample=1`` render.
+
+        Returns
+        -------
+        RenderResult
+        """
+        self._check_usable()
+        if not isinstance(camera, Camera):
+            raise TypeError(f"camera must be a photomodel.camera.Camera, got {type(camera).__name__}")
+        W, H = camera.width, camera.height
+        if W < 1 or H < 1:
+            raise ValueError(f"camera image size must be positive, got {W}×{H}")
+        ss = int(supersample)
+        if ss != supersample or ss < 1 or ss % 2 == 0:
+            raise ValueError(f"supersample must be an odd positive integer, got {supersample!r}")
+        if max(W, H) * ss > self.max_size:
+            raise ValueError(
+                f"{W}×{H} at supersample {ss} exceeds the GL renderbuffer limit of {self.max_size} px"
+            )
+
+        V = np.asarray(vertices, dtype=float)
+        if V.ndim != 2 or V.shape[1] != 3:
+            raise ValueError(f"vertices must be (n, 3) mm, got shape {V.shape}")
+        if not np.all(np.isfinite(V)):
+            raise ValueError("vertices contain NaN or inf")
+        n = len(V)
+        F = np.asarray(faces)
+        if F.size == 0:
+            F = F.reshape(0, 3)
+        if F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer):
+            raise ValueError(f"faces must be (m, 3) integers, got shape {F.shape} dtype {F.dtype}")
+        if F.size and (F.min() < 0 or F.max() >= n):
+            raise ValueError(f"faces index vertices outside 0..{n - 1} (min {F.min()}, max {F.max()})")
+        if texture is not None and colors is not None:
+            raise ValueError("give either texture (with uv) or colors, not both")
+        if shading not in (None, "lambert", "flat"):
+            raise ValueError(f"shading must be None, 'lambert' or 'flat', got {shading!r}")
+
+        # -- what the colour channels are -------------------------------------------------
+        tex_data = None
+        if texture is not None:
+            if uv is None:
+                raise ValueError("texture needs uv (n, 2) texture coordinates")
+            tex_data, C = _texture_array(texture)
+            uv = np.asarray(uv, dtype=np.float32)
+            if uv.shape != (n, 2):
+                raise ValueError(f"uv must be (n, 2) = ({n}, 2), got {uv.shape}")
+            attr_passes = [np.column_stack([uv, np.zeros((n, 2), np.float32)])]
+            mode = 1
+        elif colors is not None:
+            A = np.asarray(colors, dtype=np.float32)
+            if A.ndim == 1:
+                A = A[:, None]
+            if A.ndim != 2 or A.shape[0] != n or A.shape[1] < 1:
+                raise ValueError(f"colors must be (n,) or (n, k) with n={n}, got {np.shape(colors)}")
+            C = A.shape[1]
+            attr_passes = []
+            for c0 in range(0, C, 4):
+                chunk = np.zeros((n, 4), np.float32)
+                chunk[:, : min(4, C - c0)] = A[:, c0 : c0 + 4]
+                attr_passes.append(chunk)
+            mode = 0
+        else:
+            C = 3
+            attr_passes = [np.zeros((n, 4), np.float32)]
+            mode = 2
+        bg = np.broadcast_to(np.asarray(background, dtype=np.float32).reshape(-1), (C,)) if np.size(
+            background
+        ) in (1, C) else None
+        if bg is None:
+            raise ValueError(f"background must be a scalar or have {C} values, got {np.shape(background)}")
+
+        # -- geometry in camera coordinates (float64 on the CPU, float32 on the GPU) ---
+        Xc = camera.to_camera(V)
+        if near is None or far is None:
+            auto = auto_near_far(Xc[:, 2]) if n else None
+            if auto is None:
+                auto = (1.0, 2.0)  # nothing in front of the camera: any valid planes
+                F = F[:0]
+            near = auto[0] if near is None else near
+            far = auto[1] if far is None else far
+        near, far = float(near), float(far)
+
+        cam = camera if ss == 1 else Camera(camera.R, camera.t, camera.f * ss, W * ss, H * ss)
+        Ws, Hs = cam.width, cam.height
+        proj = gl_projection(cam, near, far)
+        normals = (
+            vertex_normals(V, F) @ camera.R.T if shading == "lambert" and len(F) else np.zeros((n, 3))
+        )
+
+        colour_passes = []
+        with self.ctx:
+            fbo = self._framebuffer(Ws, Hs)
+            fbo.use()
+            fbo.viewport = (0, 0, Ws, Hs)
+            ctx = self.ctx
+            ctx.disable(self._moderngl.BLEND)
+            ctx.enable(self._moderngl.DEPTH_TEST)
+            if cull_backfaces:
+                ctx.enable(self._moderngl.CULL_FACE)
+                ctx.front_face = "cw"  # our y-down projection mirrors the winding
+                ctx.cull_face = "back"
+            else:
+                ctx.disable(self._moderngl.CULL_FACE)
+            self._prog["proj"].write(proj.T.astype(np.float32).tobytes())
+            self._prog["mode"].value = mode
+            self._prog["shading"].value = {None: 0, "lambert": 1, "flat": 2}[shading]
+
+            gl_objects = []
+            try:
+                if tex_data is not None:
+                    tex = _upload_texture(ctx, tex_data)
+                    gl_objects.append(tex)
+                    tex.use(location=0)
+                if len(F):
+                    pos_buf = ctx.buffer(Xc.astype(np.float32).tobytes())
+                    nrm_buf = ctx.buffer(normals.astype(np.float32).tobytes())
+                    idx_buf = ctx.buffer(np.ascontiguousarray(F, dtype=np.int32).tobytes())
+                    attr_buf = ctx.buffer(reserve=n * 16)
+                    gl_objects += [pos_buf, nrm_buf, idx_buf, attr_buf]
+                    vao = ctx.vertex_array(
+                        self._prog,
+                        [
+                            (pos_buf, "3f", "in_pos"),
+                            (attr_buf, "4f", "in_attr"),
+                            (nrm_buf, "3f", "in_normal"),
+                        ],
+                        index_buffer=idx_buf,
+                        index_element_size=4,
+                    )
+                    gl_objects.append(vao)
+                for i, chunk in enumerate(attr_passes):
+                    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)  # int target: float 0.0 bits = 0
+                    if len(F):
+                        attr_buf.write(chunk.tobytes())
+                        vao.render(self._moderngl.TRIANGLES)
+                    colour_passes.append(_read(fbo, 0, 4, "f4", Ws, Hs))
+                    if i == 0:
+                        depth = _read(fbo, 1, 1, "f4", Ws, Hs)[..., 0]
+                        face = _read(fbo, 2, 1, "i4", Ws, Hs)[..., 0] - 1
+            finally:
+                for obj in gl_objects:
+                    obj.release()
+
+        color = np.concatenate(colour_passes, axis=2)[..., :C]
+        mask = face >= 0
+        color[~mask] = bg
+        depth[~mask] = np.inf
+        if ss > 1:
+            color = color.reshape(H, ss, W, ss, C).mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
+            coverage = mask.reshape(H, ss, W, ss).mean(axis=(1, 3)).astype(np.float32)
+            c = ss // 2
+            depth, face, mask = depth[c::ss, c::ss], face[c::ss, c::ss], mask[c::ss, c::ss]
+        else:
+            coverage = mask.astype(np.float32)
+        return RenderResult(
+            color=np.ascontiguousarray(color),
+            depth=np.ascontiguousarray(depth),
+            mask=np.ascontiguousarray(mask),
+            face_id=np.ascontiguousarray(face, dtype=np.int32),
+            coverage=coverage,
+            near=near,
+            far=far,
+        )
+
+
+def _texture_array(texture) -> tuple[np.ndarray, int]:
+    """Validate a texture image; return it as (Ht, Wt, C) uint8 or float32 and C."""
+    T = np.asarray(texture)
+    if T.ndim == 2:
+        T = T[:, :, None]
+    if T.ndim != 3 or T.shape[2] not in (1, 2, 3, 4) or T.shape[0] < 1 or T.shape[1] < 1:
+        raise ValueError(f"texture must be (H, W) or (H, W, C) with C in 1..4, got shape {np.shape(texture)}")
+    if T.dtype == np.uint8:
+        return np.ascontiguousarray(T), T.shape[2]
+    if T.dtype == np.uint16:
+        return (T.astype(np.float32) / 65535.0), T.shape[2]
+    if np.issubdtype(T.dtype, np.floating):
+        return np.ascontiguousarray(T, dtype=np.float32), T.shape[2]
+    raise ValueError(f"texture must be uint8, uint16 or float, got {T.dtype}")
+
+
+def _upload_texture(ctx, T: np.ndarray):
+    import moderngl
+
+    h, w, c = T.shape
+    tex = ctx.texture((w, h), c, T.tobytes(), alignment=1, dtype="f1" if T.dtype == np.uint8 else "f4")
+    tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+    tex.repeat_x = tex.repeat_y = False  # clamp to edge: no bleeding across the u = 0 / 1 seam
+    return tex
+
+
+def _read(fbo, attachment: int, components: int, dtype: str, W: int, H: int) -> np.ndarray:
+    """(H, W, components) array of one colour attachment, row 0 = image top (see module notes)."""
+    raw = fbo.read(components=components, attachment=attachment, dtype=dtype, alignment=1)
+    return np.frombuffer(raw, dtype=np.dtype(dtype)).reshape(H, W, components).copy()
+
+
+_local = threading.local()
+
+
+def get_renderer() -> Renderer:
+    """This thread's :class:`Renderer`, created on first use and reused afterwards.
+
+    Raises
+    ------
+    RuntimeError
+        when no headless OpenGL 3.3 context can be created; the message says what to install.
+    """
+    r = getattr(_local, "renderer", None)
+    if r is None or r.released:
+        r = _local.renderer = Renderer()
+    return r
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m photomodel.render [out.png] [--size N]``: the james scan from the front."""
+    import argparse
+    import time
+
+    from photomodel.camera import orbit_camera
+    from photomodel.sample_data import load_james_scan
+
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("out", nargs="?", default="render_check.png")
+    parser.add_argument("--size", type=int, default=1000)
+    parser.add_argument("--azimuth", type=float, default=0.0, help="degrees, + towards subject's left")
+    args = parser.parse_args(argv)
+    scan = load_james_scan()
+    cam = orbit_camera(args.azimuth, args.size, args.size, distance_mm=900.0, target=(0.0, 10.0, 0.0))
+    renderer = get_renderer()
+    t0 = time.perf_counter()
+    res = renderer.render(cam, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture, background=1.0)
+    dt = time.perf_counter() - t0
+    print(f"{write_png(args.out, res.color)}  ({args.size}×{args.size} in {dt * 1000:.0f} ms)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,628 @@
+"""Ground truth from the real ``james`` head scan: where each generic-mesh vertex truly
+lies on the scan, camera rigs, visibility, and what an artist would click and draw.
+
+Used **only** by tests, benchmarks and ``sample_projects/make_james.py``; the fit
+(:mod:`photomodel.fit`) never reads anything from here. To keep the ground truth
+independent of the code it judges, nothing here uses :mod:`photomodel.rbf` or
+:mod:`photomodel.pose`: the generic→scan correspondence is a thin-plate-spline warp
+(:class:`scipy.interpolate.RBFInterpolator`, a kept, well-tested implementation) followed
+by a non-rigid closest-point refinement written below.
+
+Units and conventions are those of :mod:`photomodel.camera` (mm, head frame, pixels with
+centres at integers, ``v`` down).
+
+What a synthetic artist does
+----------------------------
+* **Clicks** (§5.1.1 / §5.1.3 of Pighin et al. 2002: features clicked in each photo) are
+  the exact projections of the true 3D feature positions plus Gaussian hand noise
+  (σ ≈ 1 px), only where the feature is visible (:func:`visible`).
+* **Curves** (§5.1.3: eyebrows, eyelids, lips and chin are drawn as curves) are the
+  projection of the true curve on the scan, resampled irregularly (15–40 stroke points),
+  with a smooth hand wobble, clipped to the visible part, sometimes drawn in reverse.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import weakref
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sparse
+from scipy.interpolate import RBFInterpolator
+from scipy.spatial import cKDTree
+
+from .camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, orbit_camera, rodrigues
+
+if TYPE_CHECKING:  # imported lazily at run time: only these functions need the sample data
+    from .generic_mesh import GenericMesh
+    from .sample_data import Scan
+
+#: Bump when the correspondence recipe changes; part of the cache file's key.
+CORRESPONDENCE_VERSION = 1
+
+#: Smoothing passes of the displacement field in each closest-point iteration: strong
+#: first (the field moves the mesh as a whole), weaker later (local detail).
+_SMOOTHING_SCHEDULE = (40, 20, 10, 5, 3, 2, 1, 1)
+#: A closest-point match is trusted only if the surface normals agree (cos > this) and
+#: it is closer than :data:`_MAX_MATCH_MM`: rejects matches across the lips, into the
+#: nostrils and at the template's outer border, where the scan's surface is elsewhere.
+_MIN_NORMAL_COS = 0.5
+_MAX_MATCH_MM = 15.0
+
+#: Rough centre of the james head in the head frame (mm): the middle of the scan's
+#: bounding box in x and y, moved forward of the skull centre towards the face so the
+#: face stays in frame in side views. Rigs aim near it.
+HEAD_CENTRE_MM = np.array([0.0, 5.0, 55.0])
+#: Apparent radius (mm) of the part of the head a rig frames, and the fraction of the
+#: half-frame it fills.
+_FRAMED_RADIUS_MM = 125.0
+_FILL = 0.92
+
+# Rigs: (azimuth°, elevation°, roll°, lens mm, aim offset mm from HEAD_CENTRE_MM). Azimuths
+# are deliberately not the presets' so the artist's preset is only a rough guess.
+_RIGS: dict[str, tuple[tuple[float, float, float, float, tuple[float, float, float]], ...]] = {
+    "sample": (
+        (-75.0, 4.0, -2.0, 35.0, (2.0, -3.0, 1.0)),
+        (-35.0, -5.0, 1.5, 50.0, (-3.0, 2.0, 0.0)),
+        (0.0, 7.0, -1.0, 85.0, (1.0, 4.0, -2.0)),
+        (40.0, -2.0, 2.5, 100.0, (-2.0, -1.0, 3.0)),
+        (80.0, 10.0, -1.5, 70.0, (3.0, 2.0, -1.0)),
+    ),
+    "three": (
+        (-45.0, 2.0, 1.0, 50.0, (-2.0, 1.0, 0.0)),
+        (0.0, 6.0, -1.0, 85.0, (1.0, 3.0, -1.0)),
+        (50.0, -3.0, 2.0, 70.0, (2.0, -2.0, 2.0)),
+    ),
+    "seven": (
+        (-85.0, 3.0, -1.0, 50.0, (2.0, -2.0, 0.0)),
+        (-60.0, 8.0, 2.0, 70.0, (-1.0, 3.0, 1.0)),
+        (-28.0, -4.0, -2.5, 35.0, (3.0, 0.0, -2.0)),
+        (3.0, 5.0, 1.0, 85.0, (0.0, 2.0, 1.0)),
+        (32.0, -5.0, -1.0, 100.0, (-2.0, -3.0, 0.0)),
+        (58.0, 9.0, 1.5, 50.0, (1.0, 1.0, 2.0)),
+        (86.0, 0.0, -2.0, 70.0, (-3.0, 2.0, -1.0)),
+    ),
+}
+_RIG_BY_COUNT = {5: "sample", 3: "three", 7: "seven"}
+RIG_NAMES = tuple(_RIGS)
+
+
+# ----------------------------------------------------------------------------- surface
+
+
+class ScanSurface:
+    """Exact closest-point queries on a triangle surface (no spatial-index dependency).
+
+    Every triangle is covered by a barycentric grid of sample points no farther than
+    ``spacing_mm`` from any point of the triangle; a k-d tree over the samples yields
+    candidate triangles and :func:`trimesh.triangles.closest_point` the exact answer.
+    The result is exact: if the best candidate is at distance ``d`` and the k-th sample
+    is farther than ``d + spacing_mm``, no triangle outside the candidates can be closer
+    (each has a sample within ``spacing_mm`` of its own closest point); otherwise the
+    query is repeated with more candidates.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float, mm.
+    faces : (m, 3) int.
+    spacing_mm : float
+        sample coverage radius.
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, spacing_mm: float = 2.0):
+        self.vertices = np.asarray(vertices, float)
+        self.faces = np.asarray(faces, np.int64)
+        self.triangles = self.vertices[self.faces]
+        self.spacing = float(spacing_mm)
+        tri = self.triangles
+        longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+        subdiv = np.maximum(1, np.ceil(longest / self.spacing).astype(int))
+        samples, owner = [], []
+        for m in np.unique(subdiv):
+            sel = np.flatnonzero(subdiv == m)
+            i, j = np.meshgrid(np.arange(m + 1), np.arange(m + 1), indexing="ij")
+            keep = i + j <= m
+            bary = np.column_stack([i[keep], j[keep], m - i[keep] - j[keep]]) / m
+            samples.append(np.einsum("sk,tkd->tsd", bary, tri[sel]).reshape(-1, 3))
+            owner.append(np.repeat(sel, len(bary)))
+        self._samples = np.concatenate(samples)
+        self._owner = np.concatenate(owner)
+        self._tree = cKDTree(self._samples)
+        # outward vertex normals (area-weighted), for normals at closest points
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        self.face_normals = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-12)
+        acc = np.zeros_like(self.vertices)
+        for k in range(3):
+            np.add.at(acc, self.faces[:, k], cross)
+        self.vertex_normals = acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-12)
+
+    def closest(self, points: np.ndarray, k: int = 24) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Closest surface points.
+
+        Parameters
+        ----------
+        points : (n, 3) float, mm.
+
+        Returns
+        -------
+        closest : (n, 3) float, mm.
+        distance : (n,) float, mm.
+        face : (n,) int, triangle holding each closest point.
+        """
+        from trimesh.triangles import closest_point
+
+        points = _points3(points, "points")
+        n = len(points)
+        out, dist, face = np.zeros((n, 3)), np.full(n, np.inf), np.zeros(n, np.int64)
+        todo = np.arange(n)
+        while len(todo):
+            kk = min(k, len(self._samples))
+            for chunk in np.array_split(todo, max(1, len(todo) * kk // 400_000)):
+                d_k, idx = self._tree.query(points[chunk], kk)
+                d_k, idx = d_k.reshape(len(chunk), kk), idx.reshape(len(chunk), kk)
+                cand = self._owner[idx]
+                c = closest_point(self.triangles[cand.ravel()], np.repeat(points[chunk], kk, axis=0))
+                c = c.reshape(len(chunk), kk, 3)
+                d = np.linalg.norm(c - points[chunk, None], axis=2)
+                j = d.argmin(axis=1)
+                a = np.arange(len(chunk))
+                out[chunk], dist[chunk], face[chunk] = c[a, j], d[a, j], cand[a, j]
+                proven = (dist[chunk] + self.spacing <= d_k[:, -1]) | (kk == len(self._samples))
+                dist[chunk[~proven]] = -1.0  # marker: query again with more candidates
+            todo = todo[dist[todo] < 0]
+            k *= 4
+        return out, dist, face
+
+    def normals_at(self, points: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """(n, 3) unit normals at surface ``points`` on triangles ``face``: the vertex
+        normals interpolated barycentrically (smooth across edges)."""
+        tri = self.triangles[face]
+        e0, e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
+        d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
+        d20, d21 = (e2 * e0).sum(1), (e2 * e1).sum(1)
+        den = np.where(np.abs(d00 * d11 - d01**2) > 1e-18, d00 * d11 - d01**2, 1.0)
+        b1 = (d11 * d20 - d01 * d21) / den
+        b2 = (d00 * d21 - d01 * d20) / den
+        bary = np.clip(np.column_stack([1.0 - b1 - b2, b1, b2]), 0.0, 1.0)
+        n = np.einsum("nk,nkd->nd", bary, self.vertex_normals[self.faces[face]])
+        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+
+_SURFACES: dict[int, ScanSurface] = {}
+
+
+def scan_surface(scan: Scan) -> ScanSurface:
+    """The :class:`ScanSurface` of ``scan``'s welded surface, built once per scan object."""
+    key = id(scan)
+    if key not in _SURFACES:
+        welded = scan.welded
+        _SURFACES[key] = ScanSurface(np.asarray(welded.vertices), np.asarray(welded.faces))
+        weakref.finalize(scan, _SURFACES.pop, key, None)
+    return _SURFACES[key]
+
+
+def surface_distance(points: np.ndarray, scan: Scan) -> np.ndarray:
+    """(n,) float distance in mm from each of ``points`` (n, 3) to the welded scan surface."""
+    return scan_surface(scan).closest(points)[1]
+
+
+def surface_normals(points: np.ndarray, scan: Scan) -> np.ndarray:
+    """(n, 3) unit outward scan normal at the surface point closest to each of ``points``."""
+    surf = scan_surface(scan)
+    closest, _, face = surf.closest(points)
+    return surf.normals_at(closest, face)
+
+
+# ----------------------------------------------------------------------------- correspondence
+
+
+def true_correspondence(mesh: GenericMesh, scan: Scan, *, use_cache: bool = True) -> np.ndarray:
+    """For every generic-mesh vertex, its true position on the james scan.
+
+    1. Thin-plate-spline warp of the generic mesh driven by the 68 landmark pairs
+       (generic landmark vertices → scan landmarks).
+    2. Non-rigid closest-point refinement (:data:`_SMOOTHING_SCHEDULE` iterations): each
+       vertex is matched to its closest scan point, matches whose normals disagree or
+       that are too far are given zero weight, the displacement field is smoothed over
+       the mesh graph (weighted, landmark displacements held), and applied.
+    3. Every vertex is projected onto the scan surface (the smoothed field leaves it
+       ~0.1–0.2 mm away), and the landmark vertices are put exactly on the scan landmarks
+       (which lie within 0.15 mm of the surface).
+
+    Parameters
+    ----------
+    mesh : GenericMesh
+    scan : Scan
+    use_cache : bool
+        read/write ``<cache>/true_correspondence-<key>.npz`` (key from the inputs'
+        bytes and :data:`CORRESPONDENCE_VERSION`).
+
+    Returns
+    -------
+    (n, 3) float
+        mm, head frame; row ``i`` is where generic vertex ``i`` truly lies on the scan.
+    """
+    return _correspondence_arrays(mesh, scan, use_cache)["points"]
+
+
+def correspondence_residual(mesh: GenericMesh, scan: Scan) -> np.ndarray:
+    """(n,) float mm: distance from the scan of each vertex of the smooth warp *before*
+    the final projection of :func:`true_correspondence` (a quality measure of the
+    smooth field; large only where the template's shape differs, e.g. inside the
+    nostrils and between the lips)."""
+    return _correspondence_arrays(mesh, scan, True)["smooth_residual"]
+
+
+def _correspondence_arrays(mesh: GenericMesh, scan: Scan, use_cache: bool) -> dict[str, np.ndarray]:
+    from .sample_data import _load_npz, _save_npz, cache_dir
+
+    h = hashlib.sha256(f"v{CORRESPONDENCE_VERSION}".encode())
+    for a in (mesh.vertices, mesh.faces, mesh.landmarks, scan.vertices, scan.faces, scan.landmarks):
+        h.update(np.ascontiguousarray(a).tobytes())
+    path = cache_dir() / f"true_correspondence-{h.hexdigest()[:16]}.npz"
+    if use_cache:
+        arrays = _load_npz(path)
+        if arrays is not None:
+            return arrays
+    points, residual = _build_correspondence(mesh, scan)
+    arrays = {"points": points, "smooth_residual": residual}
+    if use_cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        _save_npz(path, arrays)
+    return arrays
+
+
+def _build_correspondence(mesh: GenericMesh, scan: Scan) -> tuple[np.ndarray, np.ndarray]:
+    from .generic_mesh import vertex_normals
+
+    V, F, L = np.asarray(mesh.vertices, float), np.asarray(mesh.faces), np.asarray(mesh.landmarks)
+    target = np.asarray(scan.landmarks, float)
+    surf = scan_surface(scan)
+    n = len(V)
+
+    X = RBFInterpolator(V[L], target, kernel="thin_plate_spline")(V)
+
+    edges = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    adj = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    adj = ((adj + adj.T) > 0).astype(float).tocsr()
+    mean_of_neighbours = sparse.diags(1.0 / np.maximum(np.asarray(adj.sum(1)).ravel(), 1)) @ adj
+
+    for passes in _SMOOTHING_SCHEDULE:
+        closest, dist, face = surf.closest(X)
+        disp = closest - X
+        agree = np.einsum("ij,ij->i", vertex_normals(X, F), surf.face_normals[face])
+        weight = ((agree > _MIN_NORMAL_COS) & (dist < _MAX_MATCH_MM)).astype(float)
+        disp[L] = target - X[L]
+        weight[L] = 1.0
+        wd, w = disp * weight[:, None], weight.copy()
+        for _ in range(passes):  # weighted Laplacian smoothing, landmark values held
+            wd = 0.5 * wd + 0.5 * (mean_of_neighbours @ wd)
+            w = 0.5 * w + 0.5 * (mean_of_neighbours @ w)
+            wd[L], w[L] = disp[L], 1.0
+        X = X + wd / np.maximum(w, 1e-9)[:, None]
+
+    closest, residual, _ = surf.closest(X)
+    closest[L] = target
+    return closest, residual
+
+
+def true_feature_positions(mesh: GenericMesh, scan: Scan, vertices: Sequence[int]) -> np.ndarray:
+    """(k, 3) float mm: the true scan position of generic-mesh ``vertices`` (k,)."""
+    return true_correspondence(mesh, scan)[np.asarray(vertices, np.int64)]
+
+
+def extra_correspondences(
+    mesh: GenericMesh, n: int = 100, *, seed: int = 0, min_landmark_distance_mm: float = 6.0
+) -> dict[str, int]:
+    """``n`` extra feature vertices spread over the face by farthest-point sampling.
+
+    Candidates are the vertices of ``mesh.face_mask`` at least
+    ``min_landmark_distance_mm`` from every landmark vertex (which are features already).
+    The first is drawn with ``seed``; each next one is the candidate farthest (3D) from
+    those chosen.
+
+    Returns
+    -------
+    dict[str, int]
+        ``{"extra_000": vertex, ...}`` in sampling order.
+    """
+    if n < 0:
+        raise ValueError(f"n must be >= 0, got {n}")
+    V = np.asarray(mesh.vertices, float)
+    near_lm, _ = cKDTree(V[mesh.landmarks]).query(V)
+    cand = np.flatnonzero(np.asarray(mesh.face_mask, bool) & (near_lm >= min_landmark_distance_mm))
+    if n > len(cand):
+        raise ValueError(f"only {len(cand)} candidate vertices for {n} extra correspondences")
+    chosen = [int(cand[np.random.default_rng(seed).integers(len(cand))])]
+    dist = np.linalg.norm(V[cand] - V[chosen[0]], axis=1)
+    while len(chosen) < n:
+        j = int(np.argmax(dist))
+        chosen.append(int(cand[j]))
+        dist = np.minimum(dist, np.linalg.norm(V[cand] - V[cand[j]], axis=1))
+    return {f"extra_{i:03d}": v for i, v in enumerate(chosen[:n])}
+
+
+# ----------------------------------------------------------------------------- rigs
+
+
+def rig(name: str | int = "sample", width: int = 1000, height: int = 1000) -> list[Camera]:
+    """The true cameras of a synthetic photo shoot of the james head.
+
+    Parameters
+    ----------
+    name : {"sample", "three", "seven"} or {5, 3, 7}
+        ``"sample"`` (5 cameras, the sample project): azimuths −75°, −35°, 0°, +40°,
+        +80°, lenses 35, 50, 85, 100, 70 mm; ``"three"``: −45°, 0°, +50°; ``"seven"``:
+        −85° … +86°. Each camera has its own small elevation (−5…+10°), roll (±2.5°) and
+        aim offset (a few mm around :data:`HEAD_CENTRE_MM`), and a distance chosen so
+        the head fills most of the frame whatever the lens.
+    width, height : int
+        image size in pixels.
+
+    Returns
+    -------
+    list[Camera]
+        ordered by azimuth (subject's right → left).
+    """
+    if isinstance(name, (int, np.integer)) and not isinstance(name, bool):
+        if int(name) not in _RIG_BY_COUNT:
+            raise ValueError(f"no rig with {name} cameras; choose {sorted(_RIG_BY_COUNT)}")
+        name = _RIG_BY_COUNT[int(name)]
+    if name not in _RIGS:
+        raise ValueError(f"unknown rig {name!r}; choose one of {list(_RIGS)} or {sorted(_RIG_BY_COUNT)}")
+    if int(width) < 1 or int(height) < 1:
+        raise ValueError(f"image size must be positive, got {width}×{height}")
+    cameras = []
+    for az, el, roll, lens, offset in _RIGS[name]:
+        f_px = focal_mm_to_px(lens, width)
+        distance = f_px * _FRAMED_RADIUS_MM / (_FILL * min(width, height) / 2.0)
+        cam = orbit_camera(
+            az, width, height, distance_mm=distance, focal_mm=lens, elevation_deg=el,
+            target=HEAD_CENTRE_MM + np.asarray(offset),
+        )  # fmt: skip
+        spin = rodrigues(np.array([0.0, 0.0, np.radians(roll)]))  # about the optical axis
+        cameras.append(Camera(spin @ cam.R, spin @ cam.t, cam.f, width, height))
+    return cameras
+
+
+def azimuth_deg(camera: Camera) -> float:
+    """Azimuth in degrees of ``camera``'s centre about the head (world +y axis through
+    :data:`HEAD_CENTRE_MM`); 0 in front of the face, +90 at the subject's left."""
+    c = camera.center - HEAD_CENTRE_MM
+    return float(np.degrees(np.arctan2(c[0], c[2])))
+
+
+def preset_for(camera: Camera) -> str:
+    """The preset (key of :data:`photomodel.camera.PRESET_AZIMUTH_DEG`) nearest in
+    azimuth to ``camera``: the artist's rough initial guess for that photo."""
+    az = azimuth_deg(camera)
+    return min(PRESET_AZIMUTH_DEG, key=lambda p: abs(PRESET_AZIMUTH_DEG[p] - az))
+
+
+# ----------------------------------------------------------------------------- rendering
+
+
+def render_scan(camera: Camera, scan: Scan):
+    """Render the textured scan from ``camera`` with :func:`photomodel.render.get_renderer`.
+
+    Returns
+    -------
+    RenderResult
+        ``color`` (H, W, 3) float in [0, 1], ``depth`` (H, W) mm (inf on background),
+        ``mask`` (H, W) bool.
+    """
+    from .render import get_renderer
+
+    return get_renderer().render(camera, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture)
+
+
+def scan_depth(camera: Camera, scan: Scan) -> np.ndarray:
+    """(H, W) float: rendered depth ``Z_cam`` (mm) of the scan from ``camera``, inf on background."""
+    return np.asarray(render_scan(camera, scan).depth, float)
+
+
+# ----------------------------------------------------------------------------- visibility
+
+
+def visible(
+    camera: Camera,
+    points: np.ndarray,
+    scan: Scan,
+    *,
+    depth: np.ndarray | None = None,
+    normals: np.ndarray | None = None,
+    tol_mm: float = 1.5,
+    min_cos: float = 0.1,
+) -> np.ndarray:
+    """Which scan-surface ``points`` a camera sees.
+
+    A point is visible when it projects inside the image, its depth is within ``tol_mm``
+    of the scan's rendered depth there (bilinear between the four surrounding pixels, so
+    sloped surfaces are not penalised by rounding), and the surface faces the camera:
+    ``n · (c − p)/‖c − p‖ > min_cos``.
+
+    Parameters
+    ----------
+    camera : Camera
+    points : (n, 3) float
+        mm, on (or within a fraction of a mm of) the scan surface.
+    scan : Scan
+    depth : (H, W) float, optional
+        the scan's depth map from ``camera`` (:func:`scan_depth`); rendered if omitted.
+    normals : (n, 3) float, optional
+        unit outward normals at ``points``; the scan's (:func:`surface_normals`) if omitted.
+
+    Returns
+    -------
+    (n,) bool
+    """
+    points = _points3(points, "points")
+    if depth is None:
+        depth = scan_depth(camera, scan)
+    depth = np.asarray(depth, float)
+    if depth.shape != (camera.height, camera.width):
+        raise ValueError(f"depth map is {depth.shape}, camera image is {(camera.height, camera.width)}")
+    if normals is None:
+        normals = surface_normals(points, scan)
+    uv = camera.project(points)
+    z = camera.depth(points)
+    W, H = camera.width, camera.height
+    inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
+    u = np.clip(uv[:, 0], 0, W - 1)
+    v = np.clip(uv[:, 1], 0, H - 1)
+    u0 = np.minimum(np.floor(u).astype(int), W - 2)
+    v0 = np.minimum(np.floor(v).astype(int), H - 2)
+    fu, fv = u - u0, v - v0
+    corners = np.stack([depth[v0, u0], depth[v0, u0 + 1], depth[v0 + 1, u0], depth[v0 + 1, u0 + 1]], 1)
+    wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv], 1)
+    finite = np.isfinite(corners)
+    wts = np.where(finite, wts, 0.0)
+    has = wts.sum(1) > 0
+    interp = np.where(has, (np.where(finite, corners, 0.0) * wts).sum(1) / np.where(has, wts.sum(1), 1), np.inf)
+    to_cam = camera.center - points
+    facing = np.einsum("ij,ij->i", normals, to_cam) / np.linalg.norm(to_cam, axis=1) > min_cos
+    return inside & has & (np.abs(z - interp) < tol_mm) & facing
+
+
+# ----------------------------------------------------------------------------- the artist
+
+
+def synthesize_clicks(
+    cameras: Sequence[Camera],
+    points3d: np.ndarray,
+    visible: np.ndarray,
+    noise_px: float = 1.0,
+    rng: np.random.Generator | int | None = None,
+) -> np.ndarray:
+    """What an artist clicks: projections plus Gaussian hand noise, where visible.
+
+    Parameters
+    ----------
+    cameras : k cameras.
+    points3d : (n, 3) float, true feature positions (mm).
+    visible : (k, n) bool, feature ``j`` visible in photo ``i``.
+    noise_px : float, σ of the isotropic Gaussian click noise (px).
+    rng : Generator or seed.
+
+    Returns
+    -------
+    (k, n, 2) float
+        clicks ``[u, v]`` clipped to the image, NaN where not visible (the observation
+        array of ``docs/architecture.md``).
+    """
+    points3d = _points3(points3d, "points3d")
+    visible = np.asarray(visible, bool)
+    if visible.shape != (len(cameras), len(points3d)):
+        raise ValueError(f"visible is {visible.shape}, expected {(len(cameras), len(points3d))}")
+    if noise_px < 0:
+        raise ValueError(f"noise_px must be >= 0, got {noise_px}")
+    rng = np.random.default_rng(rng)
+    out = np.full((len(cameras), len(points3d), 2), np.nan)
+    for i, cam in enumerate(cameras):
+        uv = cam.project(points3d) + rng.normal(scale=noise_px, size=(len(points3d), 2))
+        uv = np.clip(uv, 0.0, [cam.width - 1, cam.height - 1])
+        out[i, visible[i]] = uv[visible[i]]
+    return out
+
+
+def dense_true_curve(points3d: np.ndarray, scan: Scan, spacing_mm: float = 0.5) -> np.ndarray:
+    """Densify a 3D polyline (m, 3) to points every ≤ ``spacing_mm`` and project them onto
+    the scan surface: the true curve on the scan, (p, 3) float mm."""
+    points3d = _points3(points3d, "points3d")
+    if len(points3d) < 2:
+        raise ValueError("a curve needs at least two points")
+    seg = np.diff(points3d, axis=0)
+    steps = np.maximum(1, np.ceil(np.linalg.norm(seg, axis=1) / spacing_mm).astype(int))
+    parts = [points3d[i] + np.outer(np.arange(s) / s, seg[i]) for i, s in enumerate(steps)]
+    dense = np.vstack(parts + [points3d[-1:]])
+    return scan_surface(scan).closest(dense)[0]
+
+
+def synthesize_curve(
+    camera: Camera,
+    polyline_points3d: np.ndarray,
+    noise_px: float = 1.0,
+    rng: np.random.Generator | int | None = None,
+    *,
+    visible: np.ndarray | None = None,
+    n_points: tuple[int, int] = (15, 40),
+    min_length_px: float = 10.0,
+) -> np.ndarray | None:
+    """What an artist draws for a curve (§5.1.3) in one photo.
+
+    The projection of the dense true 3D curve is cut to its longest visible run,
+    resampled at ``n_points`` (drawn uniformly in the inclusive range) irregularly spaced
+    stroke points (gamma-distributed gaps, as a hand's speed varies), ends included;
+    a smooth wobble (a few random low-frequency sinusoids along the stroke, RMS
+    ``noise_px`` per axis) is added, the result clipped to the image, and half the
+    strokes (by the ``rng``) are drawn in reverse.
+
+    Parameters
+    ----------
+    camera : Camera
+    polyline_points3d : (p, 3) float
+        the dense true curve on the scan (:func:`dense_true_curve`), mm.
+    noise_px : float
+    rng : Generator or seed.
+    visible : (p,) bool, optional
+        visibility of each curve point (:func:`visible`); all visible if omitted.
+    n_points : (int, int)
+    min_length_px : float
+        a visible run shorter than this on screen is not drawn.
+
+    Returns
+    -------
+    (q, 2) float or None
+        the stroke in pixels, or None when too little of the curve is visible.
+    """
+    pts = _points3(polyline_points3d, "polyline_points3d")
+    rng = np.random.default_rng(rng)
+    vis = np.ones(len(pts), bool) if visible is None else np.asarray(visible, bool)
+    if vis.shape != (len(pts),):
+        raise ValueError(f"visible is {vis.shape}, expected ({len(pts)},)")
+    start, stop = _longest_run(vis)
+    if stop - start < 2:
+        return None
+    uv = camera.project(pts[start:stop])
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(uv, axis=0), axis=1))]
+    length = arc[-1]
+    if length < min_length_px:
+        return None
+    q = int(rng.integers(n_points[0], n_points[1] + 1))
+    q = max(2, min(q, int(length / 3.0) + 1))  # no denser than ~3 px between stroke points
+    gaps = rng.gamma(2.0, size=q - 1)
+    s = np.r_[0.0, np.cumsum(gaps)] / gaps.sum() * length
+    stroke = np.column_stack([np.interp(s, arc, uv[:, 0]), np.interp(s, arc, uv[:, 1])])
+    if noise_px > 0:
+        t = s / length
+        freq = rng.uniform(0.5, 3.0, size=(3, 1, 2))
+        phase = rng.uniform(0.0, 2 * np.pi, size=(3, 1, 2))
+        amp = rng.normal(size=(3, 1, 2))
+        wobble = (amp * np.sin(2 * np.pi * freq * t[None, :, None] + phase)).sum(0)
+        wobble -= wobble.mean(0)
+        wobble *= noise_px / np.maximum(np.sqrt((wobble**2).mean(0)), 1e-9)
+        stroke += wobble
+    stroke = np.clip(stroke, 0.0, [camera.width - 1, camera.height - 1])
+    if rng.random() < 0.5:
+        stroke = stroke[::-1].copy()
+    return stroke
+
+
+def _longest_run(mask: np.ndarray) -> tuple[int, int]:
+    """``(start, stop)`` of the longest run of True in a 1D bool array ((0, 0) if none)."""
+    padded = np.r_[False, mask, False].astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    if not len(edges):
+        return 0, 0
+    starts, stops = edges[0::2], edges[1::2]
+    j = int(np.argmax(stops - starts))
+    return int(starts[j]), int(stops[j])
+
+
+def _points3(points: np.ndarray, what: str) -> np.ndarray:
+    points = np.asarray(points, float)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"{what} must be an (n, 3) array of mm positions, got shape {points.shape}")
+    return points
