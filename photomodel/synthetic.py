@@ -54,19 +54,19 @@ _MAX_MATCH_MM = 15.0
 #: Rough centre of the james head in the head frame (mm): the middle of the scan's
 #: bounding box in x and y, moved forward of the skull centre towards the face so the
 #: face stays in frame in side views. Rigs aim near it.
-HEAD_CENTRE_MM = np.array([0.0, 5.0, 55.0])
+HEAD_CENTRE_MM = np.array([0.0, 12.0, 55.0])
 #: Apparent radius (mm) of the part of the head a rig frames, and the fraction of the
 #: half-frame it fills.
 _FRAMED_RADIUS_MM = 125.0
-_FILL = 0.92
+_FILL = 0.88
 
 # Rigs: (azimuth°, elevation°, roll°, lens mm, aim offset mm from HEAD_CENTRE_MM). Azimuths
 # are deliberately not the presets' so the artist's preset is only a rough guess.
 _RIGS: dict[str, tuple[tuple[float, float, float, float, tuple[float, float, float]], ...]] = {
     "sample": (
         (-75.0, 4.0, -2.0, 35.0, (2.0, -3.0, 1.0)),
-        (-35.0, -5.0, 1.5, 50.0, (-3.0, 2.0, 0.0)),
-        (0.0, 7.0, -1.0, 85.0, (1.0, 4.0, -2.0)),
+        (-35.0, 3.0, 1.5, 50.0, (-3.0, 2.0, 0.0)),
+        (0.0, -7.0, -1.0, 85.0, (1.0, 4.0, -2.0)),  # from slightly below: the jaw line shows
         (40.0, -2.0, 2.5, 100.0, (-2.0, -1.0, 3.0)),
         (80.0, 10.0, -1.5, 70.0, (3.0, 2.0, -1.0)),
     ),
@@ -355,7 +355,7 @@ def rig(name: str | int = "sample", width: int = 1000, height: int = 1000) -> li
     name : {"sample", "three", "seven"} or {5, 3, 7}
         ``"sample"`` (5 cameras, the sample project): azimuths −75°, −35°, 0°, +40°,
         +80°, lenses 35, 50, 85, 100, 70 mm; ``"three"``: −45°, 0°, +50°; ``"seven"``:
-        −85° … +86°. Each camera has its own small elevation (−5…+10°), roll (±2.5°) and
+        −85° … +86°. Each camera has its own small elevation (−7…+10°), roll (±2.5°) and
         aim offset (a few mm around :data:`HEAD_CENTRE_MM`), and a distance chosen so
         the head fills most of the frame whatever the lens.
     width, height : int
@@ -404,8 +404,11 @@ def preset_for(camera: Camera) -> str:
 # ----------------------------------------------------------------------------- rendering
 
 
-def render_scan(camera: Camera, scan: Scan):
+def render_scan(camera: Camera, scan: Scan, *, background=0.0, supersample: int = 1):
     """Render the textured scan from ``camera`` with :func:`photomodel.render.get_renderer`.
+
+    The texture is already lit (a scan's photographs), so it is drawn unshaded.
+    ``background`` and ``supersample`` are passed to :meth:`photomodel.render.Renderer.render`.
 
     Returns
     -------
@@ -415,7 +418,10 @@ def render_scan(camera: Camera, scan: Scan):
     """
     from .render import get_renderer
 
-    return get_renderer().render(camera, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture)
+    return get_renderer().render(
+        camera, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture,
+        background=background, supersample=supersample,
+    )  # fmt: skip
 
 
 def scan_depth(camera: Camera, scan: Scan) -> np.ndarray:
@@ -438,10 +444,11 @@ def visible(
 ) -> np.ndarray:
     """Which scan-surface ``points`` a camera sees.
 
-    A point is visible when it projects inside the image, its depth is within ``tol_mm``
-    of the scan's rendered depth there (bilinear between the four surrounding pixels, so
-    sloped surfaces are not penalised by rounding), and the surface faces the camera:
-    ``n · (c − p)/‖c − p‖ > min_cos``.
+    A point is visible when it projects inside the image, it is not more than ``tol_mm``
+    behind the scan's rendered depth there (bilinear between the four surrounding covered
+    pixels, so sloped surfaces are not penalised by rounding; a point *in front* of the
+    rendered depth lies on a silhouette, where the pixel already shows what is behind
+    it), and the surface faces the camera: ``n · (c − p)/‖c − p‖ > min_cos``.
 
     Parameters
     ----------
@@ -480,10 +487,11 @@ def visible(
     finite = np.isfinite(corners)
     wts = np.where(finite, wts, 0.0)
     has = wts.sum(1) > 0
-    interp = np.where(has, (np.where(finite, corners, 0.0) * wts).sum(1) / np.where(has, wts.sum(1), 1), np.inf)
+    total = np.where(has, wts.sum(1), 1.0)
+    interp = np.where(has, (np.where(finite, corners, 0.0) * wts).sum(1) / total, np.inf)
     to_cam = camera.center - points
     facing = np.einsum("ij,ij->i", normals, to_cam) / np.linalg.norm(to_cam, axis=1) > min_cos
-    return inside & has & (np.abs(z - interp) < tol_mm) & facing
+    return inside & has & (z - interp < tol_mm) & facing
 
 
 # ----------------------------------------------------------------------------- the artist
