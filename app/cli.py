@@ -14,7 +14,7 @@ import signal
 import sys
 from pathlib import Path
 
-from photomodel.errors import FaceStudioError
+from photomodel.errors import FaceStudioError, ProjectError
 
 
 def _progress_bar(enabled: bool):
@@ -33,9 +33,11 @@ def _progress_bar(enabled: bool):
     return bar, update
 
 
-def _format_report(expr_name: str, report: dict, dropped: dict) -> str:
-    lines = [f"expression {expr_name!r}: reprojection RMS {report['rms_px']:.3f} px "
-             f"(pose features {report['pose']['rms_px']:.3f} px, {report['pose']['sweeps']} sweeps)"]
+def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
+    lines = [
+        f"expression {expr_name!r}: reprojection RMS {report['rms_px']:.3f} px "
+        f"(pose features {report['pose']['rms_px']:.3f} px, {report['pose']['sweeps']} sweeps)"
+    ]
     lines.append(f"  {'photo':<24} {'RMS px':>8} {'points':>7} {'focal mm':>9}")
     for v in report["views"]:
         rms = "-" if v["rms_px"] is None else f"{v['rms_px']:.3f}"
@@ -45,8 +47,8 @@ def _format_report(expr_name: str, report: dict, dropped: dict) -> str:
     for p in pts[:10]:
         tag = " (pose)" if p["pose"] else ""
         lines.append(f"    {p['feature']:<22} {p['rms_px']:7.3f} px in {p['views']} photos{tag}")
-    for name, why in dropped.items():
-        lines.append(f"  not used: {name}: {why}")
+    for why in dropped:
+        lines.append(f"  not used: {why}")
     return "\n".join(lines)
 
 
@@ -59,6 +61,10 @@ def cmd_fit(args) -> int:
     names = [e.name for e in project.expressions] if args.expression is None else [args.expression]
     mesh = load_generic_mesh()
     project.check_vertices(len(mesh.vertices))
+    try:
+        project.check_photos()
+    except ProjectError as e:  # the fit needs only the clicks; say so and go on
+        print(f"facestudio: warning: {e} (fitting from the stored clicks)", file=sys.stderr)
     out = {"project": str(Path(args.project)), "expressions": []}
     bar, progress = _progress_bar(not args.json or sys.stderr.isatty())
     try:
@@ -77,7 +83,7 @@ def cmd_fit(args) -> int:
         entry["cameras"] = {pid: c.to_dict() for pid, c in zip(result.photo_ids, result.cameras, strict=True)}
         out["expressions"].append(entry)
         if not args.json:
-            print(_format_report(name, result.report, result.report.get("dropped", {})))
+            print(_format_report(name, result.report, result.report.get("dropped", [])))
     if not args.dry_run:
         save_project(project)
         if not args.json:

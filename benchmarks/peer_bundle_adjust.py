@@ -11,12 +11,16 @@ Unknowns: per camera a rotation vector ``ω`` (``R = Rod(ω) R₀``, ``ω = 0`` 
 ``t`` (mm) and ``f`` (px); per point its position (mm). The Jacobian is analytic
 (``∂(Rod(ω) p)/∂ω = −[Rod(ω) p]× J_l(ω)`` with the left Jacobian of SO(3)).
 
-Solver choice (measured on 3–7 cameras × 13–80 points, see ``benchmarks/posebench.py``): the
-dense Jacobian with ``method='lm'`` (MINPACK) is the fastest for these sizes — the problems are
-small (at most ~1100 residuals × ~300 unknowns), and the sparse ``'trf'`` path spends more in
-its per-iteration Python/LSMR overhead than it saves. ``method='trf'`` with a sparse Jacobian
-and ``jac_sparsity`` is kept as an option (``sparse=True``). The similarity gauge makes the
-Jacobian rank-deficient by 7; LM's damping handles that.
+Solver choice (measured on 3–7 cameras × 13–68 points from presets, 1 px noise, on the
+development machine): for small problems the dense Jacobian with ``method='lm'`` (MINPACK) is
+the fastest (13 points: 17–45 ms, against 60–190 ms for sparse ``'trf'``); from about 150
+unknowns on, MINPACK's dense QR dominates and ``method='trf'`` with a sparse Jacobian,
+``jac_sparsity`` and the LSMR trust-region solver wins (68 points: 55–150 ms against
+130–800 ms). ``method='auto'`` (the default) picks between them by that size; the
+``'dogbox'`` and dense ``'trf'`` variants were slower or failed to converge. Tolerances are
+SciPy's defaults (``ftol = xtol = gtol = 1e-8``), which put the cost within ~1e-6 of the
+minimum found with 1e-12. The similarity gauge makes the Jacobian rank-deficient by 7; the
+damping / trust region handles that.
 """
 
 from __future__ import annotations
@@ -128,7 +132,12 @@ class _BA:
         return out, pts.copy()
 
 
-def bundle_adjust(observations, cameras, points, *, sparse: bool = False, ftol: float = 1e-12, max_nfev: int | None = None):
+#: Above this many unknowns ``method='auto'`` uses the sparse ``'trf'`` solver.
+AUTO_SPARSE_UNKNOWNS = 150
+
+
+def bundle_adjust(observations, cameras, points, *, method: str = "auto", tol: float = 1e-8,
+                  max_nfev: int | None = None):
     """Full bundle adjustment of cameras (rotation, t, f) and points from an initial guess.
 
     Parameters
@@ -136,29 +145,34 @@ def bundle_adjust(observations, cameras, points, *, sparse: bool = False, ftol: 
     observations : (k, n, 2) float, clicked pixels, NaN where not clicked.
     cameras : sequence of k :class:`~photomodel.camera.Camera`, initial cameras.
     points : (n, 3) float, initial points (mm).
-    sparse : bool, use ``method='trf'`` with a sparse Jacobian instead of dense ``'lm'``.
-    ftol : float, relative cost-change tolerance (also used as ``xtol``).
+    method : ``'auto'``, ``'lm'`` (dense Jacobian) or ``'trf'`` (sparse Jacobian, LSMR).
+    tol : float, ``ftol``, ``xtol`` and ``gtol`` of :func:`scipy.optimize.least_squares`.
 
     Returns
     -------
     cameras : list[Camera]
     points : (n, 3) float
-    info : dict with ``iterations`` (Jacobian evaluations), ``nfev``, ``time_ms``, ``cost``, ``status``.
+    info : dict with ``iterations`` (Jacobian evaluations), ``nfev``, ``time_ms``, ``cost``, ``status``,
+    ``method``.
     """
     t0 = time.perf_counter()
     ba = _BA(observations, cameras, points)
-    if sparse:
+    if method == "auto":
+        method = "trf" if len(ba.x0) > AUTO_SPARSE_UNKNOWNS else "lm"
+    if method == "trf":
         sparsity = sp.csr_matrix((np.ones(len(ba.rows)), (ba.rows, ba.cols)), shape=(2 * ba.m, len(ba.x0)))
         res = least_squares(
             ba.fun, ba.x0, jac=ba.jac_sparse, method="trf", jac_sparsity=sparsity, tr_solver="lsmr",
-            x_scale="jac", ftol=ftol, xtol=ftol, gtol=ftol, max_nfev=max_nfev,
+            x_scale="jac", ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev,
         )
-    else:
+    elif method == "lm":
         res = least_squares(
-            ba.fun, ba.x0, jac=ba.jac_dense, method="lm", x_scale="jac", ftol=ftol, xtol=ftol, gtol=ftol,
+            ba.fun, ba.x0, jac=ba.jac_dense, method="lm", x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
             max_nfev=max_nfev,
         )
+    else:
+        raise ValueError(f"method must be 'auto', 'lm' or 'trf'; got {method!r}")
     cams, pts = ba.to_cameras(res.x)
     ms = (time.perf_counter() - t0) * 1e3
     return cams, pts, {"iterations": int(res.njev or 0), "nfev": int(res.nfev), "time_ms": ms,
-                       "cost": float(res.cost), "status": int(res.status)}
+                       "cost": float(res.cost), "status": int(res.status), "method": method}

@@ -233,8 +233,9 @@ def orbit_camera(
     return Camera(R, t, focal_mm_to_px(focal_mm, width), width, height)
 
 
-def preset_camera(name: str, width: int, height: int, *, distance_mm: float = 600.0,
-                  focal_mm: float = 50.0) -> Camera:
+def preset_camera(
+    name: str, width: int, height: int, *, distance_mm: float = 600.0, focal_mm: float = 50.0
+) -> Camera:
     """The rough initial camera for a named preset (see :data:`PRESET_AZIMUTH_DEG`)."""
     try:
         az = PRESET_AZIMUTH_DEG[name]

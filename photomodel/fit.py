@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .alignment import similarity_transform, transform_cameras
 from .camera import Camera, focal_mm_to_px, preset_camera
 from .errors import FitError
 from .pose import PoseResult, recover_poses
@@ -81,38 +82,6 @@ class FitResult:
 
     def camera(self, photo_id: str) -> Camera:
         return self.cameras[self.photo_ids.index(photo_id)]
-
-
-def similarity_transform(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Least-squares similarity ``dst ≈ s R src + t`` (Umeyama 1991).
-
-    Parameters
-    ----------
-    src, dst : (n, 3) float, corresponding points (n ≥ 3, not collinear).
-
-    Returns
-    -------
-    s : float, R : (3, 3), t : (3,)
-    """
-    mu_s, mu_d = src.mean(0), dst.mean(0)
-    a, b = src - mu_s, dst - mu_d
-    U, S, Vt = np.linalg.svd(b.T @ a / len(src))
-    D = np.eye(3)
-    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
-        D[2, 2] = -1.0
-    R = U @ D @ Vt
-    var = (a**2).sum() / len(src)
-    s = float(np.trace(np.diag(S) @ D) / var)
-    return s, R, mu_d - s * R @ mu_s
-
-
-def transform_cameras(cameras: list[Camera], s: float, R: np.ndarray, t: np.ndarray) -> list[Camera]:
-    """Cameras expressed in the frame ``X' = s R X + t`` (images unchanged)."""
-    out = []
-    for c in cameras:
-        Rn = c.R @ R.T
-        out.append(Camera(Rn, s * c.t - Rn @ t, c.f, c.width, c.height))
-    return out
 
 
 def initial_cameras(photos) -> list[Camera]:
@@ -263,8 +232,11 @@ def fit_expression(
             check_cancel()
         dropped = targets.dropped
         vertex_of = {int(v): i for i, v in enumerate(targets.vertices.tolist())}
-        got = [(n, vertex_of[int(v)]) for n, v in zip(extra_names, extra_idx, strict=True)
-               if int(v) in vertex_of and int(v) not in pose_set]
+        got = [
+            (n, vertex_of[int(v)])
+            for n, v in zip(extra_names, extra_idx, strict=True)
+            if int(v) in vertex_of and int(v) not in pose_set
+        ]
         names += [n for n, _ in got]
         points_3d = np.concatenate([pose_points, targets.targets[[i for _, i in got]].reshape(-1, 3)])
         curve_report = {c.name: {"views": len(d)} for c, (_, d) in zip(curves, curve_args, strict=True)}

@@ -32,7 +32,7 @@ def write_mesh(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray)
     if kind not in ("obj", "ply"):
         raise ValueError(f"{path}: mesh files must end in .obj or .ply")
     mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, np.int64), process=False)
-    data = trimesh.exchange.export.export_mesh(mesh, file_type=kind)
+    data = mesh.export(file_type=kind)
     if isinstance(data, str):
         data = data.encode()
     _atomic_write_bytes(path, data)

@@ -161,18 +161,22 @@ def _rms_summary(res: np.ndarray, valid: np.ndarray) -> tuple[float, np.ndarray,
 # input validation (the boundary: errors name the photo / feature)
 # ----------------------------------------------------------------------------------------------
 def _validate(observations, cameras, points, names, view_names, fixed_focal):
-    obs = np.asarray(observations, dtype=float)
+    """Check the inputs of :func:`recover_poses`; return ``obs (k,n,2)``, ``valid (k,n)``, points, cameras."""
+    try:
+        obs = np.asarray(observations, dtype=float)
+        pts = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise FitError(f"observations and points must be numeric arrays: {e}") from None
     if obs.ndim != 3 or obs.shape[2] != 2:
         raise FitError(f"observations must be an array (photos, features, 2) of pixel clicks; got shape {obs.shape}")
     k, n, _ = obs.shape
-    pts = np.asarray(points, dtype=float)
     if pts.shape != (n, 3):
-        raise FitError(f"points must be ({n}, 3) to match {n} features in the observations; got shape {pts.shape}")
+        raise FitError(f"points must be ({n}, 3) to match the {n} features of the observations; got shape {pts.shape}")
     cams = list(cameras)
     if len(cams) != k:
         raise FitError(f"got {len(cams)} camera(s) for {k} photo(s) of clicks; give one initial camera per photo")
-    vname = list(view_names) if view_names is not None else [f"#{j}" for j in range(k)]
-    pname = list(names) if names is not None else [f"#{i}" for i in range(n)]
+    vname = [str(v) for v in view_names] if view_names is not None else [f"#{j}" for j in range(k)]
+    pname = [str(v) for v in names] if names is not None else [f"#{i}" for i in range(n)]
     if len(vname) != k:
         raise FitError(f"view_names has {len(vname)} entries for {k} photos")
     if len(pname) != n:
@@ -185,8 +189,8 @@ def _validate(observations, cameras, points, names, view_names, fixed_focal):
     if half.any():
         j, i = np.argwhere(half)[0]
         raise FitError(
-            f"photo {vname[j]!r}: feature {pname[i]!r} has one coordinate missing "
-            f"({obs[j, i].tolist()}); a click needs both u and v (or neither)"
+            f"photo {vname[j]!r}: feature {pname[i]!r} has one coordinate missing ({obs[j, i].tolist()}); "
+            "a click needs both u and v (or neither)"
         )
     inf = np.isinf(obs).any(2)
     if inf.any():
@@ -199,26 +203,33 @@ def _validate(observations, cameras, points, names, view_names, fixed_focal):
     for j, c in enumerate(cams):
         if not isinstance(c, Camera):
             raise FitError(f"camera of photo {vname[j]!r} is a {type(c).__name__}, not a photomodel Camera")
-        if not (np.isfinite(c.R).all() and np.isfinite(c.t).all() and np.isfinite(c.f)):
-            raise FitError(f"initial camera of photo {vname[j]!r} has non-finite entries")
-        if not c.f > 0:
-            raise FitError(f"initial camera of photo {vname[j]!r} has focal length {c.f} px; it must be positive")
-        if not np.allclose(c.R @ c.R.T, np.eye(3), atol=1e-6) or np.linalg.det(c.R) < 0:
-            raise FitError(f"initial camera of photo {vname[j]!r}: R is not a rotation matrix")
+    R = np.stack([c.R for c in cams])
+    t = np.stack([c.t for c in cams])
+    f = np.array([c.f for c in cams])
+    bad = ~(np.isfinite(R).all((1, 2)) & np.isfinite(t).all(1) & np.isfinite(f))
+    bad |= ~(f > 0)
+    bad |= ~(np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max((1, 2)) < 1e-6)
+    bad |= ~(np.linalg.det(R) > 0)
+    if bad.any():
+        j = int(np.flatnonzero(bad)[0])
+        raise FitError(
+            f"initial camera of photo {vname[j]!r} is invalid (focal {f[j]:.4g} px, det R "
+            f"{np.linalg.det(R[j]):.4g}): it needs a finite rotation matrix, translation and a positive focal length"
+        )
 
     valid = ~nan[..., 0]
     seen = valid.sum(0)
-    for i in np.flatnonzero(seen < 2):
+    for i in np.flatnonzero(seen < 2)[:1]:
+        where = ", ".join(repr(vname[j]) for j in np.flatnonzero(valid[:, i])) or "none"
         raise FitError(
-            f"feature {pname[i]!r} is clicked in {seen[i]} photo(s) "
-            f"({', '.join(repr(vname[j]) for j in np.flatnonzero(valid[:, i])) or 'none'}); "
-            "pose recovery needs every feature in at least 2 photos — click it in another photo or leave it out"
+            f"feature {pname[i]!r} is clicked in {seen[i]} photo(s) ({where}); pose recovery needs every "
+            "feature in at least 2 photos — click it in another photo or leave it out"
         )
     per_view = valid.sum(1)
-    for j in np.flatnonzero(per_view < MIN_POINTS_PER_VIEW):
+    for j in np.flatnonzero(per_view < MIN_POINTS_PER_VIEW)[:1]:
         raise FitError(
             f"photo {vname[j]!r} has {per_view[j]} clicked feature(s); a camera needs at least "
-            f"{MIN_POINTS_PER_VIEW} non-collinear clicks"
+            f"{MIN_POINTS_PER_VIEW} clicks that are not on one line"
         )
     if n < MIN_POINTS:
         raise FitError(f"pose recovery needs at least {MIN_POINTS} features each clicked in 2 photos; got {n}")
@@ -226,50 +237,63 @@ def _validate(observations, cameras, points, names, view_names, fixed_focal):
     n_eq, n_unk = 2 * int(valid.sum()), n_cam * k + 3 * n - 7
     if n_eq < n_unk:
         raise FitError(
-            f"{valid.sum()} clicks give {n_eq} equations for {n_unk} unknowns "
-            f"({k} cameras × {n_cam} + {n} points × 3 − 7 for the similarity gauge); click more features"
+            f"{valid.sum()} clicks give {n_eq} equations for {n_unk} unknowns ({k} cameras × {n_cam} + "
+            f"{n} features × 3 − 7 for the similarity gauge); click more features in more photos"
         )
-    # collinear clicks: second singular value of the centred clicks relative to the first
-    for j in range(k):
-        uv = obs[j, valid[j]]
-        sv = np.linalg.svd(uv - uv.mean(0), compute_uv=False)
-        if sv[1] <= COLLINEAR_RATIO * sv[0]:
-            raise FitError(
-                f"photo {vname[j]!r}: the {len(uv)} clicked features lie on one straight line; "
-                "the camera cannot be recovered — click features off that line"
-            )
-    # the paper's η = 1/t_z and the weights 1/(1 + η r_z·m) need every clicked point in front
-    for j, c in enumerate(cams):
-        if not c.t[2] > 0:
-            raise FitError(
-                f"initial camera of photo {vname[j]!r} has t_z = {c.t[2]:.4g} mm; the world origin "
-                "must lie in front of the camera (pick the preset that matches the photo)"
-            )
-        z = c.depth(pts)
-        behind = valid[j] & ~(z > 0)
-        if behind.any():
-            i = int(np.flatnonzero(behind)[0])
-            raise FitError(
-                f"photo {vname[j]!r}: feature {pname[i]!r} is behind the initial camera (depth {z[i]:.4g} mm); "
-                "pick the preset that matches the photo"
-            )
+    # collinear clicks: the smaller principal axis of a view's clicks against the larger
+    vf = valid.astype(float)
+    uv = np.where(valid[..., None], obs, 0.0)
+    mu = uv.sum(1) / per_view[:, None]
+    d = (uv - mu[:, None, :]) * vf[..., None]
+    cov = d.transpose(0, 2, 1) @ d  # (k, 2, 2)
+    tr = cov[:, 0, 0] + cov[:, 1, 1]
+    disc = np.sqrt(np.maximum(tr * tr / 4 - (cov[:, 0, 0] * cov[:, 1, 1] - cov[:, 0, 1] ** 2), 0.0))
+    lo, hi = tr / 2 - disc, tr / 2 + disc
+    flat = ~(lo > (COLLINEAR_RATIO**2) * hi)
+    for j in np.flatnonzero(flat)[:1]:
+        raise FitError(
+            f"photo {vname[j]!r}: its {per_view[j]} clicked features lie on one straight line; the camera "
+            "cannot be recovered from them — click features off that line"
+        )
+    # η = 1/t_z and the weights 1/(1 + η r_z·m) need the origin and every clicked point in front
+    for j in np.flatnonzero(~(t[:, 2] > 0))[:1]:
+        raise FitError(
+            f"initial camera of photo {vname[j]!r} has t_z = {t[j, 2]:.4g} mm: the head is not in front of "
+            "it — pick the preset that matches the photo"
+        )
+    depth = pts @ R[:, 2, :].T + t[:, 2]  # (n, k)
+    behind = valid & ~(depth.T > 0)
+    if behind.any():
+        j, i = np.argwhere(behind)[0]
+        raise FitError(
+            f"photo {vname[j]!r}: feature {pname[i]!r} is behind the initial camera (depth {depth[i, j]:.4g} mm); "
+            "pick the preset that matches the photo"
+        )
     return obs, valid, pts, cams
 
 
 # ----------------------------------------------------------------------------------------------
 # the alternation (§5.1.1 + Appendix A), batched over cameras and points
 # ----------------------------------------------------------------------------------------------
+# X(v) = Σ_c v_c E[c] (Eq. 13) as a (3, 9) matrix, so that cross matrices of many vectors are one product
+_EPS = np.zeros((3, 3, 3))
+_EPS[0, 2, 1], _EPS[0, 1, 2] = 1.0, -1.0
+_EPS[1, 0, 2], _EPS[1, 2, 0] = 1.0, -1.0
+_EPS[2, 1, 0], _EPS[2, 0, 1] = 1.0, -1.0
+_EPS = _EPS.reshape(3, 9)
+_EYE9 = np.eye(3).reshape(9)
+
+
 def _rodrigues_batch(v: np.ndarray) -> np.ndarray:
-    """(k, 3) rotation vectors → (k, 3, 3) rotations by Rodrigues' formula, Eq. (12)."""
-    theta = np.sqrt(np.einsum("ka,ka->k", v, v))
-    small = theta < 1e-12
-    th = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0, np.sin(th) / th)
-    b = np.where(small, 0.5, (1.0 - np.cos(th)) / (th * th))
-    K = np.zeros((len(v), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
-    return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
+    """(k, 3) rotation vectors → (k, 3, 3) rotations, Eq. (12):
+    ``I + sin θ X(n̂) + (1 − cos θ) X(n̂)² = cos θ I + sin θ X(n̂) + (1 − cos θ) n̂ n̂ᵀ``."""
+    theta = np.sqrt((v * v).sum(1))
+    th = np.maximum(theta, 1e-300)
+    sinc = np.where(theta < 1e-8, 1.0, np.sin(th) / th)
+    cosc = np.where(theta < 1e-8, 0.5, (1.0 - np.cos(th)) / (th * th))
+    out = np.cos(theta)[:, None] * _EYE9 + (sinc[:, None] * v) @ _EPS
+    out += ((cosc[:, None] * v)[:, :, None] * v[:, None, :]).reshape(-1, 9)
+    return out.reshape(-1, 3, 3)
 
 
 class _State:
@@ -284,18 +308,37 @@ class _State:
         return _State(self.R.copy(), self.t2.copy(), self.eta.copy(), self.s.copy(), self.m.copy())
 
 
+def _gram(M: np.ndarray) -> np.ndarray:
+    """``Mᵀ M`` of a stack of row blocks ``M`` (b, rows, c) → (b, c, c)."""
+    return M.transpose(0, 2, 1) @ M
+
+
 class _Problem:
-    """The clicks in the paper's image coordinates and the operations on a :class:`_State`."""
+    """The clicks in the paper's image coordinates and the operations on a :class:`_State`.
+
+    Everything is dense over (camera, point) with weight 0 where a feature is not clicked, so a
+    step is a few array operations whatever the visibility pattern.
+    """
 
     def __init__(self, obs_px, valid, cameras, fixed_focal):
+        k, n = valid.shape
         pp = np.stack([c.principal_point for c in cameras])
+        self.k, self.n = k, n
+        self.valid = valid
         self.V = valid.astype(float)  # (k, n) 1 where clicked
         self.O = np.where(valid[..., None], obs_px - pp[:, None, :], 0.0)  # (k, n, 2) centred, 0 if unclicked
         self.n_obs = float(valid.sum())
         self.fixed_focal = fixed_focal
         self.f_fixed = np.array([c.f for c in cameras])
-        k = len(cameras)
-        self.eye_k = np.broadcast_to(np.eye(3), (k, 3, 3))
+        # work arrays whose zero entries never change
+        self._H = np.zeros((k, n, 2, 4))  # point step: camera-frame rows (h | b)
+        self._R4 = np.zeros((k, 4, 4))
+        self._R4[:, 3, 3] = 1.0
+        self._G = np.zeros((k, n, 2, 4))  # rotation step: rows (a | e0)
+        nc = 6 if fixed_focal else 7
+        self.nc = nc
+        self._J = np.zeros((k, n, 2, nc + 4))  # polish: (J_cam | J_point | r)
+        self._g = np.zeros((k, n, 2, 3))  # polish: dP/dq
 
     # -- paper parameterisation <-> cameras ---------------------------------------------------
     def state_from(self, cameras, points) -> _State:
@@ -306,199 +349,219 @@ class _Problem:
         return _State(R, t[:, :2].copy(), eta, f * eta, np.array(points, dtype=float))
 
     def cameras_from(self, st: _State, template: Sequence[Camera]) -> list[Camera]:
-        out = []
-        for j, c in enumerate(template):
-            tz = 1.0 / st.eta[j]
-            f = self.f_fixed[j] if self.fixed_focal else st.s[j] * tz
-            out.append(Camera(st.R[j], np.array([st.t2[j, 0], st.t2[j, 1], tz]), f, c.width, c.height))
-        return out
+        tz = 1.0 / st.eta
+        f = self.f_fixed if self.fixed_focal else st.s * tz
+        t = np.column_stack([st.t2, tz])
+        return [Camera(st.R[j], t[j], f[j], c.width, c.height) for j, c in enumerate(template)]
+
+    def evaluate(self, st: _State):
+        """Camera-frame points ``q`` (k,n,3), weights ``w`` (k,n), ``p = q_xy + t`` (k,n,2),
+        predictions ``P`` (k,n,2), residuals ``r = P − x`` (0 where unclicked) and the cost ``Σ r²``;
+        the cost is ``inf`` when a clicked point is not in front of its camera."""
+        q = st.m @ st.R.transpose(0, 2, 1)
+        D = 1.0 + st.eta[:, None] * q[..., 2]
+        w = self.V / D
+        p = q[..., :2] + st.t2[:, None, :]
+        P = (st.s[:, None] * w)[..., None] * p
+        r = P - self.O
+        cost = float((r * r).sum())
+        if not (D > 0).all() and (self.valid & ~(D > 0)).any():
+            cost = np.inf
+        return q, w, p, P, r, cost
 
     def residuals(self, st: _State) -> np.ndarray:
         """(k, n, 2) projected − clicked in px (0 where unclicked)."""
-        q = st.m @ st.R.transpose(0, 2, 1)
-        w = self.V / (1.0 + st.eta[:, None] * q[..., 2])
-        return (st.s[:, None] * w)[..., None] * (q[..., :2] + st.t2[:, None, :]) - self.O
-
-    def rms(self, st: _State) -> float:
-        r = self.residuals(st)
-        return float(np.sqrt(np.einsum("knj,knj->", r, r) / self.n_obs))
+        return self.evaluate(st)[4]
 
     def register(self, st: _State) -> None:
-        """Fit each camera's image scale and offset to its clicks: least squares in
-        ``(s, s t_x, s t_y)`` (linear) with R, η and the points held. Beyond the paper."""
-        V, O = self.V, self.O
+        """Fit each camera's image scale and offset to its clicks (beyond the paper).
+
+        A preset camera looks at the head's centre while a photo is framed on the face, so the
+        preset's ``t_x, t_y`` can be far off, and step (1) would then shrink ``s`` to explain the
+        offset. Least squares in ``(s, s t_x, s t_y)`` (linear) with R, η and the points held
+        fixes both before the first sweep.
+        """
         q = st.m @ st.R.transpose(0, 2, 1)
-        w = V / (1.0 + st.eta[:, None] * q[..., 2])
-        k = len(w)
-        # rows for x: [w q_x, w, 0], for y: [w q_y, 0, w]
-        A = np.zeros((k, 3, 3))
-        wq = w[..., None] * q[..., :2]
-        A[:, 0, 0] = np.einsum("knj,knj->k", wq, wq)
-        A[:, 0, 1:] = A[:, 1:, 0] = wq.sum(1)
-        w2 = (w * w).sum(1)
-        A[:, 1, 1] = A[:, 2, 2] = w2
-        rhs = np.empty((k, 3))
-        rhs[:, 0] = np.einsum("knj,knj->k", wq, O)
-        rhs[:, 1:] = np.einsum("kn,knj->kj", w, O)
-        if self.fixed_focal:
-            # s is tied to η: fit only the offset
-            st.t2 = (rhs[:, 1:] / st.s[:, None] - A[:, 0, 1:]) / w2[:, None]
+        w = self.V / (1.0 + st.eta[:, None] * q[..., 2])
+        k, n = w.shape
+        M = np.zeros((k, n, 2, 4))  # columns: s, s t_x, s t_y | x
+        M[..., 0] = w[..., None] * q[..., :2]
+        M[..., 0, 1] = w
+        M[..., 1, 2] = w
+        M[..., 3] = self.O
+        G = _gram(M.reshape(k, 2 * n, 4))
+        if self.fixed_focal:  # s = f η is known: fit the offset only
+            st.t2 = (G[:, 1:3, 3] / st.s[:, None] - G[:, 0, 1:3]) / G[:, 1:3, 1:3].diagonal(0, 1, 2)
             return
-        x = np.linalg.solve(A, rhs[..., None])[..., 0]
+        x = np.linalg.solve(G[:, :3, :3], G[:, :3, 3:])[..., 0]
         st.s = x[:, 0]
         st.t2 = x[:, 1:] / x[:, :1]
 
     # -- one sweep of the paper's five weighted linear least-squares steps ----------------------
-    def sweep(self, st: _State, solve_points: bool = True) -> float:
+    def sweep(self, st: _State) -> float:
         """Update ``st`` in place by one sweep (§5.1.1 order: s, m, R, t_x/t_y, η); return the RMS (px)."""
+        k, n = self.k, self.n
         V, O = self.V, self.O
-        R, eta = st.R, st.eta
-        eta_kn = eta[:, None]
-        # weights of the current estimate
-        q = st.m @ R.transpose(0, 2, 1)  # (k, n, 3) = R_k m_i
-        w = V / (1.0 + eta_kn * q[..., 2])
+        R, eta, t2 = st.R, st.eta, st.t2
+        ek = eta[:, None]
+        q = st.m @ R.transpose(0, 2, 1)  # (k, n, 3): R_k m_i
+        w = V / (1.0 + ek * q[..., 2])  # w_ik of Eq. (2)
 
-        # (1) s_k: rows a = w (r·m + t), b = w x (1 + η r_z·m) = x   (w (1+η r_z·m) = 1 where clicked)
+        # (1) s_k — rows a = w (r·m + t), b = w x (1 + η r_z·m) = x  (w (1 + η r_z·m) = 1 where clicked)
         if not self.fixed_focal:
-            a = w[..., None] * (q[..., :2] + st.t2[:, None, :])
-            st.s = np.einsum("knj,knj->k", a, O) / np.einsum("knj,knj->k", a, a)
+            a = w[..., None] * (q[..., :2] + t2[:, None, :])
+            st.s = (a * O).sum((1, 2)) / (a * a).sum((1, 2))
         s = st.s
+        sk = s[:, None]
 
-        # (2) m_i: rows a_j = w (x_j η r_z − s r_j),  b_j = w (s t_j − x_j)   (App. A)
-        c = O * eta[:, None, None]  # x_j η
-        rows = c[..., None] * R[:, None, None, 2, :] - (s[:, None, None] * R[:, :2, :])[:, None]  # (k,n,2,3)
-        rows *= w[..., None, None]
-        b = w[..., None] * (s[:, None, None] * st.t2[:, None, :] - O)
-        A = np.einsum("knja,knjb->nab", rows, rows)
-        rhs = np.einsum("knja,knj->na", rows, b)
-        if solve_points:
-            st.m = np.linalg.solve(A, rhs[..., None])[..., 0]
+        # (2) m_i — rows a_j = w (x_j η r_z − s r_j) = h_j R with h_x = w (−s, 0, x η), h_y = w (0, −s, y η),
+        #     b_j = w (s t_j − x_j); 3×3 normal equations (Eq. 11) per point
+        H = self._H
+        sw = sk * w
+        H[..., 0, 0] = H[..., 1, 1] = -sw
+        H[..., 2] = (w * ek)[..., None] * O
+        H[..., 3] = w[..., None] * (sk[..., None] * t2[:, None, :] - O)
+        R4 = self._R4
+        R4[:, :3, :3] = R
+        M = (H.reshape(k, 2 * n, 4) @ R4).reshape(k, n, 2, 4).transpose(1, 0, 2, 3).reshape(n, 2 * k, 4)
+        G = _gram(M)
+        st.m = np.linalg.solve(G[:, :3, :3], G[:, :3, 3:])[..., 0]
 
-        # (3) R_k ← R̃(v) R_k with the rows of Eq. (14) linearised in v; with q = R m and
-        #     g_j = (s e_j − x_j η e_z) the residual is e0_j + w (g_j × q)·v.
+        # (3) R_k ← R̃(v) R_k — Eq. (14) linearised in v (r̃·q = r·q + (v × q)_r): with
+        #     g_j = s e_j − x_j η e_z the residual is e0_j + w (g_j × q)·v, 3×3 normal equations per camera
         q = st.m @ R.transpose(0, 2, 1)
-        w = V / (1.0 + eta_kn * q[..., 2])
-        sw = s[:, None] * w
-        e0 = O - sw[..., None] * (q[..., :2] + st.t2[:, None, :])
-        # g_j × q for g_x = (s, 0, −c_x), g_y = (0, s, −c_y), times w
+        w = V / (1.0 + ek * q[..., 2])
+        sw = sk * w
+        cw = (w * ek)[..., None] * O  # w x_j η
         qx, qy, qz = q[..., 0], q[..., 1], q[..., 2]
-        cw = c * w[..., None]
-        J = np.empty(rows.shape)
-        J[..., 0, 0] = cw[..., 0] * qy
-        J[..., 0, 1] = -sw * qz - cw[..., 0] * qx
-        J[..., 0, 2] = sw * qy
-        J[..., 1, 0] = sw * qz + cw[..., 1] * qy
-        J[..., 1, 1] = -cw[..., 1] * qx
-        J[..., 1, 2] = -sw * qx
-        A = np.einsum("knja,knjb->kab", J, J)
-        rhs = -np.einsum("knja,knj->ka", J, e0)
-        v = np.linalg.solve(A, rhs[..., None])[..., 0]
+        Gm = self._G
+        Gm[..., 0, 0] = cw[..., 0] * qy
+        Gm[..., 0, 1] = -sw * qz - cw[..., 0] * qx
+        Gm[..., 0, 2] = sw * qy
+        Gm[..., 1, 0] = sw * qz + cw[..., 1] * qy
+        Gm[..., 1, 1] = -cw[..., 1] * qx
+        Gm[..., 1, 2] = -sw * qx
+        Gm[..., 3] = O - sw[..., None] * (q[..., :2] + t2[:, None, :])  # e0 = x − prediction
+        G = _gram(Gm.reshape(k, 2 * n, 4))
+        v = np.linalg.solve(G[:, :3, :3], -G[:, :3, 3:])[..., 0]
         st.R = R = _rodrigues_batch(v) @ R
 
-        # (4) t_x, t_y: minimise Σ (x_j − w s q_j − w s t_j)²  →  t_j = (Σ w x_j − s Σ w² q_j) / (s Σ w²)
+        # (4) t_x, t_y — minimise Σ (x_j − w s q_j − w s t_j)²:  t_j = (Σ w x_j − s Σ w² q_j) / (s Σ w²)
         q = st.m @ R.transpose(0, 2, 1)
-        w = V / (1.0 + eta_kn * q[..., 2])
+        w = V / (1.0 + ek * q[..., 2])
         w2 = w * w
-        st.t2 = (np.einsum("kn,knj->kj", w, O) / s[:, None] - np.einsum("kn,knj->kj", w2, q[..., :2])) / w2.sum(1)[
-            :, None
-        ]
+        st.t2 = t2 = (
+            (w[:, None, :] @ O)[:, 0] / sk - (w2[:, None, :] @ q[..., :2])[:, 0]
+        ) / w2.sum(1)[:, None]
 
-        # (5) η_k: rows a = w x_j q_z, b = w (s (q_j + t_j) − x_j)
+        # (5) η_k — rows a = w x_j q_z, b = w (s (q_j + t_j) − x_j)
         #     (fixed focal length: s = f η, so a = w (x_j q_z − f (q_j + t_j)), b = −w x_j)
-        p = q[..., :2] + st.t2[:, None, :]
+        p = q[..., :2] + t2[:, None, :]
+        wO = w[..., None] * O
         if self.fixed_focal:
-            a = w[..., None] * (O * q[..., 2:3] - self.f_fixed[:, None, None] * p)
-            b = -w[..., None] * O
-            st.eta = np.einsum("knj,knj->k", a, b) / np.einsum("knj,knj->k", a, a)
+            a = wO * q[..., 2:3] - (self.f_fixed[:, None] * w)[..., None] * p
+            st.eta = -(a * wO).sum((1, 2)) / (a * a).sum((1, 2))
             st.s = self.f_fixed * st.eta
         else:
-            a = w[..., None] * O * q[..., 2:3]
-            b = w[..., None] * (s[:, None, None] * p - O)
-            st.eta = np.einsum("knj,knj->k", a, b) / np.einsum("knj,knj->k", a, a)
+            a = wO * q[..., 2:3]
+            st.eta = (a * (w[..., None] * (sk[..., None] * p - O))).sum((1, 2)) / (a * a).sum((1, 2))
 
         # reprojection error of the new estimate (q is current: R and m did not change since (4))
         r = (st.s[:, None] * V / (1.0 + st.eta[:, None] * q[..., 2]))[..., None] * p - O
-        return float(np.sqrt(np.einsum("knj,knj->", r, r) / self.n_obs))
+        return float(np.sqrt((r * r).sum() / self.n_obs))
 
     # -- joint Levenberg–Marquardt polish (beyond the paper) ------------------------------------
-    def polish(self, st: _State, rms0: float, max_iter: int, tol: float, history: list) -> tuple[_State, int, bool]:
-        """Joint damped Gauss–Newton over all unknowns, points eliminated by a Schur complement.
+    def polish(self, st: _State, max_iter: int, tol: float, history: list, callback, sweeps: int):
+        """Joint damped Gauss–Newton over all unknowns; the point blocks are eliminated by a Schur
+        complement, leaving one dense ``(nc k) × (nc k)`` solve per iteration.
 
-        Camera unknowns per photo: incremental rotation v (3), t_x, t_y, s, η (7; 6 with a fixed
-        focal length, where s = f η). Returns the new state, the iterations run and convergence.
+        Camera unknowns per photo: incremental rotation ``v`` (3), ``t_x``, ``t_y``, ``s``, ``η``
+        (``nc = 7``; 6 with a fixed focal length, where ``s = f η``). Returns
+        ``(state, iterations, converged, stopped)``.
         """
-        V, O = self.V, self.O
-        k, n = V.shape
-        nc = 6 if self.fixed_focal else 7
-        cost = rms0 * rms0 * self.n_obs
-        lam = 1e-3
+        k, n, nc = self.k, self.n, self.nc
+        q, w, p, P, r, cost = self.evaluate(st)
+        J = self._J
+        g = self._g
         eye_c = np.eye(nc)
-        eye_p = np.eye(3)
+        diag_idx = np.arange(k)
+        lam = 1e-3
         it = 0
-        converged = False
+        converged = stopped = False
         while it < max_iter:
             it += 1
-            R, eta, s, t2, m = st.R, st.eta, st.s, st.t2, st.m
-            q = m @ R.transpose(0, 2, 1)
-            D = 1.0 + eta[:, None] * q[..., 2]
-            w = V / D
-            p = q[..., :2] + t2[:, None, :]
+            R, eta, s = st.R, st.eta, st.s
             sw = s[:, None] * w
-            P = sw[..., None] * p  # predicted image coords (k, n, 2)
-            r = P - O
-            # dP_j/dq = w (s e_j − P_j η e_z)  (k, n, 2, 3)
-            g = np.zeros((k, n, 2, 3))
-            g[..., 0, 0] = sw
-            g[..., 1, 1] = sw
-            g[..., 2] = -(w * eta[:, None])[..., None] * P
-            # cameras: d/dv = q × g (q → q + v × q), d/dt_j = s w, d/ds = w p_j, d/dη = −w P_j q_z
-            Jc = np.empty((k, n, 2, nc))
-            Jc[..., :3] = np.cross(q[:, :, None, :], g)
-            Jc[..., 3] = 0.0
-            Jc[..., 4] = 0.0
-            Jc[..., 0, 3] = sw
-            Jc[..., 1, 4] = sw
-            dEta = -(w * q[..., 2])[..., None] * P
+            c = -(w * eta[:, None])[..., None] * P  # dP_j/dq_z
+            # dP/dq rows g_x = (s w, 0, c_x), g_y = (0, s w, c_y)
+            g[..., 0, 0] = g[..., 1, 1] = sw
+            g[..., 2] = c
+            qx, qy, qz = q[..., 0:1], q[..., 1:2], q[..., 2:3]
+            # d/dv = q × g_j (rotation q → q + v × q)
+            J[..., 0] = qy * c
+            J[..., 0, 1] = qz[..., 0] * sw - qx[..., 0] * c[..., 0]
+            J[..., 1, 1] = -qx[..., 0] * c[..., 1]
+            J[..., 0, 2] = -qy[..., 0] * sw
+            J[..., 1, 2] = qx[..., 0] * sw
+            J[..., 1, 0] -= qz[..., 0] * sw
+            J[..., 0, 3] = J[..., 1, 4] = sw  # d/dt_x, d/dt_y
+            dEta = -(w[..., None] * qz) * P
             if self.fixed_focal:
-                Jc[..., 5] = dEta + self.f_fixed[:, None, None] * w[..., None] * p
+                J[..., 5] = dEta + (self.f_fixed[:, None] * w)[..., None] * p
             else:
-                Jc[..., 5] = w[..., None] * p
-                Jc[..., 6] = dEta
-            Jp = g @ R[:, None]  # (k, n, 2, 3): dP/dm = g R
-            # normal equations blocks
-            U = np.einsum("knja,knjb->kab", Jc, Jc)
-            Vp = np.einsum("knja,knjb->nab", Jp, Jp)
-            W = np.einsum("knja,knjb->knab", Jc, Jp)
-            gc = np.einsum("knja,knj->ka", Jc, r)
-            gp = np.einsum("knja,knj->na", Jp, r)
+                J[..., 5] = w[..., None] * p  # d/ds
+                J[..., 6] = dEta
+            J[..., nc : nc + 3] = (g.reshape(k, 2 * n, 3) @ R).reshape(k, n, 2, 3)  # dP/dm = g R
+            J[..., nc + 3] = r
+            Gc = _gram(J.reshape(k, 2 * n, nc + 4))  # U (cameras) and their gradients
+            U, gc = Gc[:, :nc, :nc], Gc[:, :nc, nc + 3]
+            Jp = np.ascontiguousarray(J[..., nc:].transpose(1, 0, 2, 3)).reshape(n, 2 * k, 4)
+            Gp = _gram(Jp)
+            Vp, gp = Gp[:, :3, :3], Gp[:, :3, 3]
+            Jc, Jm = J[..., :nc], J[..., nc : nc + 3]
+            W = Jc[..., 0, :, None] * Jm[..., 0, None, :] + Jc[..., 1, :, None] * Jm[..., 1, None, :]
+            Wt = np.ascontiguousarray(W.transpose(1, 0, 2, 3)).reshape(n, k * nc, 3)  # (n, k nc, 3)
+            W2 = Wt.transpose(1, 0, 2).reshape(k * nc, 3 * n)
+            dU = U.diagonal(0, 1, 2)
+            dV = Vp.diagonal(0, 1, 2)
             while True:
-                Ud = U + lam * (U * eye_c + 1e-9 * eye_c)  # Marquardt scaling of the diagonal
-                Vd = Vp + lam * (Vp * eye_p + 1e-9 * eye_p)
+                Vd = Vp + (lam * dV + 1e-12)[:, :, None] * np.eye(3)
                 Vinv = np.linalg.inv(Vd)
-                Y = W @ Vinv[None]  # (k, n, nc, 3)
-                S = -np.einsum("knab,lncb->kalc", Y, W)
-                S[np.arange(k), :, np.arange(k), :] += Ud
-                rhs = -gc + np.einsum("knab,nb->ka", Y, gp)
-                dc = np.linalg.solve(S.reshape(k * nc, k * nc), rhs.reshape(-1)).reshape(k, nc)
-                dp = -np.einsum("nab,nb->na", Vinv, gp + np.einsum("knab,ka->nb", W, dc))
-                new = _State(_rodrigues_batch(dc[:, :3]) @ R, t2 + dc[:, 3:5], eta + dc[:, -1], s, m + dp)
+                Y2 = (Wt @ Vinv).transpose(1, 0, 2).reshape(k * nc, 3 * n)
+                S = -(Y2 @ W2.T).reshape(k, nc, k, nc)
+                S[diag_idx, :, diag_idx, :] += U + (lam * dU + 1e-12)[:, :, None] * eye_c
+                rhs = Y2 @ gp.reshape(-1) - gc.reshape(-1)
+                dc = np.linalg.solve(S.reshape(k * nc, k * nc), rhs).reshape(k, nc)
+                dm = -(Vinv @ (gp + (dc.reshape(-1) @ W2).reshape(n, 3))[..., None])[..., 0]
+                new = _State(_rodrigues_batch(dc[:, :3]) @ R, st.t2 + dc[:, 3:5], eta + dc[:, -1], s, st.m + dm)
                 new.s = self.f_fixed * new.eta if self.fixed_focal else s + dc[:, 5]
-                rms_new = self.rms(new)
-                cost_new = rms_new * rms_new * self.n_obs
-                if np.isfinite(cost_new) and cost_new <= cost:
+                ev = self.evaluate(new)
+                if ev[5] <= cost:
                     break
                 lam *= 10.0
-                if lam > 1e8:
-                    return st, it, True  # no descent possible: at the minimum to working precision
+                if lam > 1e10:  # no descent direction left: at the minimum to working precision
+                    return st, it, True, False
             st = new
-            lam = max(lam / 10.0, 1e-9)
-            history.append(rms_new)
+            q, w, p, P, r, cost_new = ev
+            lam = max(lam * 0.1, 1e-10)
+            rms = float(np.sqrt(cost_new / self.n_obs))
+            history.append(rms)
             rel = (cost - cost_new) / max(cost, 1e-300)
             cost = cost_new
-            if rel < tol or rms_new < 1e-9:
+            if callback is not None and callback(sweeps + it, rms):
+                stopped = True
+                break
+            if rel < tol or rms < _RMS_FLOOR:
                 converged = True
                 break
-        return st, it, converged
+        return st, it, converged, stopped
+
+
+#: Below this RMS (px) the clicks are reproduced to working precision.
+_RMS_FLOOR = 1e-9
+#: With ``accelerate``: sweeps of the alternation before the joint polish takes over, at least and at most,
+#: and the relative change of the squared RMS per sweep below which the polish takes over earlier.
+_ALS_MIN_SWEEPS, _ALS_MAX_SWEEPS, _ALS_HANDOVER = 3, 3, 1e-2
 
 
 def recover_poses(
@@ -508,7 +571,7 @@ def recover_poses(
     *,
     fixed_focal: bool = False,
     max_sweeps: int = 2000,
-    tol: float = 1e-10,
+    tol: float = 1e-8,
     callback: Callable[[int, float], bool | None] | None = None,
     accelerate: bool = True,
     names: Sequence[str] | None = None,
@@ -532,17 +595,17 @@ def recover_poses(
     fixed_focal : bool
         Keep every camera's focal length (known lens) and solve for pose and points only.
     max_sweeps : int
-        Maximum number of sweeps of the alternation.
+        Maximum number of sweeps of the alternation (and, with ``accelerate``, of polish iterations).
     tol : float
-        Stop when a sweep changes the squared RMS by less than ``tol`` relative (or the RMS
-        drops below 1e-9 px). Without ``accelerate`` the alternation converges linearly, so a
-        small ``tol`` is needed to be close to the minimum.
-    callback : callable ``(sweep, rms_px) -> bool | None``, optional
-        Called after every sweep (and polish iteration); returning True stops early (the result
-        is then marked not converged).
+        Stop when a sweep (or polish iteration) lowers the squared RMS by less than ``tol``
+        relative, or when the RMS drops below 1e-9 px. The alternation converges linearly, so
+        without ``accelerate`` a small ``tol`` is needed to get close to the minimum.
+    callback : callable ``(iteration, rms_px) -> bool | None``, optional
+        Called after every sweep and polish iteration; returning True stops early (the result is
+        then marked not converged).
     accelerate : bool
-        Finish with a joint Levenberg–Marquardt polish (beyond the paper, much faster to reach
-        the same minimum). ``False`` runs the paper's alternation alone.
+        After a few sweeps, finish with a joint Levenberg–Marquardt polish (beyond the paper;
+        reaches the same minimum much faster). ``False`` runs the paper's alternation alone.
     names, view_names : sequence of str, optional
         Feature and photo names used in error messages (default ``#i``).
 
@@ -555,27 +618,29 @@ def recover_poses(
     FitError
         Wrong shapes; a click with one coordinate NaN or an infinite coordinate; fewer than 2
         photos; a feature clicked in fewer than 2 photos; a photo with fewer than
-        :data:`MIN_POINTS_PER_VIEW` clicks or with collinear clicks; fewer than
-        :data:`MIN_POINTS` features or fewer equations than unknowns; a clicked feature behind
-        its initial camera; or a divergent solve.
+        :data:`MIN_POINTS_PER_VIEW` clicks or with collinear clicks; fewer than :data:`MIN_POINTS`
+        features or fewer equations than unknowns; a camera or point that is not finite; a clicked
+        feature behind its initial camera; or a solve that diverged.
     """
     obs, valid, pts, cams = _validate(observations, cameras, points, names, view_names, fixed_focal)
     prob = _Problem(obs, valid, cams, fixed_focal)
     st = prob.state_from(cams, pts)
-    prob.register(st)
-    rms = prob.rms(st)
-    history = [rms]
-    converged = False
-    sweeps = 0
-    polish_it = 0
-    stopped = False
-    # with the polish, the alternation only has to bring the estimate into the polish's basin
-    als_tol = max(tol, 1e-4) if accelerate else tol
-    min_sweeps = 3 if accelerate else 1
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        while sweeps < max_sweeps:
+        prob.register(st)
+        rms = float(np.sqrt(prob.evaluate(st)[5] / prob.n_obs))
+        history = [rms]
+        converged = stopped = False
+        sweeps = polish_it = 0
+        if accelerate:
+            n_sweeps, als_tol = min(max_sweeps, _ALS_MAX_SWEEPS), _ALS_HANDOVER
+        else:
+            n_sweeps, als_tol = max_sweeps, tol
+        while sweeps < n_sweeps:
             prev = rms
-            rms = prob.sweep(st)
+            try:
+                rms = prob.sweep(st)
+            except np.linalg.LinAlgError:
+                rms = np.nan
             sweeps += 1
             history.append(rms)
             if not np.isfinite(rms):
@@ -583,32 +648,33 @@ def recover_poses(
             if callback is not None and callback(sweeps, rms):
                 stopped = True
                 break
-            if rms < 1e-9 or (sweeps >= min_sweeps and abs(prev * prev - rms * rms) <= als_tol * prev * prev):
+            if rms < _RMS_FLOOR:
                 converged = True
                 break
-        if accelerate and not stopped and np.isfinite(rms) and rms >= 1e-9:
-            st, polish_it, converged = prob.polish(st, rms, max_iter=50, tol=tol, history=history)
-            rms = history[-1]
-            if callback is not None:
-                callback(sweeps + polish_it, rms)
-    if not (np.isfinite(rms) and np.all(np.isfinite(st.m)) and np.all(st.eta > 0)):
+            if abs(prev * prev - rms * rms) <= als_tol * prev * prev and (not accelerate or sweeps >= _ALS_MIN_SWEEPS):
+                converged = not accelerate
+                break
+        if accelerate and not (stopped or converged) and np.isfinite(rms):
+            try:
+                st, polish_it, converged, stopped = prob.polish(st, max_sweeps, tol, history, callback, sweeps)
+            except np.linalg.LinAlgError:
+                rms = np.nan
+        q, w, p, P, r, cost = prob.evaluate(st)
+    if not (np.isfinite(cost) and np.all(np.isfinite(st.m)) and np.all(st.eta > 0)):
         raise FitError(
             "pose recovery diverged (a camera passed behind the head); check that each photo's preset "
             "matches its view and that no feature is clicked in the wrong place"
         )
-    out_cams = prob.cameras_from(st, cams)
-    res = prob.residuals(st)
-    rms_all, per_view, per_point = _rms_summary(res, valid)
-    res_px = np.where(valid[..., None], res, np.nan)
+    rms_all, per_view, per_point = _rms_summary(r, valid)
     return PoseResult(
-        cameras=out_cams,
+        cameras=prob.cameras_from(st, cams),
         points=st.m,
         iterations=sweeps,
         converged=converged,
         rms_px=rms_all,
         per_view_rms_px=per_view,
         per_point_rms_px=per_point,
-        residuals_px=res_px,
+        residuals_px=np.where(valid[..., None], r, np.nan),
         polish_iterations=polish_it,
         rms_history=np.asarray(history),
     )

@@ -24,8 +24,11 @@ What a synthetic artist does
 from __future__ import annotations
 
 import hashlib
+import json
 import weakref
 from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -634,3 +637,47 @@ def _points3(points: np.ndarray, what: str) -> np.ndarray:
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"{what} must be an (n, 3) array of mm positions, got shape {points.shape}")
     return points
+
+
+@dataclass
+class GroundTruth:
+    """The ``ground_truth.json`` of a synthetic project (tests and benchmarks only).
+
+    Attributes
+    ----------
+    cameras : dict expression → dict photo id → Camera, the true cameras.
+    clean_points : dict expression → dict photo id → dict feature → (2,) px, noise-free clicks.
+    features_3d : dict feature → (3,) mm, true positions on the scan (head frame).
+    """
+
+    cameras: dict
+    clean_points: dict
+    features_3d: dict
+    noise_px: float
+
+    def true_points(self, names: Sequence[str]) -> np.ndarray:
+        """(n, 3) mm true positions of the named features."""
+        return np.array([self.features_3d[n] for n in names], dtype=float)
+
+    def clean_observations(self, expression: str, photo_ids: Sequence[str], names: Sequence[str]):
+        """(k, n, 2) noise-free clicks, NaN where the feature is not visible."""
+        out = np.full((len(photo_ids), len(names), 2), np.nan)
+        for k, pid in enumerate(photo_ids):
+            pts = self.clean_points[expression][pid]
+            for i, n in enumerate(names):
+                if n in pts:
+                    out[k, i] = pts[n]
+        return out
+
+
+def load_ground_truth(path) -> GroundTruth:
+    """Read a ``ground_truth.json`` written by ``sample_projects/make_james.py``."""
+    d = json.loads(Path(path).read_text())
+    cameras, clean = {}, {}
+    for expr, e in d["expressions"].items():
+        cameras[expr] = {pid: Camera.from_dict(p["camera"]) for pid, p in e["photos"].items()}
+        clean[expr] = {
+            pid: {n: np.asarray(uv, float) for n, uv in p["points"].items()} for pid, p in e["photos"].items()
+        }
+    feats = {n: np.asarray(x, float) for n, x in d["features_3d"].items()}
+    return GroundTruth(cameras, clean, feats, float(d["noise_px"]))

@@ -1,0 +1,90 @@
+"""The ``facestudio`` command as a user runs it: on a copy of the sample project."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.cli import main
+from photomodel.mesh_io import read_mesh
+from photomodel.project import load_project
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
+
+
+@pytest.fixture
+def project_copy(tmp_path):
+    shutil.copytree(SAMPLE, tmp_path / "james")
+    return tmp_path / "james" / "james.facestudio.json"
+
+
+def test_fit_writes_results_into_the_project(project_copy, capsys):
+    assert main(["fit", str(project_copy), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    expr = out["expressions"][0]
+    assert expr["name"] == "neutral"
+    assert {v["photo"] for v in expr["views"]} == {
+        "right",
+        "three_quarter_right",
+        "front",
+        "three_quarter_left",
+        "left",
+    }
+    assert expr["rms_px"] < 3.0
+    project = load_project(project_copy)
+    result = project.expression("neutral").result
+    assert set(result.cameras) == {v["photo"] for v in expr["views"]}
+    vertices, faces = read_mesh(project.resolve(result.mesh_obj))
+    v2, _ = read_mesh(project.resolve(result.mesh_ply))
+    assert vertices.shape[0] > 5000 and faces.shape[1] == 3
+    np.testing.assert_allclose(vertices, v2, atol=1e-4)
+    # every clicked feature has a 3D point, and the clicks are untouched
+    assert "nose_tip" in result.points_3d
+    original = load_project(SAMPLE / "james.facestudio.json")
+    assert (
+        project.expression("neutral").photos[0].points.keys()
+        == original.expression("neutral").photos[0].points.keys()
+    )
+
+
+def test_fit_prints_a_table(project_copy, capsys):
+    assert main(["fit", str(project_copy), "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "reprojection RMS" in out and "worst points" in out and "front" in out
+    assert load_project(project_copy).expression("neutral").result is None  # dry run wrote nothing
+
+
+def test_malformed_project_is_reported_and_left_alone(tmp_path, capsys):
+    bad = tmp_path / "bad.facestudio.json"
+    text = (SAMPLE / "james.facestudio.json").read_text().replace('"pose": true', '"pose": "yes"', 1)
+    bad.write_text(text)
+    assert main(["fit", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.facestudio.json" in err and "pose" in err
+    assert bad.read_text() == text
+
+
+def test_missing_project_file(tmp_path, capsys):
+    assert main(["fit", str(tmp_path / "nope.facestudio.json")]) == 2
+    assert "nope.facestudio.json" in capsys.readouterr().err
+
+
+def test_missing_photo_is_named_but_the_fit_uses_the_clicks(project_copy, capsys):
+    (project_copy.parent / "photos" / "neutral_left.png").unlink()
+    assert main(["fit", str(project_copy), "--dry-run"]) == 0
+    assert "neutral_left.png" in capsys.readouterr().err
+
+
+def test_too_few_clicks_is_a_clear_error(project_copy, capsys):
+    project = json.loads(project_copy.read_text())
+    for photo in project["expressions"][0]["photos"]:
+        photo["points"] = dict(list(photo["points"].items())[:3])
+    project_copy.write_text(json.dumps(project))
+    before = project_copy.read_text()
+    assert main(["fit", str(project_copy)]) == 2
+    assert "error" in capsys.readouterr().err
+    assert project_copy.read_text() == before

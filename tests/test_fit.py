@@ -1,0 +1,147 @@
+"""The modeling pipeline (§5.1) on the sample project, scored against the scan's ground truth.
+
+The sample photographs are renderings of the real james scan from known cameras; the clicks
+carry σ = 1 px of hand noise. The fit reads only the project; ground_truth.json is read here.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from photomodel.alignment import align_to_truth, camera_errors
+from photomodel.errors import FitError
+from photomodel.fit import FitOptions, fit_expression
+from photomodel.generic_mesh import load_generic_mesh
+from photomodel.project import load_project
+from photomodel.sample_data import load_james_scan
+from photomodel.synthetic import load_ground_truth, surface_distance, true_correspondence
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
+PROJECT = SAMPLE / "james.facestudio.json"
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    return load_generic_mesh()
+
+
+@pytest.fixture(scope="module")
+def scan():
+    return load_james_scan()
+
+
+@pytest.fixture(scope="module")
+def truth():
+    return load_ground_truth(SAMPLE / "ground_truth.json")
+
+
+@pytest.fixture(scope="module")
+def fitted(mesh):
+    project = load_project(PROJECT)
+    return project, fit_expression(project, "neutral", mesh)
+
+
+def _aligned(result, truth):
+    """The fit moved onto the truth by the similarity of its 3D feature points."""
+    true_pts = truth.true_points(result.feature_names)
+    cams, pts = align_to_truth(result.cameras, result.points_3d, true_pts)
+    from photomodel.alignment import similarity_transform
+
+    s, R, t = similarity_transform(result.points_3d, true_pts)
+    return cams, pts, true_pts, (s, R, t)
+
+
+def test_cameras_match_ground_truth(fitted, truth):
+    project, result = fitted
+    cams, _, _, _ = _aligned(result, truth)
+    true = [truth.cameras["neutral"][pid] for pid in result.photo_ids]
+    err = camera_errors(cams, true)
+    # 13 pose clicks with σ = 1 px in 1000 px photos. The side views see only 5–6 of them, so
+    # their orientation is the least certain (measured 1.6° for 'right', ≤ 0.6° elsewhere);
+    # with long lenses focal length trades off against distance (measured 0.5–14 %). Clean
+    # clicks give < 0.1° and < 1 % (test below), so these bounds are the noise, not the method.
+    assert err["rot_err_deg"].max() < 2.5, err
+    assert np.median(err["rot_err_deg"]) < 0.75, err
+    assert err["focal_err_pct"].mean() < 15.0, err
+    assert result.report["pose"]["rms_px"] < 1.5  # about the click noise
+
+
+def test_feature_points_match_ground_truth(fitted, truth):
+    _, result = fitted
+    _, pts, true_pts, _ = _aligned(result, truth)
+    err = np.linalg.norm(pts - true_pts, axis=1)
+    # triangulated from ≥2 photos with 1 px noise at ~0.3 mm/px: about a millimetre
+    assert np.median(err) < 1.5, np.median(err)
+    assert err.mean() < 2.0
+
+
+def test_refined_mesh_is_close_to_the_scan(fitted, truth, mesh, scan):
+    _, result = fitted
+    _, _, _, (s, R, t) = _aligned(result, truth)
+    face = mesh.face_mask
+    initial = surface_distance(result.initial_vertices[face] @ (s * R).T + t, scan)
+    refined = surface_distance(result.vertices[face] @ (s * R).T + t, scan)
+    generic = surface_distance(mesh.vertices[face], scan)
+    # the issue's bar: mean ≤ 2 mm over the face after refinement
+    assert refined.mean() <= 2.0, refined.mean()
+    assert refined.mean() < initial.mean() < generic.mean()
+
+
+def test_refined_mesh_vertices_match_true_correspondence(fitted, truth, mesh, scan):
+    """Stricter than surface distance: each vertex against its own true position."""
+    _, result = fitted
+    _, _, _, (s, R, t) = _aligned(result, truth)
+    face = mesh.face_mask
+    true_v = true_correspondence(mesh, scan)[face]
+    err = np.linalg.norm(result.vertices[face] @ (s * R).T + t - true_v, axis=1)
+    assert np.median(err) < 2.0, np.median(err)
+
+
+def test_clean_clicks_fit_better_than_noisy(mesh, truth):
+    """With noise-free clicks the same pipeline is near exact on the cameras."""
+    project = load_project(PROJECT)
+    expr = project.expression("neutral")
+    ids = [p.id for p in expr.photos]
+    for p in expr.photos:
+        clean = truth.clean_points["neutral"][p.id]
+        p.points = {n: clean[n] for n in p.points if n in clean}
+    result = fit_expression(project, "neutral", mesh, FitOptions(refine=False))
+    cams, _ = align_to_truth(result.cameras, result.points_3d, truth.true_points(result.feature_names))
+    err = camera_errors(cams, [truth.cameras["neutral"][i] for i in ids])
+    assert result.report["pose"]["rms_px"] < 0.05
+    assert err["rot_err_deg"].max() < 0.1
+    assert err["focal_err_pct"].max() < 1.0
+
+
+def test_too_few_clicks_is_a_fit_error(mesh):
+    project = load_project(PROJECT)
+    for p in project.expression("neutral").photos:
+        p.points = dict(list(p.points.items())[:2])
+    with pytest.raises(FitError):
+        fit_expression(project, "neutral", mesh)
+
+
+def test_one_photo_is_a_fit_error(mesh):
+    project = load_project(PROJECT)
+    expr = project.expression("neutral")
+    expr.photos = expr.photos[:1]
+    with pytest.raises(FitError, match="at least 2"):
+        fit_expression(project, "neutral", mesh)
+
+
+def test_fit_can_be_cancelled(mesh):
+    from photomodel.fit import Cancelled
+
+    project = load_project(PROJECT)
+    with pytest.raises(Cancelled):
+        fit_expression(project, "neutral", mesh, cancel=lambda: True)
+
+
+def test_copy_of_sample_is_independent(tmp_path):
+    # guard for the CLI tests: they work on a copy, never on the shipped sample
+    shutil.copytree(SAMPLE, tmp_path / "james")
+    assert (tmp_path / "james" / "james.facestudio.json").exists()
