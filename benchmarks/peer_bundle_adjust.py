@@ -64,14 +64,18 @@ class _BA:
         self.cameras = cameras
         self.x0 = np.concatenate(
             [
-                np.column_stack([np.zeros((self.k, 3)), np.stack([c.t for c in cameras]), [c.f for c in cameras]]).ravel(),
+                np.column_stack(
+                    [np.zeros((self.k, 3)), np.stack([c.t for c in cameras]), [c.f for c in cameras]]
+                ).ravel(),
                 np.asarray(points, float).ravel(),
             ]
         )
         m = len(self.kk)
         self.m = m
         # column indices of each residual row's nonzeros: 7 camera + 3 point unknowns
-        cols = np.concatenate([7 * self.kk[:, None] + np.arange(7), 7 * self.k + 3 * self.ii[:, None] + np.arange(3)], 1)
+        cols = np.concatenate(
+            [7 * self.kk[:, None] + np.arange(7), 7 * self.k + 3 * self.ii[:, None] + np.arange(3)], 1
+        )
         self.rows = np.repeat(np.arange(2 * m), 10)
         self.cols = np.repeat(cols, 2, axis=0).ravel()
 
@@ -136,8 +140,9 @@ class _BA:
 AUTO_SPARSE_UNKNOWNS = 150
 
 
-def bundle_adjust(observations, cameras, points, *, method: str = "auto", tol: float = 1e-8,
-                  max_nfev: int | None = None):
+def bundle_adjust(
+    observations, cameras, points, *, method: str = "auto", tol: float = 1e-8, max_nfev: int | None = None
+):
     """Full bundle adjustment of cameras (rotation, t, f) and points from an initial guess.
 
     Parameters
@@ -162,17 +167,43 @@ def bundle_adjust(observations, cameras, points, *, method: str = "auto", tol: f
     if method == "trf":
         sparsity = sp.csr_matrix((np.ones(len(ba.rows)), (ba.rows, ba.cols)), shape=(2 * ba.m, len(ba.x0)))
         res = least_squares(
-            ba.fun, ba.x0, jac=ba.jac_sparse, method="trf", jac_sparsity=sparsity, tr_solver="lsmr",
-            x_scale="jac", ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev,
+            ba.fun,
+            ba.x0,
+            jac=ba.jac_sparse,
+            method="trf",
+            jac_sparsity=sparsity,
+            tr_solver="lsmr",
+            x_scale="jac",
+            ftol=tol,
+            xtol=tol,
+            gtol=tol,
+            max_nfev=max_nfev,
         )
     elif method == "lm":
         res = least_squares(
-            ba.fun, ba.x0, jac=ba.jac_dense, method="lm", x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
+            ba.fun,
+            ba.x0,
+            jac=ba.jac_dense,
+            method="lm",
+            x_scale="jac",
+            ftol=tol,
+            xtol=tol,
+            gtol=tol,
             max_nfev=max_nfev,
         )
     else:
         raise ValueError(f"method must be 'auto', 'lm' or 'trf'; got {method!r}")
     cams, pts = ba.to_cameras(res.x)
     ms = (time.perf_counter() - t0) * 1e3
-    return cams, pts, {"iterations": int(res.njev or 0), "nfev": int(res.nfev), "time_ms": ms,
-                       "cost": float(res.cost), "status": int(res.status), "method": method}
+    return (
+        cams,
+        pts,
+        {
+            "iterations": int(res.njev or 0),
+            "nfev": int(res.nfev),
+            "time_ms": ms,
+            "cost": float(res.cost),
+            "status": int(res.status),
+            "method": method,
+        },
+    )

@@ -174,7 +174,7 @@ class Camera:
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         return self.center, d
 
-    def copy(self) -> "Camera":
+    def copy(self) -> Camera:
         return Camera(self.R.copy(), self.t.copy(), self.f, self.width, self.height)
 
     # -- (de)serialisation --------------------------------------------------
@@ -188,7 +188,7 @@ class Camera:
         }
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Camera":
+    def from_dict(cls, d: dict) -> Camera:
         return cls(
             np.array(d["rotation"], float),
             np.array(d["translation_mm"], float),

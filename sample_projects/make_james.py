@@ -53,12 +53,8 @@ N_EXTRAS = 100
 #: so an artist outlines a curve end to end where it can (nearly) all be seen, following
 #: the silhouette over a short hidden end, and leaves it out elsewhere.
 MIN_CURVE_VISIBLE = 0.9
-#: Features on a silhouette (the nose tip, lips and chin in a profile) are clicked on the
-#: contour, where the true point lies a millimetre or two behind the surface the camera
-#: grazes: clicks accept surfaces seen edge-on and that much depth slack (the defaults
-#: of :func:`photomodel.synthetic.visible`, n·view > 0.1 and 1.5 mm, would drop them).
-CLICK_MIN_COS = -0.05
-CLICK_TOL_MM = 2.5
+CLICK_MIN_COS = synthetic.CLICK_MIN_COS
+CLICK_TOL_MM = synthetic.CLICK_TOL_MM
 #: Curves are traced along silhouettes too (the jaw line in a front view), so their
 #: visibility accepts surfaces seen edge-on (n·view > 0 rather than the clicks' 0.1).
 CURVE_MIN_COS = 0.0
