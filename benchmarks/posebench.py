@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from peer_bundle_adjust import bundle_adjust
 
+from photomodel.alignment import align_to_truth
 from photomodel.camera import (
     PRESET_AZIMUTH_DEG,
     Camera,
@@ -132,31 +133,6 @@ def synthetic_rig(
 # ----------------------------------------------------------------------------------------------
 # accuracy after similarity alignment
 # ----------------------------------------------------------------------------------------------
-def umeyama(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Similarity ``(c, R, t)`` minimising ``Σ |dst − (c R src + t)|²`` (Umeyama 1991)."""
-    mu_s, mu_d = src.mean(0), dst.mean(0)
-    a, b = src - mu_s, dst - mu_d
-    U, S, Vt = np.linalg.svd(b.T @ a / len(src))
-    D = np.eye(3)
-    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
-        D[2, 2] = -1.0
-    R = U @ D @ Vt
-    c = float(np.trace(np.diag(S) @ D) / (a * a).sum(1).mean())
-    return c, R, mu_d - c * R @ mu_s
-
-
-def align_to_truth(cameras, points, true_points):
-    """Map a reconstruction into the true frame: points ``c R X + t``; cameras so that they see
-    the moved points exactly as before (``R_cam Rᵀ``, ``c t_cam − R_cam Rᵀ t``)."""
-    c, R, t = umeyama(points, true_points)
-    pts = points @ (c * R).T + t
-    out = []
-    for cam in cameras:
-        Rn = cam.R @ R.T
-        out.append(Camera(Rn, c * cam.t - Rn @ t, cam.f, cam.width, cam.height))
-    return out, pts
-
-
 def accuracy(cameras, points, observations, true_cameras, true_points) -> dict:
     """Reprojection RMS (px, length of the 2D error over all clicks) and errors against the truth."""
     res = reprojection_residuals(cameras, points, observations)

@@ -85,6 +85,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 
 from .camera import Camera
 from .errors import FitError
@@ -321,11 +322,14 @@ _EYE9 = np.eye(3).reshape(9)
 
 def _rodrigues_batch(v: np.ndarray) -> np.ndarray:
     """(k, 3) rotation vectors → (k, 3, 3) rotations, Eq. (12):
-    ``I + sin θ X(n̂) + (1 − cos θ) X(n̂)² = cos θ I + sin θ X(n̂) + (1 − cos θ) n̂ n̂ᵀ``."""
-    theta = np.sqrt((v * v).sum(1))
-    th = np.maximum(theta, 1e-300)
-    sinc = np.where(theta < 1e-8, 1.0, np.sin(th) / th)
-    cosc = np.where(theta < 1e-8, 0.5, (1.0 - np.cos(th)) / (th * th))
+    ``I + sin θ X(n̂) + (1 − cos θ) X(n̂)² = cos θ I + sin θ X(n̂) + (1 − cos θ) n̂ n̂ᵀ``.
+
+    Written with ``sin θ / θ`` and ``(1 − cos θ) / θ² = 2 (sin(θ/2) / θ)²`` so that no branch is
+    needed at ``θ → 0`` (both stay accurate down to the clamp at 1e-30).
+    """
+    theta = np.maximum(np.sqrt((v * v).sum(1)), 1e-30)
+    sinc = np.sin(theta) / theta
+    cosc = 2.0 * (np.sin(0.5 * theta) / theta) ** 2
     out = np.cos(theta)[:, None] * _EYE9 + (sinc[:, None] * v) @ _EPS
     out += ((cosc[:, None] * v)[:, :, None] * v[:, None, :]).reshape(-1, 9)
     return out.reshape(-1, 3, 3)
@@ -404,10 +408,6 @@ class _Problem:
             cost = np.inf
         return q, w, p, P, r, cost
 
-    def residuals(self, st: _State) -> np.ndarray:
-        """(k, n, 2) projected − clicked in px (0 where unclicked)."""
-        return self.evaluate(st)[4]
-
     def register(self, st: _State) -> None:
         """Fit each camera's image scale and offset to its clicks (beyond the paper).
 
@@ -485,9 +485,9 @@ class _Problem:
         q = st.m @ R.transpose(0, 2, 1)
         w = V / (1.0 + ek * q[..., 2])
         w2 = w * w
-        st.t2 = t2 = ((w[:, None, :] @ O)[:, 0] / sk - (w2[:, None, :] @ q[..., :2])[:, 0]) / w2.sum(1)[
-            :, None
-        ]
+        sum_wx = (w[:, None, :] @ O)[:, 0]
+        sum_w2q = (w2[:, None, :] @ q[..., :2])[:, 0]
+        st.t2 = t2 = (sum_wx / sk - sum_w2q) / w2.sum(1)[:, None]
 
         # (5) η_k — rows a = w x_j q_z, b = w (s (q_j + t_j) − x_j)
         #     (fixed focal length: s = f η, so a = w (x_j q_z − f (q_j + t_j)), b = −w x_j)
@@ -519,8 +519,7 @@ class _Problem:
         J = self._J
         g = self._g
         eye_c = np.eye(nc)
-        diag_idx = np.arange(k)
-        lam = 1e-3
+        lam = _LM_LAMBDA0
         it = 0
         converged = stopped = False
         while it < max_iter:
@@ -563,10 +562,13 @@ class _Problem:
                 Vd = Vp + (lam * dV + 1e-12)[:, :, None] * np.eye(3)
                 Vinv = np.linalg.inv(Vd)
                 Y2 = (Wt @ Vinv).transpose(1, 0, 2).reshape(k * nc, 3 * n)
-                S = -(Y2 @ W2.T).reshape(k, nc, k, nc)
-                S[diag_idx, :, diag_idx, :] += U + (lam * dU + 1e-12)[:, :, None] * eye_c
+                S = np.ascontiguousarray(Y2 @ W2.T)
+                np.negative(S, out=S)
+                s0, s1 = S.strides
+                blocks = as_strided(S, (k, nc, nc), ((s0 + s1) * nc, s0, s1))  # view of S's camera blocks
+                blocks += U + (lam * dU + 1e-12)[:, :, None] * eye_c
                 rhs = Y2 @ gp.reshape(-1) - gc.reshape(-1)
-                dc = np.linalg.solve(S.reshape(k * nc, k * nc), rhs).reshape(k, nc)
+                dc = np.linalg.solve(S, rhs).reshape(k, nc)
                 dm = -(Vinv @ (gp + (dc.reshape(-1) @ W2).reshape(n, 3))[..., None])[..., 0]
                 new = _State(
                     _rodrigues_batch(dc[:, :3]) @ R, st.t2 + dc[:, 3:5], eta + dc[:, -1], s, st.m + dm
@@ -577,7 +579,7 @@ class _Problem:
                     break
                 lam *= 10.0
                 if lam > 1e10:  # no descent direction left: at the minimum to working precision
-                    return st, it, True, False
+                    return st, it - 1, True, False
             st = new
             q, w, p, P, r, cost_new = ev
             lam = max(lam * 0.1, 1e-10)
@@ -600,6 +602,8 @@ _RMS_FLOOR = 1e-6
 #: (after :meth:`_Problem.register`) one to ten sweeps all led the polish to the peer's minimum on 72
 #: synthetic rigs; the alternation's progress per sweep is small after the first few.
 _ALS_SWEEPS_BEFORE_POLISH = 3
+#: Initial Levenberg–Marquardt damping of the polish (relative to the normal matrix' diagonal).
+_LM_LAMBDA0 = 1e-3
 
 
 def recover_poses(
