@@ -115,6 +115,9 @@ def fit_expression(
     options: FitOptions | None = None,
     progress: Callable[[str, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    *,
+    deform: Callable[..., np.ndarray] | None = None,
+    curve_mesh: np.ndarray | None = None,
 ) -> FitResult:
     """Fit the generic mesh to one expression's photos (§5.1).
 
@@ -126,6 +129,14 @@ def fit_expression(
     options : FitOptions
     progress : called as ``progress(stage, fraction)``.
     cancel : polled between stages; return True to abort with :class:`Cancelled`.
+    deform : callable, optional
+        Replaces :func:`photomodel.rbf.deform_vertices` (same signature, same result), e.g. a
+        :class:`photomodel.refit.CachedDeformer` that reuses the RBF solve between refits.
+    curve_mesh : (N, 3) float mm, optional
+        Mesh on which hand-drawn curves are parameterised by arc length in the first
+        refinement pass (default: the mesh deformed by the pose features). An interactive
+        refit passes the previous fit's vertices, already close to the answer, with
+        ``options.curve_passes = 1`` (see :mod:`photomodel.refit`).
 
     Raises
     ------
@@ -140,12 +151,17 @@ def fit_expression(
             f"expression {expression_name!r} has {len(photos)} photo(s); pose recovery needs at least 2 views"
         )
     report_progress = progress or (lambda stage, frac: None)
+    deform = deform or deform_vertices
 
     def check_cancel():
         if cancel is not None and cancel():
             raise Cancelled("fit cancelled")
 
     n_vertices = len(mesh.vertices)
+    if curve_mesh is not None:
+        curve_mesh = np.asarray(curve_mesh, dtype=float)
+        if curve_mesh.shape != mesh.vertices.shape:
+            raise FitError(f"curve_mesh has shape {curve_mesh.shape}, the generic mesh {mesh.vertices.shape}")
     feat_vertex = {f.name: int(f.vertex) for f in project.features}
     bad = [n for n, v in feat_vertex.items() if not 0 <= v < n_vertices]
     if bad:
@@ -189,7 +205,7 @@ def fit_expression(
 
     # 3. scattered-data interpolation from the pose features ----------------------------
     report_progress("deforming the generic mesh", 0.4)
-    initial_vertices = deform_vertices(mesh.vertices, pose_idx, pose_points)
+    initial_vertices = deform(mesh.vertices, pose_idx, pose_points)
     check_cancel()
 
     names = list(pose_names)
@@ -214,9 +230,10 @@ def fit_expression(
         for n_pass in range(n_passes):
             report_progress("refining: points and curves", 0.55 + 0.4 * n_pass / n_passes)
             # curves are parameterised on the current fitted mesh, so later passes see a better one
+            param_mesh = curve_mesh if (n_pass == 0 and curve_mesh is not None) else vertices
             targets = refine_points(
                 cameras,
-                vertices,
+                param_mesh,
                 point_vertices=extra_idx if extra else None,
                 point_observations=obs_extra,
                 curves=curve_args,
@@ -224,7 +241,7 @@ def fit_expression(
                 curve_names=[c.name for c in curves],
             )
             keep = np.array([v not in pose_set for v in targets.vertices.tolist()], dtype=bool)
-            vertices = deform_vertices(
+            vertices = deform(
                 mesh.vertices,
                 np.concatenate([pose_idx, targets.vertices[keep]]),
                 np.concatenate([pose_points, targets.targets[keep]]),

@@ -1,28 +1,16 @@
 """Mesh files: OBJ and PLY written atomically with trimesh (a kept exporter, so
-Blender/MeshLab read what we write)."""
+Blender/MeshLab read what we write). Textured exports (OBJ+MTL+PNG, coloured PLY, glTF) are in
+:mod:`photomodel.exchange`, whose atomic writer this module shares."""
 
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import trimesh
 
-
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+from photomodel.exchange.files import atomic_write_bytes as _atomic_write_bytes
 
 
 def write_mesh(path: str | os.PathLike, vertices: np.ndarray, faces: np.ndarray) -> Path:

@@ -169,6 +169,47 @@ class Photo:
 
 
 @dataclass
+class TextureResult:
+    """The texture of a fitted expression and the exports made with it (``facestudio texture``).
+
+    Written when the texture is extracted from the photos (Pighin et al. 2002, §5.2); a new fit
+    of the expression replaces the whole :class:`ExpressionResult` and so drops it (the
+    texture belongs to the mesh it was made for).
+
+    Attributes
+    ----------
+    size : int, the texture is ``size × size`` texels.
+    image : str, the texture PNG relative to the project folder (``results/<expr>_texture.png``).
+    weight_maps : dict[str, str], photo id → PNG of that photo's blending weight in texture
+        space (``results/<expr>_weights_<photo>.png``; black = 0, white = 1).
+    exports : dict[str, str], format → exported file relative to the project folder; formats
+        are ``"obj"`` (with its ``.mtl`` next to it), ``"glb"`` and ``"ply"`` (vertex colours).
+    report : dict, free-form JSON-able facts (coverage, timings...).
+    """
+
+    size: int
+    image: str
+    weight_maps: dict[str, str] = field(default_factory=dict)
+    exports: dict[str, str] = field(default_factory=dict)
+    report: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.size = int(self.size)
+        self.weight_maps = {k: _posix(v) for k, v in self.weight_maps.items()}
+        self.exports = {k: _posix(v) for k, v in self.exports.items()}
+        self.image = _posix(self.image)
+
+
+def _posix(p) -> str:
+    return Path(p).as_posix() if isinstance(p, Path) else str(p)
+
+
+def _file_stem(name: str, fallback: str) -> str:
+    """``name`` with characters unsafe in file names replaced by ``_`` (never hidden or empty)."""
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name).lstrip(".") or fallback
+
+
+@dataclass
 class ExpressionResult:
     """The fitted model of one expression (written by the fitter, :mod:`photomodel.fit`).
 
@@ -179,6 +220,7 @@ class ExpressionResult:
     mesh_obj, mesh_ply : str or None, fitted mesh files relative to the project folder
         (by convention ``results/<expression>.obj`` / ``.ply``).
     report : dict, free-form JSON-able fit report (rms, per-view, per-point residuals...).
+    texture : TextureResult or None, the extracted texture and exports (``facestudio texture``).
     """
 
     cameras: dict[str, Camera] = field(default_factory=dict)
@@ -186,6 +228,7 @@ class ExpressionResult:
     mesh_obj: str | None = None
     mesh_ply: str | None = None
     report: dict = field(default_factory=dict)
+    texture: TextureResult | None = None
 
     def __post_init__(self):
         self.points_3d = {k: np.asarray(v, dtype=float).reshape(3) for k, v in self.points_3d.items()}
@@ -193,7 +236,8 @@ class ExpressionResult:
     def __eq__(self, other):
         if not isinstance(other, ExpressionResult):
             return False
-        if (self.mesh_obj, self.mesh_ply, self.report) != (other.mesh_obj, other.mesh_ply, other.report):
+        if ((self.mesh_obj, self.mesh_ply, self.report, self.texture)
+                != (other.mesh_obj, other.mesh_ply, other.report, other.texture)):
             return False
         if self.cameras.keys() != other.cameras.keys():
             return False
@@ -312,8 +356,34 @@ class Project:
     def default_result_paths(self, expression_name: str) -> tuple[str, str]:
         """``("results/<expr>.obj", "results/<expr>.ply")``, relative to the project folder;
         characters unsafe in file names are replaced by ``_``."""
-        stem = re.sub(r"[^A-Za-z0-9_.-]", "_", expression_name).lstrip(".") or "expression"
+        stem = _file_stem(expression_name, "expression")
         return f"results/{stem}.obj", f"results/{stem}.ply"
+
+    def default_texture_paths(self, expression_name: str) -> dict:
+        """Where ``facestudio texture`` writes, relative to the project folder.
+
+        Returns ``{"image": "results/<expr>_texture.png", "weight_maps": {photo id:
+        "results/<expr>_weights_<photo>.png"}, "obj": "results/<expr>_textured.obj", "mtl":
+        "results/<expr>_textured.mtl", "glb": "results/<expr>.glb", "ply":
+        "results/<expr>_colors.ply"}``; unsafe characters become ``_`` as in
+        :meth:`default_result_paths` (photo ids that would then collide get their position in
+        the expression appended).
+        """
+        stem = _file_stem(expression_name, "expression")
+        weights: dict[str, str] = {}
+        for i, photo in enumerate(self.expression(expression_name).photos):
+            path = f"results/{stem}_weights_{_file_stem(photo.id, 'photo')}.png"
+            if path in weights.values():
+                path = path[: -len(".png")] + f"_{i}.png"
+            weights[photo.id] = path
+        return {
+            "image": f"results/{stem}_texture.png",
+            "weight_maps": weights,
+            "obj": f"results/{stem}_textured.obj",
+            "mtl": f"results/{stem}_textured.mtl",
+            "glb": f"results/{stem}.glb",
+            "ply": f"results/{stem}_colors.ply",
+        }
 
     # -- checks that need more than the file ---------------------------------------------
     def check_vertices(self, n_vertices: int) -> None:
@@ -430,6 +500,16 @@ class Project:
                     "mesh_ply": None if r.mesh_ply is None else stored(r.mesh_ply),
                     "report": _jsonable(r.report),
                 }
+                if r.texture is not None:  # optional: files without a texture omit the key
+                    tx = r.texture
+                    ed["result"]["texture"] = {
+                        "size": int(tx.size),
+                        "image": stored(tx.image),
+                        "weight_maps": {k: stored(tx.weight_maps[k])
+                                        for k in ordered(tx.weight_maps, photo_order)},
+                        "exports": {k: stored(tx.exports[k]) for k in sorted(tx.exports)},
+                        "report": _jsonable(tx.report),
+                    }
             d["expressions"].append(ed)
         return d
 
@@ -897,6 +977,11 @@ def _cross_reference_problems(d: dict) -> list[tuple[str, str]]:
             if name not in fset:
                 problems.append((f"{rp}.points_3d{_fmt_key(name)}", f"no feature named {name!r} is defined"
                                                                     f"{_did_you_mean(name, features)}"))
+        for pid in (r.get("texture") or {}).get("weight_maps", {}):
+            if pid not in sizes:
+                problems.append((f"{rp}.texture.weight_maps{_fmt_key(pid)}",
+                                 f"weight map for photo {pid!r}, which is not a photo of this expression"
+                                 f"{_did_you_mean(pid, list(sizes))}"))
     return problems
 
 
@@ -947,6 +1032,10 @@ def _expression_from_dict(e: dict) -> Expression:
             mesh_ply=r.get("mesh_ply"),
             report=_plain(r.get("report", {})),
         )
+        t = r.get("texture")
+        if t is not None:
+            result.texture = TextureResult(size=t["size"], image=t["image"], weight_maps=t["weight_maps"],
+                                           exports=t.get("exports", {}), report=_plain(t.get("report", {})))
     return Expression(name=e["name"], photos=photos, result=result)
 
 

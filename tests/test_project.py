@@ -554,3 +554,55 @@ def test_fast_leaf_checks_agree_with_the_shipped_schema(saved, kind):
         else:
             e["expressions"][0]["result"]["points_3d"]["eye_l"] = value
         assert standard.is_valid(e) == _validator().is_valid(e) == (value is good), value
+
+
+# ---------------------------------------------------------------------------------------
+# result.texture (written by `facestudio texture`; optional, absent from files without one)
+# ---------------------------------------------------------------------------------------
+def _textured(tmp_path: Path) -> Project:
+    from photomodel.project import TextureResult
+
+    p = _project(tmp_path)
+    p.expression("neutral").result.texture = TextureResult(
+        size=512, image="results/neutral_texture.png",
+        weight_maps={"left": "results/neutral_weights_left.png", "front": "results/neutral_weights_front.png"},
+        exports={"obj": "results/neutral_textured.obj", "glb": "results/neutral.glb",
+                 "ply": "results/neutral_colors.ply"},
+        report={"coverage": 0.97, "extract_s": 0.5})
+    return p
+
+
+def test_texture_round_trip_and_absent_when_none(tmp_path, saved):
+    path, d = saved
+    assert "texture" not in d["expressions"][0]["result"]  # files without a texture are unchanged
+    p = _textured(tmp_path)
+    save_project(p)
+    d = json.loads(p.path.read_text())
+    t = d["expressions"][0]["result"]["texture"]
+    assert list(t["weight_maps"]) == ["front", "left"]  # photo order, like the cameras
+    assert t["exports"]["glb"] == "results/neutral.glb"
+    q = load_project(p.path)
+    assert q == p and q.expression("neutral").result.texture.size == 512
+    # save as elsewhere: the texture paths still reach the same files
+    save_project(q, tmp_path / "sub" / "copy.facestudio.json")
+    r = load_project(tmp_path / "sub" / "copy.facestudio.json")
+    moved = r.expression("neutral").result.texture
+    assert r.resolve(moved.image) == tmp_path / "results" / "neutral_texture.png"
+    assert r.resolve(moved.weight_maps["left"]) == tmp_path / "results" / "neutral_weights_left.png"
+    assert r.resolve(moved.exports["glb"]) == tmp_path / "results" / "neutral.glb"
+
+
+@pytest.mark.parametrize("mutate, expected", [
+    (lambda t: t["weight_maps"].__setitem__("back", "w.png"),
+     "expressions[0].result.texture.weight_maps.back: weight map for photo 'back', which is not a photo"),
+    (lambda t: t["exports"].__setitem__("fbx", "a.fbx"), "expressions[0].result.texture.exports"),
+    (lambda t: t.pop("image"), "'image' is a required property"),
+    (lambda t: t.__setitem__("size", 0), "texture.size: expected the texture size in texels"),
+])
+def test_texture_validation_names_the_field(tmp_path, mutate, expected):
+    p = _textured(tmp_path)
+    d = p.to_dict()
+    mutate(d["expressions"][0]["result"]["texture"])
+    with pytest.raises(ProjectError) as exc:
+        _load_dict(tmp_path, d)
+    assert expected in str(exc.value)

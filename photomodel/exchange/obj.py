@@ -63,7 +63,8 @@ class TexturedObj:
 
 
 def encode_textured_obj(path: str | os.PathLike, vertices, faces, uv, texture,
-                        *, texture_path: str | os.PathLike | None = None) -> TexturedObj:
+                        *, texture_path: str | os.PathLike | None = None,
+                        check_exists: bool = True) -> TexturedObj:
     """Encode a textured mesh as OBJ + MTL (+ PNG) without touching the disk.
 
     Parameters
@@ -73,8 +74,7 @@ def encode_textured_obj(path: str | os.PathLike, vertices, faces, uv, texture,
     vertices : (n, 3) float, positions (mm in Face Studio).
     faces : (m, 3) int, counter-clockwise seen from outside.
     uv : (n, 2) per-vertex or (m, 3, 2) per-corner float, ``v`` up (see
-        :mod:`photomodel.exchange.uv`; for a cylindrical texture pass
-        :func:`~photomodel.exchange.uv.unwrap_cylindrical_seam`'s output).
+        :mod:`photomodel.exchange.uv`).
     texture : (H, W, 3|4) uint8 or float in [0, 1] image, or None
         with an image, the PNG is encoded too; with None, ``texture_path`` must name an
         existing PNG that the MTL refers to.
@@ -82,6 +82,9 @@ def encode_textured_obj(path: str | os.PathLike, vertices, faces, uv, texture,
         where the PNG is (default: ``path`` with suffix ``.png``). It must be in the OBJ's
         folder or below it, since MTL references are relative; no whitespace in its name
         (MTL readers split on it).
+    check_exists : bool
+        with ``texture=None``, require the PNG at ``texture_path`` to exist (set False when
+        the caller writes it in the same batch, before these files).
 
     Returns
     -------
@@ -101,7 +104,7 @@ def encode_textured_obj(path: str | os.PathLike, vertices, faces, uv, texture,
     files: dict[Path, bytes] = {}
     if texture is not None:
         files[png_path] = encode_png(check_texture(texture))
-    elif not png_path.is_file():
+    elif check_exists and not png_path.is_file():
         raise ValueError(f"{png_path}: no texture image given and no such file to refer to")
 
     if t.ndim == 2:  # one vt per vertex, indexed like the positions

@@ -1,4 +1,4 @@
-"""Texture coordinates for export: checks, the cylindrical seam, per-corner → per-vertex, sampling.
+"""Texture coordinates for export: checks, splitting and merging seams, texture sampling.
 
 Conventions (as :mod:`photomodel.render` and OBJ): ``uv = (0, 0)`` is the bottom-left corner of
 the texture image, ``(0, 1)`` its top-left (image row 0), so ``v`` points up; texel ``(row r,
@@ -6,10 +6,14 @@ column c)`` of an ``H × W`` image has its centre at ``u = (c + 0.5) / W``, ``v 
 
 Texture coordinates come either per vertex, ``(n, 2)``, or per face corner, ``(m, 3, 2)`` (row
 ``i`` of face ``j`` → ``uv[j, i]``). Per-corner coordinates are what a seam needs: a vertex on the
-seam of the cylindrical texture of Pighin et al. (2002), §5.2.2, where ``u`` wraps from 1 back
-to 0, has one ``u`` in the triangles on one side and another in the triangles on the other.
+seam of the cylindrical texture of Pighin et al. (2002), §5.2.2, where the angle wraps around,
+has one ``u`` in the triangles on one side and another in the triangles on the other.
 Formats with a single index per vertex (glTF, and what trimesh builds from an OBJ) then need
-the vertex duplicated, one copy per distinct ``uv`` (:func:`split_uv_seams`).
+the vertex duplicated, one copy per distinct ``uv`` (:func:`split_uv_seams`);
+:func:`merge_uv_seams` goes back, e.g. from :class:`photomodel.texture.CylindricalTexture`'s
+seam-split rendering mesh to per-corner coordinates. Textures are sampled clamped to the edge
+(as :mod:`photomodel.render` does and as the glTF export declares), so ``uv`` should lie in
+``[0, 1]``.
 """
 
 from __future__ import annotations
@@ -64,35 +68,6 @@ def corner_uvs(faces: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return uv if uv.ndim == 3 else uv[np.asarray(faces)]
 
 
-def unwrap_cylindrical_seam(faces: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Per-corner coordinates in which no triangle jumps across the ``u`` seam of a cylinder.
-
-    A cylindrical texture (§5.2.2) has ``u`` = angle around the axis / 2π in ``[0, 1)``; a
-    triangle straddling the cut has corners near ``u = 1`` and near ``u = 0``, and would
-    otherwise be stretched backwards across the whole texture. Such a triangle is recognised
-    by a ``u`` span over one half (no real triangle covers half of the turn) and its corners
-    with ``u < 0.5`` are moved up by one period, into ``(1, 1.5)``.
-
-    Parameters
-    ----------
-    faces : (m, 3) int
-    uv : (n, 2) per-vertex or (m, 3, 2) per-corner float, ``u`` periodic with period 1.
-
-    Returns
-    -------
-    (m, 3, 2) float
-        per-corner coordinates; only seam triangles differ from ``uv``. Their ``u > 1`` need
-        the texture sampled with *repeat* wrapping in ``u`` — glTF's default, set explicitly by
-        :mod:`photomodel.exchange.gltf`; OBJ viewers repeat unless an MTL map says ``-clamp on``.
-    """
-    c = corner_uvs(faces, uv).copy()
-    u = c[:, :, 0]
-    seam = (u.max(axis=1) - u.min(axis=1)) > 0.5
-    low = seam[:, None] & (u < 0.5)
-    u[low] += 1.0
-    return c
-
-
 def split_uv_seams(n_vertices: int, faces: np.ndarray, uv: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One vertex per distinct ``(vertex, uv)`` pair, for formats with a single index per vertex.
@@ -131,8 +106,43 @@ def split_uv_seams(n_vertices: int, faces: np.ndarray, uv: np.ndarray
     return source, uv_out, index[inverse.reshape(-1)].reshape(faces.shape)
 
 
+def merge_uv_seams(faces: np.ndarray, source: np.ndarray, split_faces: np.ndarray,
+                   split_uv: np.ndarray) -> np.ndarray:
+    """Per-corner texture coordinates of ``faces`` from a seam-split copy of the mesh.
+
+    The inverse of :func:`split_uv_seams`, also when the split mesh lists the triangles in
+    another order (as :attr:`photomodel.texture.CylindricalTexture.seam_faces` does).
+
+    Parameters
+    ----------
+    faces : (m, 3) int, the triangles over the original vertices.
+    source : (n',) int, original vertex of each split vertex.
+    split_faces : (m, 3) int, the same triangles over the split vertices, any order, same
+        corner order within each triangle.
+    split_uv : (n', 2) float, texture coordinates of the split vertices.
+
+    Returns
+    -------
+    (m, 3, 2) float
+    """
+    faces = np.asarray(faces, dtype=np.int64)
+    split_faces = np.asarray(split_faces, dtype=np.int64)
+    tri = np.asarray(source, dtype=np.int64)[split_faces]
+    if tri.shape != faces.shape:
+        raise ValueError(f"the split mesh has {len(tri)} triangles, the mesh {len(faces)}")
+    corner = np.asarray(split_uv, dtype=float)[split_faces]
+    if np.array_equal(tri, faces):
+        return corner
+    ia, ib = np.lexsort(faces.T[::-1]), np.lexsort(tri.T[::-1])
+    if not np.array_equal(faces[ia], tri[ib]):
+        raise ValueError("the split mesh's triangles are not the mesh's triangles")
+    out = np.empty_like(corner)
+    out[ia] = corner[ib]
+    return out
+
+
 def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear texture look-up at ``uv``, repeating in ``u`` and clamped in ``v``.
+    """Bilinear texture look-up at ``uv``, clamped to the edge (as :mod:`photomodel.render`).
 
     Parameters
     ----------
@@ -153,7 +163,7 @@ def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
     fx, fy = (x - x0)[..., None], (y - y0)[..., None]
     x0 = x0.astype(np.int64)
     y0 = y0.astype(np.int64)
-    xa, xb = np.mod(x0, W), np.mod(x0 + 1, W)
+    xa, xb = np.clip(x0, 0, W - 1), np.clip(x0 + 1, 0, W - 1)
     ya, yb = np.clip(y0, 0, H - 1), np.clip(y0 + 1, 0, H - 1)
     img = img.astype(float)
     top = img[ya, xa] * (1 - fx) + img[ya, xb] * fx

@@ -1,0 +1,311 @@
+"""View-dependent texture mapping (Pighin et al. 2002, §5.2.3; Debevec et al. 1996).
+
+Instead of one resampled, blended texture, each new view is coloured directly from the
+photographs, "select[ing] just the two photographs whose view directions ``d_ℓ`` and
+``d_{ℓ+1}`` are the closest to ``d``" and blending them per pixel with
+``g_k = F_k(x_k, y_k) P_k(m) V_k(d)`` (:mod:`photomodel.weights`).
+
+One pass with a position buffer (the default) vs the paper's multi-pass
+------------------------------------------------------------------------
+The paper renders the model once per photograph, with per-vertex texture coordinates (the
+vertex projected into the photograph) and per-vertex blending weights, and lets the
+hardware blend the passes. Here the default is **one** geometry pass: the renderer draws
+the model from the new view with its normals (and the §5.2.4 single-view weight) as float
+attributes; every covered pixel's 3D point is rebuilt from the depth buffer, projected into
+the two selected photographs and everything else happens per pixel in numpy/OpenCV —
+bilinear colour lookups (``cv2.remap``), depth-map visibility, the image-space feather map
+``F_k(x_k, y_k)``, ``P_k = n · d_k`` and ``V_k``. Per-pixel projection is exact projective
+texturing and per-pixel visibility, where per-vertex weights and interpolated texture
+coordinates smear across occlusion boundaries (a triangle straddling the nose's outline
+takes cheek colour from behind the nose). ``method="per_vertex"`` keeps the paper's
+multi-pass route for comparison. ``benchmarks/bench_texture.py`` measures both on the
+held-out views of the sample project (see docs/texturing.md for the figures): the
+one-pass route is at least as fast on llvmpipe (one render instead of three) and gives the
+higher PSNR, so it is the default.
+
+Pixels where neither selected photograph sees the surface (occluded in both) fall back to
+the view-independent blend ``F_k P_k`` of all photographs, so a new view has no holes where
+any photograph saw the surface.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from photomodel.camera import Camera
+from photomodel.texture import check_photos
+from photomodel.visibility import DEPTH_TOL_MM, depth_visible, project_points, render_depth, sample_image
+from photomodel.weights import (
+    FEATHER_WIDTH_MM,
+    apply_single_view,
+    blend,
+    image_feather_map,
+    positional_certainty,
+    select_views,
+    view_directions,
+    view_similarity,
+)
+
+__all__ = ["ViewDependentRender", "ViewDependentTexture", "render_view_dependent"]
+
+METHODS = ("position_buffer", "per_vertex")
+
+
+@dataclass
+class ViewDependentRender:
+    """One view-dependent frame.
+
+    Attributes
+    ----------
+    color : (H, W, 3) float32
+        RGB in [0, 1]; ``background`` where the model is not drawn.
+    mask : (H, W) bool
+        pixels covered by the model.
+    views : (int, int)
+        the two photographs ``ℓ, ℓ+1`` selected for this view (indices into the cameras).
+    view_weights : (k,) float
+        ``V_k(d)`` of every photograph.
+    filled : (H, W) bool
+        covered pixels coloured by the fallback (neither selected photograph sees them).
+    """
+
+    color: np.ndarray
+    mask: np.ndarray
+    views: tuple[int, int]
+    view_weights: np.ndarray
+    filled: np.ndarray
+
+
+class ViewDependentTexture:
+    """The photographs of a fitted model, prepared for view-dependent rendering (§5.2.3).
+
+    Preparation renders each photograph's depth map and its feathered visibility map
+    ``F_k(x_k, y_k)`` once; :meth:`render` then draws any new view.
+
+    Parameters
+    ----------
+    vertices : (N, 3) float
+        the fitted mesh, mm.
+    faces : (M, 3) int
+    cameras : k Camera
+        recovered cameras, in the order of ``photos``.
+    photos : k (H_k, W_k, 3) uint8 RGB
+    single_view : (N,) float in [0, 1], optional
+        per-vertex weight of the single-best-view fallback of §5.2.4
+        (:func:`photomodel.texture.single_view_weights`).
+    feather_mm : float
+        width of the feathering ramp on the surface (mm).
+    tol_mm : float
+        depth-comparison tolerance of the visibility test (mm).
+    depths : k (H_k, W_k) float, optional
+        the mesh's depth maps from ``cameras`` if already rendered.
+    centre : (3,) float, optional
+        the point view directions are measured from; default the centroid of the vertices.
+    """
+
+    def __init__(
+        self,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        cameras: Sequence[Camera],
+        photos: Sequence[np.ndarray],
+        *,
+        single_view: np.ndarray | None = None,
+        feather_mm: float = FEATHER_WIDTH_MM,
+        tol_mm: float = DEPTH_TOL_MM,
+        depths: Sequence[np.ndarray] | None = None,
+        centre: np.ndarray | None = None,
+    ):
+        from photomodel.render import vertex_normals
+
+        V = np.asarray(vertices, dtype=float)
+        F = np.asarray(faces)
+        if V.ndim != 2 or V.shape[1] != 3 or len(V) == 0:
+            raise ValueError(f"vertices must be (N, 3) mm, got shape {V.shape}")
+        if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or not np.issubdtype(F.dtype, np.integer):
+            raise ValueError(f"faces must be (M, 3) integers, got shape {F.shape}")
+        self.photos = check_photos(cameras, photos)
+        self.cameras = list(cameras)
+        self.vertices, self.faces = V, F
+        self.normals = vertex_normals(V, F)
+        self.single_view = None
+        if single_view is not None:
+            self.single_view = np.asarray(single_view, dtype=np.float32).reshape(-1)
+            if self.single_view.shape != (len(V),):
+                raise ValueError(f"single_view must be ({len(V)},), got shape {np.shape(single_view)}")
+        self.tol_mm = float(tol_mm)
+        if depths is None:
+            depths = [render_depth(c, V, F) for c in self.cameras]
+        if len(depths) != len(self.cameras):
+            raise ValueError(f"{len(self.cameras)} cameras but {len(depths)} depth maps")
+        self.depths = [np.asarray(d, dtype=np.float32) for d in depths]
+        self.feather_maps = []
+        for cam, d in zip(self.cameras, self.depths, strict=True):
+            finite = d[np.isfinite(d)]
+            mm_per_px = float(np.median(finite)) / cam.f if finite.size else 1.0
+            self.feather_maps.append(image_feather_map(d, feather_mm, mm_per_px))
+        self.centre = V.mean(axis=0) if centre is None else np.asarray(centre, dtype=float).reshape(3)
+        self.directions = view_directions(self.cameras, self.centre)
+        self._gl_textures = None
+
+    # -------------------------------------------------------------------------------------
+    def view_weights(self, camera: Camera) -> tuple[tuple[int, int], np.ndarray]:
+        """The selected photographs and ``V_k(d)`` for a new camera (§5.2.3)."""
+        d = camera.center - self.centre
+        d = d / np.linalg.norm(d)
+        return select_views(d, self.directions), view_similarity(d, self.directions)
+
+    def _photo_weights(self, k: int, pts: np.ndarray, nrm: np.ndarray):
+        """Colour (n, 3) uint8 and ``F_k P_k`` (n,) of points in photograph ``k``."""
+        cam = self.cameras[k]
+        uv, z = project_points(cam, pts)
+        P = positional_certainty(cam, pts, nrm)
+        vis = depth_visible(cam, pts, self.depths[k], tol_mm=self.tol_mm, uv=uv, z=z) & (P > 0)
+        Fk = sample_image(self.feather_maps[k], uv)
+        g = np.where(vis, Fk * P, 0.0).astype(np.float32)
+        return sample_image(self.photos[k], uv), g
+
+    def render(
+        self,
+        camera: Camera,
+        *,
+        background=0.0,
+        method: str = "position_buffer",
+    ) -> ViewDependentRender:
+        """Render the model from a new camera with view-dependent texturing (§5.2.3).
+
+        Parameters
+        ----------
+        camera : Camera
+            the new view.
+        background : float or (3,) sequence
+            colour (0..1) of pixels the model does not cover.
+        method : ``"position_buffer"`` (default) or ``"per_vertex"``
+            one geometry pass with per-pixel projection, or the paper's multi-pass rendering
+            with per-vertex texture coordinates and weights (see the module notes).
+
+        Returns
+        -------
+        ViewDependentRender
+        """
+        if not isinstance(camera, Camera):
+            raise TypeError(f"camera must be a photomodel.camera.Camera, got {type(camera).__name__}")
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        views, V = self.view_weights(camera)
+        if method == "per_vertex":
+            return self._render_per_vertex(camera, views, V, background)
+        from photomodel.render import get_renderer
+
+        sv = np.zeros(len(self.vertices), np.float32) if self.single_view is None else self.single_view
+        attr = np.column_stack([self.normals, sv]).astype(np.float32)
+        res = get_renderer().render(camera, self.vertices, self.faces, colors=attr)
+        H, W = camera.height, camera.width
+        rows, cols = np.nonzero(res.mask)
+        z = res.depth[rows, cols].astype(np.float64)
+        # the pixel's 3D point from the depth buffer: X_cam = (Z (u - c) / f, Z (v - c) / f, Z)
+        cx, cy = camera.principal_point
+        Xc = np.column_stack([(cols - cx) * z / camera.f, (rows - cy) * z / camera.f, z])
+        pts = ((Xc - camera.t) @ camera.R).astype(np.float32)
+        nrm = res.color[rows, cols, :3]
+        nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+        s = res.color[rows, cols, 3] if self.single_view is not None else None
+
+        selected = [k for k in dict.fromkeys(views) if V[k] > 0]
+        colors, weights = [], []
+        for k in selected:
+            c, g = self._photo_weights(k, pts, nrm)
+            colors.append(c)
+            weights.append(g * np.float32(V[k]))
+        g = np.array(weights)
+        out = np.zeros((len(pts), 3), np.float32)
+        have = g.sum(axis=0) > 0
+        if have.any():
+            out[have] = blend(
+                np.array(colors)[:, have], apply_single_view(g[:, have], None if s is None else s[have])
+            )[0]
+        filled = ~have
+        if filled.any():  # §5.2.3 keeps two photographs; where both are occluded, use them all
+            fc, fg = [], []
+            for k in range(len(self.cameras)):
+                c, gk = self._photo_weights(k, pts[filled], nrm[filled])
+                fc.append(c)
+                fg.append(gk)
+            out[filled] = blend(np.array(fc), apply_single_view(np.array(fg), None if s is None else s[filled]))[0]
+        color = np.empty((H, W, 3), np.float32)
+        color[:] = np.broadcast_to(np.asarray(background, np.float32).reshape(-1), (3,))
+        color[rows, cols] = out / 255.0
+        filled_map = np.zeros((H, W), bool)
+        filled_map[rows, cols] = filled
+        return ViewDependentRender(color, res.mask, views, V, filled_map)
+
+    def _render_per_vertex(self, camera, views, V, background) -> ViewDependentRender:
+        """The paper's multi-pass rendering: one textured pass per selected photograph
+        (texture coordinates = the vertices' projections) and one pass for the per-vertex
+        weights ``F_k P_k V_k``; blended per pixel."""
+        from photomodel.render import get_renderer
+
+        renderer = get_renderer()
+        if self._gl_textures is None or self._gl_textures[0].renderer is not renderer:
+            self._gl_textures = [renderer.upload_texture(p) for p in self.photos]
+        selected = [k for k in dict.fromkeys(views) if V[k] > 0]
+        Vx = self.vertices
+        weights, layers = [], []
+        for k in selected:
+            cam = self.cameras[k]
+            uv, _ = project_points(cam, Vx)
+            tex_uv = np.column_stack([(uv[:, 0] + 0.5) / cam.width, 1.0 - (uv[:, 1] + 0.5) / cam.height])
+            _, g = self._photo_weights(k, Vx, self.normals)
+            weights.append(g * np.float32(V[k]))
+            layers.append(renderer.render(camera, Vx, self.faces, uv=tex_uv, texture=self._gl_textures[k]).color)
+        w_attr = np.column_stack(weights + ([self.single_view] if self.single_view is not None else []))
+        wres = renderer.render(camera, Vx, self.faces, colors=w_attr)
+        nsel = len(selected)
+        g = np.moveaxis(wres.color[..., :nsel], -1, 0)
+        s = wres.color[..., nsel] if self.single_view is not None else None
+        g = apply_single_view(np.maximum(g, 0.0), s)
+        total = g.sum(axis=0)
+        num = sum(g[i][..., None] * layers[i] for i in range(nsel))
+        color = np.where(total[..., None] > 0, num / np.maximum(total, 1e-12)[..., None], layers[0])
+        mask = wres.mask
+        color[~mask] = np.broadcast_to(np.asarray(background, np.float32).reshape(-1), (3,))
+        return ViewDependentRender(color.astype(np.float32), mask, views, V, mask & (total <= 0))
+
+
+def render_view_dependent(
+    camera_new: Camera,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    cameras: Sequence[Camera],
+    photos: Sequence[np.ndarray],
+    *,
+    background=0.0,
+    method: str = "position_buffer",
+    **options,
+) -> np.ndarray:
+    """One view-dependent frame of a fitted model from a new camera (§5.2.3).
+
+    A convenience for a single frame: it prepares a :class:`ViewDependentTexture` (one depth
+    map per photograph) each call; keep the object to render many frames.
+
+    Parameters
+    ----------
+    camera_new : Camera
+        the new view.
+    vertices, faces, cameras, photos :
+        as :class:`ViewDependentTexture`; other keyword ``options`` go to it too
+        (``single_view``, ``feather_mm``, ``tol_mm``, ``depths``, ``centre``).
+    background : float or (3,)
+        colour of uncovered pixels (0..1).
+    method : see :meth:`ViewDependentTexture.render`.
+
+    Returns
+    -------
+    (H, W, 3) float32
+        RGB in [0, 1].
+    """
+    vdt = ViewDependentTexture(vertices, faces, cameras, photos, **options)
+    return vdt.render(camera_new, background=background, method=method).color
