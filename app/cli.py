@@ -3,6 +3,7 @@
     facestudio fit PROJECT [--expression NAME] [--no-refine] [--json] [--dry-run]
     facestudio texture PROJECT [--expression NAME] [--size 1024] [--json]
     facestudio sample-data
+    facestudio studio [PROJECT]
 
 Qt is imported only by commands that open windows; ``fit`` runs anywhere.
 """
@@ -269,6 +270,17 @@ def cmd_sample_data(args) -> int:
     return 0
 
 
+def cmd_studio(args) -> int:
+    try:  # Qt is imported here only
+        from app.qt_compat import check_pyside
+
+        check_pyside()
+        from app.main_window import run_studio
+    except ImportError as exc:
+        raise FaceStudioError(f"the studio cannot start: {exc}") from exc
+    return run_studio(args.project)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="facestudio", description="Face Studio: faces from photographs.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -288,6 +300,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.set_defaults(func=cmd_texture)
     s = sub.add_parser("sample-data", help="fetch, verify and cache the sample data; print its folder")
     s.set_defaults(func=cmd_sample_data)
+    g = sub.add_parser("studio", help="open the studio window (click points, draw curves, fit, look)")
+    g.add_argument("project", nargs="?", help="project file to open (*.facestudio.json)")
+    g.set_defaults(func=cmd_studio)
     return p
 
 

@@ -1,0 +1,184 @@
+"""Undoable edits of a :class:`~app.model.StudioModel`: one :class:`QUndoCommand` per artist action.
+
+Each command calls the model's edit primitives in ``redo`` and restores what they returned in
+``undo``, so the undo stack (``QUndoStack``, shown in the Edit menu) covers every change of the
+clicks, curves, photos, features and expressions. A click on a generic-mesh feature that the
+project does not define yet adds the definition in the same command (and undo removes it).
+Commands name their photo and feature, never hold widgets, and are pushed by the views.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtGui import QUndoCommand
+
+from photomodel.project import CurveDef, Expression, Feature, Photo
+
+from .model import StudioModel
+
+
+def _fmt_uv(uv) -> str:
+    return "–" if uv is None else f"({uv[0]:.1f}, {uv[1]:.1f})"
+
+
+class SetPointCommand(QUndoCommand):
+    """Place, move or delete (``uv=None``) the click of a feature in one photo.
+
+    Placing a click also shows the feature again in that photo if it was hidden there.
+    """
+
+    def __init__(self, model: StudioModel, expression: str, photo_id: str, feature: str, uv,
+                 old_uv=None, text: str | None = None):
+        photo = model.photo(photo_id, expression)
+        self.model, self.expression, self.photo_id, self.feature = model, expression, photo_id, feature
+        self.new = None if uv is None else np.asarray(uv, dtype=float).reshape(2).copy()
+        # a drag moves the marker before the command exists: its start is passed in
+        current = photo.points.get(feature)
+        self.old = (np.asarray(old_uv, float).reshape(2).copy() if old_uv is not None
+                    else (None if current is None else current.copy()))
+        self.was_hidden = feature in photo.hidden
+        self.define = None
+        if not model.has_feature(feature):
+            self.define = Feature(feature, model.mesh.features[feature], pose=False)
+        if text is None:
+            if self.new is None:
+                text = f"Delete {feature} in {photo_id}"
+            elif self.old is None:
+                text = f"Click {feature} in {photo_id}"
+            else:
+                text = f"Move {feature} in {photo_id}"
+        super().__init__(text)
+
+    def redo(self):
+        if self.define is not None and not self.model.has_feature(self.define.name):
+            self.model.add_feature(Feature(self.define.name, self.define.vertex, self.define.pose))
+        if self.new is not None and self.was_hidden:
+            self.model.set_hidden(self.expression, self.photo_id, self.feature, False)
+        self.model.set_point(self.expression, self.photo_id, self.feature, self.new)
+
+    def undo(self):
+        self.model.set_point(self.expression, self.photo_id, self.feature, self.old)
+        if self.new is not None and self.was_hidden:
+            self.model.set_hidden(self.expression, self.photo_id, self.feature, True)
+        if self.define is not None:
+            self.model.remove_feature(self.define.name)
+
+
+class SetHiddenCommand(QUndoCommand):
+    """Mark a feature as not visible (or visible again) in one photo."""
+
+    def __init__(self, model: StudioModel, expression: str, photo_id: str, feature: str, hidden: bool):
+        super().__init__(f"{'Hide' if hidden else 'Show'} {feature} in {photo_id}")
+        self.model, self.expression, self.photo_id, self.feature = model, expression, photo_id, feature
+        self.hidden = bool(hidden)
+        self.old = feature in model.photo(photo_id, expression).hidden
+
+    def redo(self):
+        self.model.set_hidden(self.expression, self.photo_id, self.feature, self.hidden)
+
+    def undo(self):
+        self.model.set_hidden(self.expression, self.photo_id, self.feature, self.old)
+
+
+class SetCurveCommand(QUndoCommand):
+    """Draw, replace or delete (``polyline=None``) a curve in one photo (§5.1.3)."""
+
+    def __init__(self, model: StudioModel, expression: str, photo_id: str, curve: str, polyline):
+        self.model, self.expression, self.photo_id, self.curve = model, expression, photo_id, curve
+        self.new = None if polyline is None else np.asarray(polyline, dtype=float).reshape(-1, 2).copy()
+        old = model.photo(photo_id, expression).curves.get(curve)
+        self.old = None if old is None else old.copy()
+        self.define = None
+        if not model.has_curve(curve):
+            self.define = CurveDef(curve, model.mesh.curves[curve])
+        verb = "Delete" if self.new is None else ("Draw" if self.old is None else "Redraw")
+        super().__init__(f"{verb} curve {curve} in {photo_id}")
+
+    def redo(self):
+        if self.define is not None and not self.model.has_curve(self.define.name):
+            self.model.add_curve_def(CurveDef(self.define.name, self.define.vertices))
+        self.model.set_curve(self.expression, self.photo_id, self.curve, self.new)
+
+    def undo(self):
+        self.model.set_curve(self.expression, self.photo_id, self.curve, self.old)
+        if self.define is not None:
+            self.model.remove_curve_def(self.define.name)
+
+
+class AddPhotosCommand(QUndoCommand):
+    """Add photos to an expression."""
+
+    def __init__(self, model: StudioModel, expression: str, photos: list[Photo]):
+        names = ", ".join(p.id for p in photos)
+        super().__init__(f"Add photo{'s' if len(photos) > 1 else ''} {names}")
+        self.model, self.expression, self.photos = model, expression, list(photos)
+        self.saved_fit = None
+
+    def redo(self):
+        self.saved_fit = self.model.fits.get(self.expression), self.model.project.expression(self.expression).result
+        for p in self.photos:
+            self.model.insert_photo(self.expression, p)
+
+    def undo(self):
+        for p in reversed(self.photos):
+            self.model.remove_photo(self.expression, p.id)
+        _restore_fit(self.model, self.expression, self.saved_fit)
+
+
+class RemovePhotoCommand(QUndoCommand):
+    """Remove one photo (with its clicks and curves) from an expression."""
+
+    def __init__(self, model: StudioModel, expression: str, photo_id: str):
+        super().__init__(f"Remove photo {photo_id}")
+        self.model, self.expression, self.photo_id = model, expression, photo_id
+        self.photo, self.index, self.saved_fit = None, None, None
+
+    def redo(self):
+        self.saved_fit = self.model.fits.get(self.expression), self.model.project.expression(self.expression).result
+        self.photo, self.index = self.model.remove_photo(self.expression, self.photo_id)
+
+    def undo(self):
+        self.model.insert_photo(self.expression, self.photo, self.index)
+        _restore_fit(self.model, self.expression, self.saved_fit)
+
+
+def _restore_fit(model: StudioModel, expression: str, saved) -> None:
+    """Put back the fit an add/remove of photos dropped (it is valid again for the old photos)."""
+    if saved is None or saved[0] is None:
+        return
+    model.fits[expression] = saved[0]
+    model.project.expression(expression).result = saved[1]
+    model.fit_changed.emit(expression)
+
+
+class SetPresetCommand(QUndoCommand):
+    """Change a photo's rough starting view (front, three-quarter, profile)."""
+
+    def __init__(self, model: StudioModel, expression: str, photo_id: str, preset: str):
+        super().__init__(f"Set {photo_id} to {preset.replace('_', ' ')}")
+        self.model, self.expression, self.photo_id, self.preset = model, expression, photo_id, preset
+        self.old = model.photo(photo_id, expression).preset
+
+    def redo(self):
+        self.model.set_photo_preset(self.expression, self.photo_id, self.preset)
+
+    def undo(self):
+        self.model.set_photo_preset(self.expression, self.photo_id, self.old)
+
+
+class AddExpressionCommand(QUndoCommand):
+    """Add an (empty) expression and make it current."""
+
+    def __init__(self, model: StudioModel, name: str):
+        super().__init__(f"Add expression {name}")
+        self.model, self.name = model, name
+        self.previous = model.expression_name
+        self.expression = Expression(name=name)
+
+    def redo(self):
+        self.model.add_expression(self.name, expression=self.expression)
+
+    def undo(self):
+        self.model.remove_expression(self.name)
+        if self.previous is not None:
+            self.model.set_expression(self.previous)

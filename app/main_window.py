@@ -1,0 +1,713 @@
+"""The studio's main window: photos in tabs, the feature panel, the 3D view, menus and project files.
+
+Layout: the current expression's photos fill the centre (one :class:`~app.photo_view.PhotoView`
+per tab, the tab title showing the photo's reprojection RMS after a fit); the
+:class:`~app.feature_list.FeaturePanel` docks on the left and the :class:`~app.view3d.View3D` on
+the right. The toolbar holds the expression, the editing mode (points / draw curve), the fit
+and overlay switches and the current photo's starting view.
+
+Everything the window shows observes one :class:`~app.model.StudioModel`; edits are
+:mod:`app.commands` pushed on a :class:`QUndoStack`; fits run in a worker
+(:class:`~app.workers.FitController`). Files: new, open (with recovery of a newer autosave),
+save, save as, recent files (``QSettings``), an unsaved-changes prompt, and an autosave timer
+writing ``<file>.autosave``. Every failure is shown in a dialog whose text is the cause
+(e.g. ``james.facestudio.json: expressions[0].photos[2].points.nose_tip: expected [u, v] …``).
+"""
+
+from __future__ import annotations
+
+import sys
+import traceback
+from pathlib import Path
+
+from PySide6.QtCore import QSettings, Qt, QTimer
+from PySide6.QtGui import QAction, QActionGroup, QKeySequence, QUndoStack
+from PySide6.QtWidgets import (
+    QApplication,
+    QComboBox,
+    QDockWidget,
+    QFileDialog,
+    QInputDialog,
+    QLabel,
+    QMainWindow,
+    QMessageBox,
+    QProgressDialog,
+    QTabWidget,
+)
+
+from photomodel.camera import PRESET_AZIMUTH_DEG
+from photomodel.errors import FaceStudioError, ProjectError
+from photomodel.project import FILE_SUFFIX
+
+from .commands import AddExpressionCommand, AddPhotosCommand, RemovePhotoCommand, SetPresetCommand
+from .feature_list import FeaturePanel
+from .model import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, remove_autosave
+from .photo_view import CURVE, POINTS, PhotoView
+from .qt_compat import check_pyside
+from .view3d import View3D
+from .workers import FitController
+
+#: Autosave period (ms).
+AUTOSAVE_INTERVAL_MS = 60_000
+MAX_RECENT = 8
+PROJECT_FILTER = f"Face Studio projects (*{FILE_SUFFIX});;JSON files (*.json);;All files (*)"
+IMAGE_FILTER = "Images (" + " ".join(f"*{s}" for s in IMAGE_SUFFIXES) + ");;All files (*)"
+
+
+def guess_preset(filename: str) -> str:
+    """The starting view a file name suggests (``IMG_left.jpg`` → ``left``), else ``front``."""
+    stem = Path(filename).stem.lower().replace("-", "_").replace(" ", "_")
+    for preset in sorted(PRESET_AZIMUTH_DEG, key=len, reverse=True):
+        if preset in stem:
+            return preset
+    if "3q" in stem or "three" in stem:
+        return "three_quarter_right" if "right" in stem else "three_quarter_left"
+    return "front"
+
+
+class MainWindow(QMainWindow):
+    """The Face Studio window.
+
+    Parameters
+    ----------
+    model : StudioModel, optional (default: a new one with an empty project)
+    settings : QSettings, optional (default: the user's; tests pass their own file)
+    autosave_interval_ms : int, the autosave period (0 disables the timer)
+    """
+
+    def __init__(self, model: StudioModel | None = None, settings: QSettings | None = None,
+                 autosave_interval_ms: int = AUTOSAVE_INTERVAL_MS):
+        check_pyside()
+        super().__init__()
+        self.model = model if model is not None else StudioModel()
+        self.settings = settings if settings is not None else QSettings("FaceStudio", "studio")
+        self.undo_stack = QUndoStack(self)
+        self.fits = FitController(self.model, self)
+        self.views: dict[str, PhotoView] = {}
+        self.mode = POINTS
+        self.show_overlay = True
+        self.show_curves = True
+        self._progress: QProgressDialog | None = None
+        self._rebuilding = False
+
+        self.setWindowTitle("Face Studio")
+        self.resize(1500, 920)
+        self.setAcceptDrops(True)
+        self.setDockNestingEnabled(True)
+
+        self.tabs = QTabWidget()
+        self.tabs.setDocumentMode(True)
+        self.tabs.currentChanged.connect(self._on_tab_changed)
+        self.empty_label = QLabel("<h3>No photos yet</h3><p>Drop photos here, or use File → Add photos…</p>")
+        self.empty_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.setCentralWidget(self.tabs)
+
+        self.panel = FeaturePanel(self.model)
+        self.panel.jump_requested.connect(self.jump_to)
+        dock = QDockWidget("Features and fit", self)
+        dock.setObjectName("features")
+        dock.setWidget(self.panel)
+        movable = QDockWidget.DockWidgetFeature.DockWidgetMovable | QDockWidget.DockWidgetFeature.DockWidgetFloatable
+        dock.setFeatures(movable)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dock)
+        self.features_dock = dock
+
+        self.view3d = View3D(self.model)
+        dock3 = QDockWidget("3D view", self)
+        dock3.setObjectName("view3d")
+        dock3.setWidget(self.view3d)
+        dock3.setFeatures(movable)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock3)
+        self.resizeDocks([dock, dock3], [330, 400], Qt.Orientation.Horizontal)
+        self.view3d_dock = dock3
+
+        self.fit_label = QLabel("not fitted")
+        self.statusBar().addPermanentWidget(self.fit_label)
+
+        self._build_actions()
+        self._build_menus()
+        self._build_toolbar()
+
+        m = self.model
+        m.project_replaced.connect(self._on_project_replaced)
+        m.expression_changed.connect(lambda *_: self._rebuild_tabs())
+        m.photos_changed.connect(lambda *_: self._rebuild_tabs())
+        m.photo_changed.connect(lambda *_: self._sync_preset())
+        m.fit_changed.connect(self._on_fit_changed)
+        m.modified_changed.connect(lambda value: self.setWindowModified(bool(value)))
+        m.path_changed.connect(lambda *_: self._update_title())
+        self.undo_stack.indexChanged.connect(self._on_edit)
+        self.fits.started.connect(self._on_fit_started)
+        self.fits.progress.connect(self._on_fit_progress)
+        self.fits.finished.connect(self._on_fit_finished)
+        self.fits.failed.connect(self._on_fit_failed)
+        self.fits.cancelled.connect(self._on_fit_cancelled)
+
+        self.autosave_timer = QTimer(self)
+        self.autosave_timer.timeout.connect(self.autosave)
+        if autosave_interval_ms > 0:
+            self.autosave_timer.start(autosave_interval_ms)
+
+        self._on_project_replaced()
+
+    # ------------------------------------------------------------------ actions and menus
+    def _action(self, text, slot=None, shortcut=None, checkable=False, checked=False, tip=None) -> QAction:
+        a = QAction(text, self)
+        if shortcut is not None:
+            a.setShortcut(QKeySequence(shortcut))
+        if checkable:
+            a.setCheckable(True)
+            a.setChecked(checked)
+        if tip:
+            a.setStatusTip(tip)
+            a.setToolTip(tip)
+        if slot is not None:
+            (a.toggled if checkable else a.triggered).connect(slot)
+        return a
+
+    def _build_actions(self):
+        A = self._action
+        self.act_new = A("&New project", self.new_project, QKeySequence.StandardKey.New)
+        self.act_open = A("&Open…", self.open_dialog, QKeySequence.StandardKey.Open)
+        self.act_save = A("&Save", self.save, QKeySequence.StandardKey.Save)
+        self.act_save_as = A("Save &as…", self.save_as, QKeySequence.StandardKey.SaveAs)
+        self.act_add_photos = A("Add &photos…", self.add_photos_dialog, "Ctrl+Shift+P",
+                                tip="add photographs of the current expression (or drop image files on the window)")
+        self.act_remove_photo = A("Remove current photo", self.remove_current_photo)
+        self.act_quit = A("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        self.act_undo = self.undo_stack.createUndoAction(self, "&Undo")
+        self.act_undo.setShortcut(QKeySequence.StandardKey.Undo)
+        self.act_redo = self.undo_stack.createRedoAction(self, "&Redo")
+        self.act_redo.setShortcut(QKeySequence.StandardKey.Redo)
+        self.act_delete = A("Delete click of the active feature", self._delete_click, tip="Delete key in a photo")
+        self.act_hide = A("Hide / show the active feature in this photo", self._toggle_hidden, tip="H in a photo")
+        self.act_new_expr = A("New &expression…", self.new_expression_dialog)
+        self.act_fit = A("&Fit", self.run_fit, "Ctrl+R",
+                         tip="recover the cameras, deform the generic mesh and refine it (§5.1)")
+        self.act_auto = A("&Auto-refit after each edit", self._set_auto_refit, checkable=True, checked=True,
+                          tip="refit after every edit while a refit takes less than 0.3 s")
+        self.act_overlay = A("Fitted &wireframe overlay", self._set_overlay, "W", checkable=True, checked=True)
+        self.act_curves = A("Drawn &curves", self._set_curves, checkable=True, checked=True)
+        self.act_fit_view = A("Fit photo to window", self._fit_photo_view, "F")
+        self.act_mode_points = A("Click &points", lambda on: on and self.set_mode(POINTS), "P", checkable=True,
+                                 checked=True, tip="left-click places the active feature; drag a marker to move it")
+        self.act_mode_curve = A("Draw &curve", lambda on: on and self.set_mode(CURVE), "C", checkable=True,
+                                tip="click successive points (or drag) along a brow, lid or lip; Enter finishes")
+        group = QActionGroup(self)
+        group.addAction(self.act_mode_points)
+        group.addAction(self.act_mode_curve)
+
+    def _build_menus(self):
+        mb = self.menuBar()
+        f = mb.addMenu("&File")
+        for a in (self.act_new, self.act_open):
+            f.addAction(a)
+        self.recent_menu = f.addMenu("Open &recent")
+        self.recent_menu.aboutToShow.connect(self._fill_recent_menu)
+        f.addSeparator()
+        for a in (self.act_save, self.act_save_as):
+            f.addAction(a)
+        f.addSeparator()
+        f.addAction(self.act_add_photos)
+        f.addAction(self.act_remove_photo)
+        f.addSeparator()
+        f.addAction(self.act_quit)
+        e = mb.addMenu("&Edit")
+        for a in (self.act_undo, self.act_redo):
+            e.addAction(a)
+        e.addSeparator()
+        e.addAction(self.act_delete)
+        e.addAction(self.act_hide)
+        x = mb.addMenu("E&xpression")
+        x.addAction(self.act_new_expr)
+        fm = mb.addMenu("F&it")
+        fm.addAction(self.act_fit)
+        fm.addAction(self.act_auto)
+        v = mb.addMenu("&View")
+        for a in (self.act_mode_points, self.act_mode_curve):
+            v.addAction(a)
+        v.addSeparator()
+        for a in (self.act_overlay, self.act_curves, self.act_fit_view):
+            v.addAction(a)
+        v.addSeparator()
+        v.addAction(self.features_dock.toggleViewAction())
+        v.addAction(self.view3d_dock.toggleViewAction())
+
+    def _build_toolbar(self):
+        tb = self.addToolBar("Main")
+        tb.setObjectName("main")
+        tb.addWidget(QLabel(" Expression "))
+        self.expr_combo = QComboBox()
+        self.expr_combo.setMinimumContentsLength(10)
+        self.expr_combo.activated.connect(self._on_expr_combo)
+        tb.addWidget(self.expr_combo)
+        tb.addAction(self.act_new_expr)
+        tb.addSeparator()
+        tb.addAction(self.act_mode_points)
+        tb.addAction(self.act_mode_curve)
+        tb.addSeparator()
+        tb.addAction(self.act_fit)
+        tb.addAction(self.act_auto)
+        tb.addAction(self.act_overlay)
+        tb.addSeparator()
+        tb.addWidget(QLabel(" Photo view "))
+        self.preset_combo = QComboBox()
+        for p in PRESET_AZIMUTH_DEG:
+            self.preset_combo.addItem(p.replace("_", " "), p)
+        self.preset_combo.setToolTip("the rough direction the current photo was taken from (starts the pose recovery)")
+        self.preset_combo.activated.connect(self._on_preset_combo)
+        tb.addWidget(self.preset_combo)
+        tb.addAction(self.act_add_photos)
+
+    # ------------------------------------------------------------------ errors
+    def show_error(self, title: str, message: str) -> None:
+        """A dialog whose text is the cause (never a bare traceback)."""
+        QMessageBox.critical(self, title, message)
+
+    def _status(self, text: str, ms: int = 6000) -> None:
+        self.statusBar().showMessage(text, ms)
+
+    # ------------------------------------------------------------------ project files
+    def _update_title(self):
+        p = self.model.project
+        where = str(p.path) if p.path is not None else "not saved"
+        self.setWindowTitle(f"{p.name} — {where} [*] — Face Studio")
+
+    def maybe_save(self) -> bool:
+        """Ask what to do with unsaved changes; False if the user cancels."""
+        if not self.model.modified:
+            return True
+        answer = QMessageBox.question(
+            self, "Unsaved changes", f"Save the changes to {self.model.project.name!r}?",
+            QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard | QMessageBox.StandardButton.Cancel,
+            QMessageBox.StandardButton.Save)
+        if answer == QMessageBox.StandardButton.Save:
+            return self.save()
+        if answer == QMessageBox.StandardButton.Discard:
+            if self.model.path is not None:
+                remove_autosave(self.model.path)
+            return True
+        return False
+
+    def new_project(self) -> bool:
+        if not self.maybe_save():
+            return False
+        self.fits.cancel()
+        self.model.new("untitled")
+        self.undo_stack.clear()
+        return True
+
+    def open_dialog(self) -> bool:
+        start = str(self.model.path.parent) if self.model.path is not None else ""
+        path, _ = QFileDialog.getOpenFileName(self, "Open project", start, PROJECT_FILTER)
+        return bool(path) and self.open_project(path)
+
+    def open_project(self, path, *, ask_to_save: bool = True) -> bool:
+        """Open a project file; on any problem say why and keep the current project."""
+        if ask_to_save and not self.maybe_save():
+            return False
+        path = Path(path)
+        recover = False
+        auto = newer_autosave(path)
+        if auto is not None:
+            answer = QMessageBox.question(
+                self, "Recover autosave",
+                f"{auto.name} is newer than {path.name}: it holds changes that were not saved "
+                "(e.g. before a crash). Recover them?",
+                QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
+            recover = answer == QMessageBox.StandardButton.Yes
+        try:
+            self.fits.cancel()
+            try:
+                self.model.open(path, recover=recover)
+            except MissingPhotos as exc:
+                answer = QMessageBox.question(
+                    self, "Missing photos",
+                    f"{exc}\n\nOpen the project anyway? The missing photos are shown as grey placeholders; "
+                    "their clicks are kept.",
+                    QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.No)
+                if answer != QMessageBox.StandardButton.Yes:
+                    self._status(f"{path.name} not opened: photos are missing")
+                    return False
+                self.model.open(path, recover=recover, allow_missing_photos=True)
+        except FaceStudioError as exc:
+            self.show_error("Cannot open the project", str(exc))
+            return False
+        except OSError as exc:
+            self.show_error("Cannot open the project", f"{path}: {exc.strerror or exc}")
+            return False
+        self.undo_stack.clear()
+        self._add_recent(path)
+        self._status(f"opened {path}" + (" (recovered from the autosave)" if recover else ""))
+        return True
+
+    def save(self) -> bool:
+        if self.model.path is None:
+            return self.save_as()
+        return self._save_to(self.model.path)
+
+    def save_as(self) -> bool:
+        p = self.model.project
+        start = str(p.path) if p.path is not None else str(Path.cwd() / (p.name + FILE_SUFFIX))
+        path, _ = QFileDialog.getSaveFileName(self, "Save project as", start, PROJECT_FILTER)
+        if not path:
+            return False
+        if not path.endswith(".json"):
+            path += FILE_SUFFIX
+        if p.name == "untitled":
+            p.name = Path(path).name.removesuffix(FILE_SUFFIX).removesuffix(".json") or "untitled"
+        return self._save_to(Path(path))
+
+    def _save_to(self, path: Path) -> bool:
+        try:
+            written = self.model.save(path)
+        except FaceStudioError as exc:
+            self.show_error("Cannot save the project", str(exc))
+            return False
+        except OSError as exc:
+            self.show_error("Cannot save the project", f"{path}: {exc.strerror or exc}")
+            return False
+        self.undo_stack.setClean()
+        self._add_recent(written)
+        self._status(f"saved {written}")
+        return True
+
+    def autosave(self) -> None:
+        try:
+            written = self.model.autosave()
+        except (FaceStudioError, OSError) as exc:
+            self._status(f"autosave failed: {exc}", 10000)
+            return
+        if written is not None:
+            self._status(f"autosaved to {written.name}", 3000)
+
+    def recent_files(self) -> list[str]:
+        value = self.settings.value("recent_files", [])
+        if isinstance(value, str):
+            value = [value]
+        return [str(v) for v in (value or [])]
+
+    def _add_recent(self, path) -> None:
+        path = str(Path(path).absolute())
+        files = [f for f in self.recent_files() if f != path]
+        self.settings.setValue("recent_files", [path, *files][:MAX_RECENT])
+        self.settings.sync()
+
+    def _fill_recent_menu(self):
+        self.recent_menu.clear()
+        files = self.recent_files()
+        if not files:
+            a = self.recent_menu.addAction("(none)")
+            a.setEnabled(False)
+        for f in files:
+            self.recent_menu.addAction(f, lambda f=f: self.open_project(f))
+
+    # ------------------------------------------------------------------ photos and expressions
+    def add_photos_dialog(self) -> None:
+        files, _ = QFileDialog.getOpenFileNames(self, "Add photos", "", IMAGE_FILTER)
+        if files:
+            self.add_photos(files)
+
+    def add_photos(self, files) -> int:
+        """Add image files to the current expression; unreadable ones are named in one message."""
+        if self.model.expression_name is None:
+            self.undo_stack.push(AddExpressionCommand(self.model, "neutral"))
+        expr = self.model.expression_name
+        photos, problems = [], []
+        taken = {p.id for p in self.model.photos}
+        for f in files:
+            try:
+                photo = self.model.photo_from_file(f, expr, preset=guess_preset(f))
+            except ProjectError as exc:
+                problems.append(str(exc))
+                continue
+            while photo.id in taken:  # two files with the same stem in one drop
+                photo.id += "_b"
+            taken.add(photo.id)
+            photos.append(photo)
+        if photos:
+            self.undo_stack.push(AddPhotosCommand(self.model, expr, photos))
+            self.show_photo(photos[0].id)
+            self._status(f"added {len(photos)} photo(s); set each one's view in the toolbar if the guess is wrong")
+        if problems:
+            self.show_error("Cannot add photos", "\n".join(problems))
+        return len(photos)
+
+    def remove_current_photo(self):
+        view = self.current_view()
+        if view is not None:
+            self.undo_stack.push(RemovePhotoCommand(self.model, view.expression, view.photo_id))
+
+    def new_expression_dialog(self):
+        name, ok = QInputDialog.getText(self, "New expression", "Name of the expression (e.g. smile):")
+        if ok and name.strip():
+            try:
+                self.undo_stack.push(AddExpressionCommand(self.model, name.strip()))
+            except FaceStudioError as exc:
+                self.show_error("Cannot add the expression", str(exc))
+
+    def _on_expr_combo(self, index: int):
+        name = self.expr_combo.itemData(index)
+        if name is not None and name != self.model.expression_name:
+            self.model.set_expression(name)
+
+    def _on_preset_combo(self, index: int):
+        view = self.current_view()
+        preset = self.preset_combo.itemData(index)
+        if view is not None and preset != view.photo.preset:
+            self.undo_stack.push(SetPresetCommand(self.model, view.expression, view.photo_id, preset))
+
+    def _sync_preset(self):
+        view = self.current_view()
+        self.preset_combo.setEnabled(view is not None)
+        if view is not None:
+            i = self.preset_combo.findData(view.photo.preset)
+            self.preset_combo.setCurrentIndex(i)
+
+    # ------------------------------------------------------------------ photo tabs
+    def current_view(self) -> PhotoView | None:
+        w = self.tabs.currentWidget()
+        return w if isinstance(w, PhotoView) else None
+
+    def show_photo(self, photo_id: str) -> PhotoView | None:
+        view = self.views.get(photo_id)
+        if view is not None:
+            self.tabs.setCurrentWidget(view)
+        return view
+
+    def _rebuild_tabs(self):
+        current = self.current_view()
+        keep = current.photo_id if current is not None else None
+        self._rebuilding = True
+        try:
+            for view in self.views.values():
+                view.detach()
+            self.tabs.clear()
+            for view in self.views.values():
+                view.deleteLater()
+            self.views = {}
+            expr = self.model.expression_name
+            for photo in self.model.photos:
+                view = PhotoView(self.model, self.undo_stack, expr, photo.id)
+                view.set_mode(self.mode)
+                view.set_overlay_visible(self.show_overlay)
+                view.set_curves_visible(self.show_curves)
+                view.status_message.connect(self._status)
+                self.views[photo.id] = view
+                self.tabs.addTab(view, photo.id)
+                if view.missing:
+                    self.tabs.setTabToolTip(self.tabs.count() - 1, view.missing)
+            if not self.views:
+                self.tabs.addTab(self.empty_label, "no photos")
+        finally:
+            self._rebuilding = False
+        if keep in self.views:
+            self.tabs.setCurrentWidget(self.views[keep])
+        self._update_tab_titles()
+        self._sync_expr_combo()
+        self._sync_preset()
+
+    def _on_tab_changed(self, index: int):
+        if self._rebuilding:
+            return
+        self._sync_preset()
+        view = self.current_view()
+        if view is not None:
+            view.setFocus()
+
+    def _update_tab_titles(self):
+        fit = self.model.fit()
+        rms = {}
+        if fit is not None:
+            rms = {v["photo"]: v.get("rms_px") for v in fit.report.get("views", [])}
+        for i in range(self.tabs.count()):
+            w = self.tabs.widget(i)
+            if isinstance(w, PhotoView):
+                r = rms.get(w.photo_id)
+                self.tabs.setTabText(i, w.photo_id if r is None else f"{w.photo_id}  {r:.2f} px")
+
+    def _sync_expr_combo(self):
+        self.expr_combo.clear()
+        for e in self.model.project.expressions:
+            self.expr_combo.addItem(f"{e.name} ({len(e.photos)} photos)", e.name)
+        i = self.expr_combo.findData(self.model.expression_name)
+        self.expr_combo.setCurrentIndex(i)
+
+    def jump_to(self, photo_id: str, feature: str) -> None:
+        """Show a click: its photo, zoomed in around it, with its feature active."""
+        view = self.show_photo(photo_id)
+        if view is None:
+            return
+        try:
+            self.model.set_active_feature(feature)
+        except FaceStudioError:
+            pass
+        uv = view.photo.points.get(feature)
+        if uv is not None:
+            view.center_on_image(float(uv[0]), float(uv[1]), scale=max(view.scale_factor, 2.0))
+        view.setFocus()
+
+    # ------------------------------------------------------------------ modes and toggles
+    def set_mode(self, mode: str):
+        self.mode = mode
+        for view in self.views.values():
+            view.set_mode(mode)
+        (self.act_mode_curve if mode == CURVE else self.act_mode_points).setChecked(True)
+        if mode == CURVE:
+            self._status(f"draw curve {self.model.active_curve}: click points along it, Enter to finish")
+
+    def _set_overlay(self, on: bool):
+        self.show_overlay = on
+        for view in self.views.values():
+            view.set_overlay_visible(on)
+
+    def _set_curves(self, on: bool):
+        self.show_curves = on
+        for view in self.views.values():
+            view.set_curves_visible(on)
+
+    def _set_auto_refit(self, on: bool):
+        self.fits.auto_refit = on
+
+    def _fit_photo_view(self):
+        view = self.current_view()
+        if view is not None:
+            view.user_zoomed = False
+            view.fit_photo()
+
+    def _delete_click(self):
+        view = self.current_view()
+        if view is not None:
+            view.delete_active_click()
+
+    def _toggle_hidden(self):
+        view = self.current_view()
+        if view is not None:
+            view.toggle_active_hidden()
+
+    # ------------------------------------------------------------------ fitting
+    def run_fit(self) -> bool:
+        """Fit the current expression from scratch in the worker, with a cancellable progress dialog."""
+        if self.model.expression is None or len(self.model.photos) < 2:
+            self.show_error("Cannot fit", "a fit needs an expression with at least two photos; add photos first")
+            return False
+        if self.fits.busy:
+            self.fits.cancel()
+            self.fits.wait(10.0)
+            QApplication.processEvents()
+        task = self.fits.start(warm=False)
+        if task is None:
+            self._status("a fit is already running")
+            return False
+        dlg = QProgressDialog("Fitting…", "Cancel", 0, 100, self)
+        dlg.setWindowTitle("Fit")
+        dlg.setWindowModality(Qt.WindowModality.WindowModal)
+        dlg.setMinimumDuration(400)
+        dlg.setAutoClose(False)
+        dlg.setAutoReset(False)
+        dlg.canceled.connect(self.fits.cancel)
+        self._progress = dlg
+        return True
+
+    def _close_progress(self):
+        if self._progress is not None:
+            self._progress.canceled.disconnect(self.fits.cancel)
+            self._progress.close()
+            self._progress.deleteLater()
+            self._progress = None
+
+    def _on_fit_started(self, expression: str, warm: bool):
+        self.fit_label.setText("refitting…" if warm else "fitting…")
+
+    def _on_fit_progress(self, stage: str, fraction: float):
+        if self._progress is not None:
+            self._progress.setLabelText(stage)
+            self._progress.setValue(int(round(100 * fraction)))
+
+    def _on_fit_finished(self, expression: str, seconds: float):
+        self._close_progress()
+
+    def _on_fit_failed(self, message: str):
+        explicit = self._progress is not None
+        self._close_progress()
+        self.fit_label.setText("fit failed")
+        if explicit:
+            self.show_error("The fit failed", message)
+        else:
+            self._status(f"refit failed: {message.splitlines()[0]}", 10000)
+
+    def _on_fit_cancelled(self):
+        self._close_progress()
+        self.fit_label.setText("fit cancelled")
+        self._status("fit cancelled; the previous result is kept")
+
+    def _on_fit_changed(self, expression: str):
+        if expression != self.model.expression_name:
+            return
+        fit = self.model.fit()
+        if fit is None:
+            self.fit_label.setText("not fitted")
+        else:
+            t = "" if fit.elapsed_s is None else f" ({fit.elapsed_s * 1000:.0f} ms)"
+            self.fit_label.setText(f"RMS {fit.report.get('rms_px', float('nan')):.2f} px{t}")
+        self._update_tab_titles()
+
+    def _on_edit(self, *_):
+        self.fits.schedule_refit()
+
+    def _on_project_replaced(self):
+        self._rebuild_tabs()
+        self._update_title()
+        self.setWindowModified(self.model.modified)
+        self._on_fit_changed(self.model.expression_name)
+
+    # ------------------------------------------------------------------ drag and drop, closing
+    def dragEnterEvent(self, event):
+        if event.mimeData().hasUrls():
+            event.acceptProposedAction()
+
+    def dropEvent(self, event):
+        files = [u.toLocalFile() for u in event.mimeData().urls() if u.isLocalFile()]
+        projects = [f for f in files if f.endswith(".json")]
+        if projects:
+            self.open_project(projects[0])
+        else:
+            self.add_photos(files)
+        event.acceptProposedAction()
+
+    def closeEvent(self, event):
+        if not self.maybe_save():
+            event.ignore()
+            return
+        self.fits.shutdown()
+        self.autosave_timer.stop()
+        event.accept()
+
+
+def _excepthook(exc_type, exc, tb):
+    """Unexpected errors: a dialog with the cause first, the traceback under "Show Details"."""
+    text = "".join(traceback.format_exception(exc_type, exc, tb))
+    sys.stderr.write(text)
+    app = QApplication.instance()
+    if app is None:
+        return
+    box = QMessageBox(QMessageBox.Icon.Critical, "Unexpected error", f"{exc_type.__name__}: {exc}")
+    box.setInformativeText("The project is still open; save it under a new name if in doubt.")
+    box.setDetailedText(text)
+    box.exec()
+
+
+def run_studio(project: str | None = None, argv: list[str] | None = None) -> int:
+    """Open the studio window (on ``project`` if given) and run the Qt event loop."""
+    app = QApplication.instance() or QApplication(argv if argv is not None else sys.argv[:1])
+    app.setOrganizationName("FaceStudio")
+    app.setApplicationName("Face Studio")
+    window = MainWindow()
+    window.show()
+    sys.excepthook = _excepthook
+    if project is not None:
+        window.open_project(project, ask_to_save=False)
+    return app.exec()
+
+
+__all__ = ["MainWindow", "guess_preset", "run_studio"]

@@ -1,0 +1,745 @@
+"""The studio's state, apart from any widget: a project being edited, its fits, and events.
+
+This is the napari pattern (``napari/components/viewer_model.py``): one model object holds
+the :class:`~photomodel.project.Project`, the current expression, the active feature and curve,
+and the fitted results, and announces every change through small :class:`Signal` objects. The
+Qt widgets of :mod:`app` observe it and edit it through undoable commands
+(:mod:`app.commands`); scripts and tests drive the same object without any GUI. Nothing here
+imports Qt.
+
+Every edit goes through one primitive (``set_point``, ``set_hidden``, ``set_curve``,
+``insert_photo`` …) that validates its input, changes the project, marks it modified and emits
+one event; each returns what it replaced, which is what an undo needs.
+
+The fitted result of an expression (:class:`FitState`) is kept in memory with the fitted
+vertices; the mesh files (``results/<expr>.obj|.ply``) are written when the project is saved,
+so a fit never writes next to a project the artist has not saved.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
+from photomodel.errors import FaceStudioError, ProjectError
+from photomodel.project import (
+    CurveDef,
+    Expression,
+    ExpressionResult,
+    Feature,
+    Photo,
+    Project,
+    load_project,
+    new_project,
+    save_project,
+)
+
+#: Suffix of the autosave file written next to the project (``<file>.autosave``).
+AUTOSAVE_SUFFIX = ".autosave"
+#: Name of the first expression of a new project.
+DEFAULT_EXPRESSION = "neutral"
+#: Image files a photo may be (what OpenCV and Qt both read).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
+
+
+class Signal:
+    """A minimal observer: ``connect(callback)``, ``disconnect(callback)``, ``emit(*args)``.
+
+    Callbacks run synchronously, in connection order, on the emitting thread (the model is
+    edited on the GUI thread only; workers hand results back through Qt signals).
+    """
+
+    def __init__(self):
+        self._slots: list[Callable] = []
+
+    def connect(self, callback: Callable) -> None:
+        if callback not in self._slots:
+            self._slots.append(callback)
+
+    def disconnect(self, callback: Callable) -> None:
+        if callback in self._slots:
+            self._slots.remove(callback)
+
+    def emit(self, *args) -> None:
+        for slot in list(self._slots):
+            slot(*args)
+
+
+class MissingPhotos(ProjectError):
+    """A project opened fine but some of its photos are missing or unreadable."""
+
+
+@dataclass
+class FitState:
+    """The last fit of one expression as the studio holds it.
+
+    Attributes
+    ----------
+    cameras : dict photo id → Camera
+    points_3d : dict feature → (3,) float mm
+    vertices : (N, 3) float mm or None
+        The fitted mesh (None when a loaded project's mesh file is missing).
+    report : dict, the fit report (:func:`photomodel.fit.build_report`).
+    result : photomodel.fit.FitResult or None
+        The in-memory result (warm start of the next refit); None for a loaded result.
+    elapsed_s : float or None, wall time of the fit.
+    saved : bool, the mesh files on disk hold ``vertices``.
+    """
+
+    cameras: dict
+    points_3d: dict
+    vertices: np.ndarray | None
+    report: dict
+    result: object = None
+    elapsed_s: float | None = None
+    saved: bool = False
+
+
+class StudioModel:
+    """The project being edited in the studio, with its fits, as an observable object.
+
+    Parameters
+    ----------
+    project : Project, optional
+        Default: a new, empty project (:meth:`new`).
+    mesh_loader : callable returning a GenericMesh
+        Default :func:`photomodel.generic_mesh.load_generic_mesh` (loaded on first use).
+
+    Events (:class:`Signal`, arguments in brackets)
+    ------------------------------------------------
+    project_replaced () — new/open; everything may have changed.
+    expression_changed (name) — the current expression.
+    photos_changed (expression) — photos added, removed or re-ordered.
+    photo_changed (expression, photo_id) — a photo's preset / lens guess.
+    points_changed (expression, photo_id, feature) — a click added, moved, deleted, hidden.
+    curves_changed (expression, photo_id, curve) — a drawn curve added, replaced or deleted.
+    features_changed () — the project's feature or curve definitions.
+    fit_changed (expression) — a new fit (or none).
+    active_feature_changed (name or None), active_curve_changed (name or None).
+    modified_changed (bool), path_changed (Path or None).
+    """
+
+    def __init__(self, project: Project | None = None, mesh_loader: Callable | None = None):
+        self.project_replaced = Signal()
+        self.expression_changed = Signal()
+        self.photos_changed = Signal()
+        self.photo_changed = Signal()
+        self.points_changed = Signal()
+        self.curves_changed = Signal()
+        self.features_changed = Signal()
+        self.fit_changed = Signal()
+        self.active_feature_changed = Signal()
+        self.active_curve_changed = Signal()
+        self.modified_changed = Signal()
+        self.path_changed = Signal()
+
+        self._mesh_loader = mesh_loader
+        self._mesh = None
+        self._lines = None
+        self._refitter = None
+        self._residual_cache = None
+        self.generation = 0  # bumped whenever the project object is replaced (stale fits are dropped)
+        self.fits: dict[str, FitState] = {}
+        self.modified = False
+        self._autosaved_revision = self.revision = 0
+        self.active_feature: str | None = None
+        self.active_curve: str | None = None
+        self.expression_name: str | None = None
+        self.project: Project
+        self._set_project(project if project is not None else self._blank_project("untitled"))
+
+    # ------------------------------------------------------------------ generic mesh
+    @property
+    def mesh(self):
+        """The generic face mesh (:class:`photomodel.generic_mesh.GenericMesh`), loaded once."""
+        if self._mesh is None:
+            if self._mesh_loader is None:
+                from photomodel.generic_mesh import load_generic_mesh
+
+                self._mesh_loader = load_generic_mesh
+            self._mesh = self._mesh_loader()
+        return self._mesh
+
+    @property
+    def overlay_lines(self):
+        """The wireframe overlay's lines on the generic mesh (:func:`photomodel.overlay.mesh_lines`)."""
+        if self._lines is None:
+            from photomodel.overlay import mesh_lines
+
+            self._lines = mesh_lines(self.mesh.vertices, self.mesh.faces, curves=self.mesh.curves)
+        return self._lines
+
+    @property
+    def refitter(self):
+        """The :class:`photomodel.refit.Refitter` shared by every fit of this model."""
+        if self._refitter is None:
+            from photomodel.refit import Refitter
+
+            self._refitter = Refitter(self.mesh)
+        return self._refitter
+
+    # ------------------------------------------------------------------ look-ups
+    @property
+    def path(self) -> Path | None:
+        return self.project.path
+
+    @property
+    def expression(self) -> Expression | None:
+        """The current expression (None in a project without expressions)."""
+        if self.expression_name is None:
+            return None
+        return self.project.expression(self.expression_name)
+
+    @property
+    def photos(self) -> list[Photo]:
+        e = self.expression
+        return [] if e is None else list(e.photos)
+
+    def photo(self, photo_id: str, expression: str | None = None) -> Photo:
+        return self._expr(expression).photo(photo_id)
+
+    def fit(self, expression: str | None = None) -> FitState | None:
+        """The last fit of an expression (default: the current one), or None."""
+        name = expression or self.expression_name
+        return self.fits.get(name) if name is not None else None
+
+    def feature_names(self) -> list[str]:
+        return self.project.feature_names()
+
+    def has_feature(self, name: str) -> bool:
+        return any(f.name == name for f in self.project.features)
+
+    def has_curve(self, name: str) -> bool:
+        return any(c.name == name for c in self.project.curves)
+
+    def catalogue(self) -> list[tuple[str, int, bool, bool]]:
+        """Every feature an artist can click: ``(name, vertex, in_project, pose)``.
+
+        The project's features first (definition order), then the generic mesh's named
+        features whose vertex no project feature uses yet (an alias and its iBUG name share a
+        vertex; only one of them is offered).
+        """
+        out = [(f.name, f.vertex, True, f.pose) for f in self.project.features]
+        used = {f.vertex for f in self.project.features}
+        for name, v in self.mesh.features.items():
+            if v not in used:
+                used.add(v)
+                out.append((name, int(v), False, False))
+        return out
+
+    def curve_catalogue(self) -> list[tuple[str, bool]]:
+        """Every curve an artist can draw: ``(name, in_project)``; the project's first."""
+        out = [(c.name, True) for c in self.project.curves]
+        have = {c.name for c in self.project.curves}
+        out += [(n, False) for n in self.mesh.curves if n not in have]
+        return out
+
+    def click_count(self, feature: str, expression: str | None = None) -> int:
+        """In how many photos of the expression the feature is clicked and not hidden."""
+        e = self._expr(expression)
+        return sum(1 for p in e.photos if feature in p.points and feature not in p.hidden)
+
+    # ------------------------------------------------------------------ selection
+    def set_expression(self, name: str) -> None:
+        self.project.expression(name)  # raises ProjectError naming the expressions
+        if name != self.expression_name:
+            self.expression_name = name
+            self.expression_changed.emit(name)
+
+    def set_active_feature(self, name: str | None) -> None:
+        if name is not None and not self.has_feature(name) and name not in self.mesh.features:
+            raise ProjectError(f"no feature named {name!r} in the project or the generic mesh")
+        if name != self.active_feature:
+            self.active_feature = name
+            self.active_feature_changed.emit(name)
+
+    def set_active_curve(self, name: str | None) -> None:
+        if name is not None and not self.has_curve(name) and name not in self.mesh.curves:
+            raise ProjectError(f"no curve named {name!r} in the project or the generic mesh")
+        if name != self.active_curve:
+            self.active_curve = name
+            self.active_curve_changed.emit(name)
+
+    # ------------------------------------------------------------------ edit primitives
+    def set_point(self, expression: str, photo_id: str, feature: str, uv) -> np.ndarray | None:
+        """Place (``uv`` (2,) px), move, or delete (``uv=None``) a click; returns the old one."""
+        photo = self.photo(photo_id, expression)
+        if not self.has_feature(feature):
+            raise ProjectError(f"no feature named {feature!r} is defined in the project")
+        old = photo.points.get(feature)
+        if uv is None:
+            photo.points.pop(feature, None)
+        else:
+            uv = np.asarray(uv, dtype=float).reshape(2)
+            if not np.all(np.isfinite(uv)):
+                raise ProjectError(f"click of {feature!r} in photo {photo_id!r} is not finite: {uv.tolist()}")
+            photo.points[feature] = uv
+        self._touch()
+        self.points_changed.emit(expression, photo_id, feature)
+        return None if old is None else old.copy()
+
+    def set_hidden(self, expression: str, photo_id: str, feature: str, hidden: bool) -> bool:
+        """Mark a feature (in)visible in one photo; returns the old state."""
+        photo = self.photo(photo_id, expression)
+        if not self.has_feature(feature):
+            raise ProjectError(f"no feature named {feature!r} is defined in the project")
+        old = feature in photo.hidden
+        if hidden:
+            photo.hidden.add(feature)
+        else:
+            photo.hidden.discard(feature)
+        self._touch()
+        self.points_changed.emit(expression, photo_id, feature)
+        return old
+
+    def set_curve(self, expression: str, photo_id: str, curve: str, polyline) -> np.ndarray | None:
+        """Draw (``polyline`` (m, 2) px, m >= 2) or delete (None) a curve in a photo; returns the old."""
+        photo = self.photo(photo_id, expression)
+        if not self.has_curve(curve):
+            raise ProjectError(f"no curve named {curve!r} is defined in the project")
+        old = photo.curves.get(curve)
+        if polyline is None:
+            photo.curves.pop(curve, None)
+        else:
+            line = np.asarray(polyline, dtype=float).reshape(-1, 2)
+            if line.shape[0] < 2 or not np.all(np.isfinite(line)):
+                raise ProjectError(f"curve {curve!r} in photo {photo_id!r} needs at least 2 finite points")
+            photo.curves[curve] = line
+        self._touch()
+        self.curves_changed.emit(expression, photo_id, curve)
+        return None if old is None else old.copy()
+
+    def add_feature(self, feature: Feature, index: int | None = None) -> None:
+        if self.has_feature(feature.name):
+            raise ProjectError(f"feature {feature.name!r} is already defined")
+        if not 0 <= feature.vertex < len(self.mesh.vertices):
+            raise ProjectError(f"feature {feature.name!r}: vertex {feature.vertex} is not a generic-mesh vertex")
+        feats = self.project.features
+        feats.insert(len(feats) if index is None else index, feature)
+        self._touch()
+        self.features_changed.emit()
+
+    def remove_feature(self, name: str) -> tuple[Feature, int]:
+        """Remove an unused feature definition; returns it and its index (for undo)."""
+        for e in self.project.expressions:
+            for p in e.photos:
+                if name in p.points or name in p.hidden:
+                    raise ProjectError(f"feature {name!r} is still clicked in photo {p.id!r} of {e.name!r}")
+        i = self.project.feature_names().index(name)
+        f = self.project.features.pop(i)
+        self._touch()
+        self.features_changed.emit()
+        return f, i
+
+    def add_curve_def(self, curve: CurveDef, index: int | None = None) -> None:
+        if self.has_curve(curve.name):
+            raise ProjectError(f"curve {curve.name!r} is already defined")
+        curves = self.project.curves
+        curves.insert(len(curves) if index is None else index, curve)
+        self._touch()
+        self.features_changed.emit()
+
+    def remove_curve_def(self, name: str) -> tuple[CurveDef, int]:
+        for e in self.project.expressions:
+            for p in e.photos:
+                if name in p.curves:
+                    raise ProjectError(f"curve {name!r} is still drawn in photo {p.id!r} of {e.name!r}")
+        i = [c.name for c in self.project.curves].index(name)
+        c = self.project.curves.pop(i)
+        self._touch()
+        self.features_changed.emit()
+        return c, i
+
+    def insert_photo(self, expression: str, photo: Photo, index: int | None = None) -> None:
+        e = self._expr(expression)
+        if any(p.id == photo.id for p in e.photos):
+            raise ProjectError(f"expression {expression!r} already has a photo {photo.id!r}")
+        if photo.preset not in PRESET_AZIMUTH_DEG:
+            raise ProjectError(f"unknown camera preset {photo.preset!r}; choose one of "
+                               f"{', '.join(sorted(PRESET_AZIMUTH_DEG))}")
+        e.photos.insert(len(e.photos) if index is None else index, photo)
+        self._drop_fit(expression)
+        self._touch()
+        self.photos_changed.emit(expression)
+
+    def remove_photo(self, expression: str, photo_id: str) -> tuple[Photo, int]:
+        e = self._expr(expression)
+        photo = e.photo(photo_id)
+        i = e.photos.index(photo)
+        e.photos.pop(i)
+        self._drop_fit(expression)
+        self._touch()
+        self.photos_changed.emit(expression)
+        return photo, i
+
+    def set_photo_preset(self, expression: str, photo_id: str, preset: str) -> str:
+        if preset not in PRESET_AZIMUTH_DEG:
+            raise ProjectError(f"unknown camera preset {preset!r}; choose one of "
+                               f"{', '.join(sorted(PRESET_AZIMUTH_DEG))}")
+        photo = self.photo(photo_id, expression)
+        old, photo.preset = photo.preset, preset
+        self._touch()
+        self.photo_changed.emit(expression, photo_id)
+        return old
+
+    def add_expression(self, name: str, index: int | None = None, expression: Expression | None = None) -> None:
+        if not isinstance(name, str) or not name.strip():
+            raise ProjectError("an expression needs a non-empty name")
+        if any(e.name == name for e in self.project.expressions):
+            raise ProjectError(f"an expression called {name!r} already exists")
+        expr = expression if expression is not None else Expression(name=name)
+        exprs = self.project.expressions
+        exprs.insert(len(exprs) if index is None else index, expr)
+        self._touch()
+        self.expression_name = name
+        self.expression_changed.emit(name)
+
+    def remove_expression(self, name: str) -> tuple[Expression, int]:
+        e = self.project.expression(name)
+        i = self.project.expressions.index(e)
+        self.project.expressions.pop(i)
+        self.fits.pop(name, None)
+        self._touch()
+        if self.expression_name == name:
+            exprs = self.project.expressions
+            self.expression_name = exprs[min(i, len(exprs) - 1)].name if exprs else None
+            self.expression_changed.emit(self.expression_name)
+        return e, i
+
+    def photo_from_file(self, path: str | os.PathLike, expression: str | None = None,
+                        preset: str = "front") -> Photo:
+        """A :class:`Photo` for an image file (size read with OpenCV), with an unused id.
+
+        Raises :class:`ProjectError` naming the file when it is missing or not an image.
+        """
+        import cv2
+
+        path = Path(path).absolute()
+        if not path.is_file():
+            raise ProjectError(f"{path}: no such file")
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if cv2.haveImageReader(str(path)) else None
+        if img is None:
+            raise ProjectError(f"{path.name}: not an image this program can read (tried {path})")
+        h, w = img.shape[:2]
+        e = self._expr(expression)
+        ids = {p.id for p in e.photos}
+        stem = path.stem.split(".")[0] or "photo"
+        pid, k = stem, 2
+        while pid in ids:
+            pid, k = f"{stem}_{k}", k + 1
+        return Photo(id=pid, path=str(path), width=w, height=h, preset=preset)
+
+    # ------------------------------------------------------------------ fits
+    def click_residuals(self, expression: str | None = None) -> dict[str, dict[str, float]]:
+        """Reprojection error (px) of every click with a fitted 3D point: photo id → feature → px.
+
+        ``|project(camera, X) − click|`` with the fitted camera of the photo and the fitted
+        position of the feature; clicks edited after the fit are measured against that fit.
+        """
+        fit = self.fit(expression)
+        out: dict[str, dict[str, float]] = {}
+        if fit is None:
+            return out
+        # every view and the panel ask after each edit and fit: computed once per state
+        key = (expression or self.expression_name, id(fit), self.revision, self.generation)
+        if self._residual_cache is not None and self._residual_cache[0] == key:
+            return self._residual_cache[1]
+        self._residual_cache = (key, out)
+        for photo in self._expr(expression).photos:
+            cam = fit.cameras.get(photo.id)
+            if cam is None:
+                continue
+            names = [n for n in photo.points if n in fit.points_3d and n not in photo.hidden]
+            if not names:
+                continue
+            X = np.array([fit.points_3d[n] for n in names])
+            uv = np.array([photo.points[n] for n in names])
+            err = np.linalg.norm(cam.project(X) - uv, axis=1)
+            out[photo.id] = {n: float(e) for n, e in zip(names, err, strict=True)}
+        return out
+
+    def worst_clicks(self, count: int = 20, expression: str | None = None) -> list[tuple[float, str, str]]:
+        """The ``count`` largest click residuals, ``(px, photo id, feature)``, largest first."""
+        rows = [(px, pid, n) for pid, d in self.click_residuals(expression).items() for n, px in d.items()]
+        rows.sort(key=lambda r: (-r[0], r[1], r[2]))
+        return rows[:count]
+
+    def fit_snapshot(self) -> Project:
+        """A deep copy of the project for a worker thread (edits go on while it fits)."""
+        return copy.deepcopy(self.project)
+
+    def warm_start(self, expression: str):
+        """What the next refit of ``expression`` starts from: the last fit's result or vertices (or None)."""
+        prev = self.fits.get(expression)
+        if prev is None:
+            return None
+        return prev.result if prev.result is not None else prev.vertices
+
+    def compute_fit(self, snapshot: Project, expression: str, *, previous=None, progress=None, cancel=None):
+        """Fit ``expression`` of a snapshot; safe to call from a worker thread.
+
+        With ``previous`` (:meth:`warm_start`, taken on the GUI thread) the refinement is
+        warm-started from the last fit (:class:`photomodel.refit.Refitter`); otherwise this is the
+        full pipeline of :func:`photomodel.fit.fit_expression`. Returns ``(FitResult, elapsed_s,
+        cold)`` where ``cold`` says the fit had to build cached RBF solves (a new set of
+        constrained vertices).
+        """
+        refitter = self.refitter
+        misses = refitter.deformer.misses
+        t0 = time.perf_counter()
+        result = refitter.fit(snapshot, expression, previous=previous, progress=progress, cancel=cancel)
+        return result, time.perf_counter() - t0, refitter.deformer.misses != misses
+
+    def apply_fit(self, expression: str, result, elapsed_s: float | None = None) -> None:
+        """Store a :class:`photomodel.fit.FitResult` as the expression's fit (GUI thread)."""
+        e = self._expr(expression)
+        cams = {pid: c for pid, c in zip(result.photo_ids, result.cameras, strict=True)}
+        pts = {n: p for n, p in zip(result.feature_names, result.points_3d, strict=True)}
+        e.result = ExpressionResult(cameras=cams, points_3d=pts, mesh_obj=None, mesh_ply=None,
+                                    report=result.report)
+        self.fits[expression] = FitState(cams, pts, np.asarray(result.vertices), result.report, result,
+                                         elapsed_s, saved=False)
+        self._touch()
+        self.fit_changed.emit(expression)
+
+    def _drop_fit(self, expression: str) -> None:
+        # a fit is of a set of photos; adding or removing one invalidates it
+        if self.fits.pop(expression, None) is not None:
+            self._expr(expression).result = None
+            self.fit_changed.emit(expression)
+
+    # ------------------------------------------------------------------ files
+    def new(self, name: str = "untitled") -> None:
+        """Replace the project by a new one with the default features and curves."""
+        self._set_project(self._blank_project(name))
+
+    def _blank_project(self, name: str) -> Project:
+        m = self.mesh
+        features = [Feature(n, m.features[n], pose=True) for n in m.initial_features]
+        curves = [CurveDef(n, v) for n, v in m.curves.items()]
+        p = new_project(name, features=features, curves=curves)
+        p.expressions.append(Expression(name=DEFAULT_EXPRESSION))
+        return p
+
+    def open(self, path: str | os.PathLike, *, recover: bool = False, allow_missing_photos: bool = False) -> None:
+        """Open a project file; the current project is kept when anything is wrong.
+
+        Parameters
+        ----------
+        path : the project file.
+        recover : read ``<path>.autosave`` instead (the file stays ``path``; the project is
+            then marked modified).
+        allow_missing_photos : open even when photos are missing (they show as placeholders);
+            otherwise :class:`MissingPhotos` names them.
+
+        Raises
+        ------
+        ProjectError
+            unreadable or malformed file (the message names the field), features outside the
+            generic mesh, or (:class:`MissingPhotos`) missing photos.
+        """
+        path = Path(path).absolute()
+        source = autosave_path(path) if recover else path
+        project = load_project(source)
+        project.path = path
+        # absolute in memory (relative on disk): a photo held by an undo command stays valid
+        # whatever folder the project is saved to next
+        for e in project.expressions:
+            for photo in e.photos:
+                photo.path = project.resolve(photo.path).as_posix()
+        project.check_vertices(len(self.mesh.vertices))
+        if not allow_missing_photos:
+            try:
+                project.check_photos()
+            except ProjectError as exc:
+                missing = MissingPhotos(str(exc))
+                missing.problems = getattr(exc, "problems", [])
+                raise missing from None
+        fits = {}
+        for e in project.expressions:
+            if e.result is not None:
+                fits[e.name] = self._loaded_fit(project, e)
+        self._set_project(project, fits)
+        if recover:
+            self._touch()
+
+    def _loaded_fit(self, project: Project, e: Expression) -> FitState:
+        vertices = None
+        for rel in (e.result.mesh_ply, e.result.mesh_obj):
+            if rel is None:
+                continue
+            f = project.resolve(rel)
+            if f.is_file():
+                try:
+                    from photomodel.mesh_io import read_mesh
+
+                    v, _ = read_mesh(f)
+                except Exception:  # a broken result mesh loses the overlay, not the project
+                    continue
+                if v.shape == self.mesh.vertices.shape:
+                    vertices = v
+                    break
+        return FitState(dict(e.result.cameras), dict(e.result.points_3d), vertices, e.result.report,
+                        None, None, saved=vertices is not None)
+
+    def save(self, path: str | os.PathLike | None = None) -> Path:
+        """Save (atomically) to ``path`` (default: the project's file); writes the fitted meshes.
+
+        Relative paths are rewritten for the new folder on "save as"; the autosave file is
+        removed afterwards.
+        """
+        if path is None:
+            if self.project.path is None:
+                raise ProjectError("the project has no file yet; choose where to save it")
+            path = self.project.path
+        target = Path(path).absolute()
+        old_path = self.project.path
+        from photomodel.mesh_io import write_mesh
+
+        moved = old_path is None or target.parent != old_path.parent
+        for name, fit in self.fits.items():
+            e = self.project.expression(name)
+            if fit.vertices is None or e.result is None or (fit.saved and not moved):
+                continue
+            rel_obj, rel_ply = self.project.default_result_paths(name)
+            try:
+                write_mesh(target.parent / rel_obj, fit.vertices, self.mesh.faces)
+                write_mesh(target.parent / rel_ply, fit.vertices, self.mesh.faces)
+            except OSError as exc:
+                raise ProjectError(f"{target.parent / rel_obj}: could not write the fitted mesh: "
+                                   f"{exc.strerror or exc}") from exc
+            # absolute, so that save_project stores them relative to the *target* folder
+            e.result.mesh_obj = (target.parent / rel_obj).as_posix()
+            e.result.mesh_ply = (target.parent / rel_ply).as_posix()
+        written = save_project(self.project, target)
+        for fit in self.fits.values():
+            fit.saved = fit.vertices is not None
+        if moved:
+            # result paths relative to the old folder: take them as written (photo paths are
+            # absolute in memory, see open())
+            fresh = load_project(written)
+            for e_old, e_new in zip(self.project.expressions, fresh.expressions, strict=True):
+                if e_old.result is not None and e_new.result is not None:
+                    e_old.result.mesh_obj, e_old.result.mesh_ply = e_new.result.mesh_obj, e_new.result.mesh_ply
+                    if hasattr(e_new.result, "texture"):  # paths of a texture record, if any
+                        e_old.result.texture = e_new.result.texture
+            self.project.generic_mesh = fresh.generic_mesh
+        else:
+            for e in self.project.expressions:
+                if e.result is not None:
+                    for attr in ("mesh_obj", "mesh_ply"):
+                        v = getattr(e.result, attr)
+                        if v is not None and Path(v).is_absolute():
+                            try:
+                                setattr(e.result, attr, Path(v).relative_to(written.parent).as_posix())
+                            except ValueError:
+                                pass
+        self.project.path = written
+        remove_autosave(written)
+        self._autosaved_revision = self.revision
+        self._set_modified(False)
+        if written != old_path:
+            self.path_changed.emit(written)
+        return written
+
+    def autosave(self) -> Path | None:
+        """Write ``<file>.autosave`` if there are changes since the last save or autosave.
+
+        Only for a project that has a file; the project itself and its ``.bak`` are untouched.
+        Returns the file written, or None.
+        """
+        if self.project.path is None or not self.modified or self.revision == self._autosaved_revision:
+            return None
+        target = autosave_path(self.project.path)
+        snapshot = copy.copy(self.project)  # save_project sets .path on what it saves
+        save_project(snapshot, target)
+        bak = target.with_name(target.name + ".bak")
+        if bak.exists():  # save_project keeps the previous autosave as a backup; one file is enough
+            bak.unlink()
+        self._autosaved_revision = self.revision
+        return target
+
+    # ------------------------------------------------------------------ internals
+    def _expr(self, expression: str | None) -> Expression:
+        name = expression or self.expression_name
+        if name is None:
+            raise ProjectError("the project has no expression yet")
+        return self.project.expression(name)
+
+    def _touch(self) -> None:
+        self.revision += 1
+        self._set_modified(True)
+
+    def _set_modified(self, value: bool) -> None:
+        if value != self.modified:
+            self.modified = value
+            self.modified_changed.emit(value)
+
+    def _set_project(self, project: Project, fits: dict | None = None) -> None:
+        self.project = project
+        self.fits = dict(fits or {})
+        self.generation += 1
+        self.expression_name = project.expressions[0].name if project.expressions else None
+        names = project.feature_names()
+        self.active_feature = names[0] if names else None
+        self.active_curve = project.curves[0].name if project.curves else None
+        self.revision = self._autosaved_revision = 0
+        self.modified = False
+        self.project_replaced.emit()
+        self.modified_changed.emit(False)
+        self.path_changed.emit(project.path)
+
+
+def autosave_path(path: str | os.PathLike) -> Path:
+    """``<path>.autosave``: where the studio autosaves the project stored at ``path``."""
+    path = Path(path)
+    return path.with_name(path.name + AUTOSAVE_SUFFIX)
+
+
+def newer_autosave(path: str | os.PathLike) -> Path | None:
+    """The autosave of ``path`` if it exists and is newer than the project file, else None."""
+    a = autosave_path(path)
+    try:
+        if a.stat().st_mtime > Path(path).stat().st_mtime:
+            return a
+    except OSError:
+        return None
+    return None
+
+
+def remove_autosave(path: str | os.PathLike) -> None:
+    for f in (autosave_path(path), autosave_path(path).with_name(autosave_path(path).name + ".bak")):
+        try:
+            f.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def camera_summary(camera: Camera) -> str:
+    """``"f 85.2 mm, 612 mm away"``: a fitted camera in words for tool tips."""
+    return f"f {camera.focal_mm:.1f} mm, {float(np.linalg.norm(camera.center)):.0f} mm away"
+
+
+def format_px(value: float | None) -> str:
+    return "–" if value is None or not math.isfinite(value) else f"{value:.2f} px"
+
+
+__all__ = [
+    "AUTOSAVE_SUFFIX",
+    "FaceStudioError",
+    "FitState",
+    "MissingPhotos",
+    "Signal",
+    "StudioModel",
+    "autosave_path",
+    "newer_autosave",
+    "remove_autosave",
+]

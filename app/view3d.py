@@ -1,0 +1,242 @@
+"""The 3D view: the generic or fitted face mesh rendered by :mod:`photomodel.render`, orbit and zoom.
+
+The image comes from the project's one renderer (headless moderngl, Lambert shading with a
+head-light), so the 3D view shows exactly the geometry that texturing and tracking use. It is
+rendered on the GUI thread: ~20 ms for a 400×400 view and 25–35 ms for the default 400×780 dock
+on llvmpipe (``last_render_s``; measured by ``benchmarks/bench_gui.py``), under the 50 ms a drag
+can afford. Left-drag orbits, the wheel zooms, a click (press and release without
+moving) on the mesh picks the nearest named feature as the active one; the project's features
+are drawn as dots, the active one ringed and named.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
+from PySide6.QtGui import QColor, QImage, QPainter, QPen
+from PySide6.QtWidgets import QSizePolicy, QWidget
+
+from photomodel.camera import focal_mm_to_px, orbit_camera
+
+from .model import StudioModel
+
+#: A click within this many pixels of a feature's projection picks it.
+PICK_RADIUS_PX = 14.0
+#: A press that moves less than this (px) before release is a click, not an orbit.
+CLICK_SLOP_PX = 3.0
+BACKGROUND = (0.16, 0.16, 0.18)
+
+
+class View3D(QWidget):
+    """Orbitable 3D view of the current expression's fitted mesh (the generic mesh before a fit).
+
+    Attributes
+    ----------
+    azimuth_deg, elevation_deg, distance_mm : float, the orbit camera.
+    last_render_s : float or None, time of the last render.
+    texture : (uv (N, 2), image) or None, an optional texture to render with (set by the
+        texturing tools; the view only draws it).
+    """
+
+    feature_picked = Signal(str)
+
+    def __init__(self, model: StudioModel, parent=None):
+        super().__init__(parent)
+        self.model = model
+        self.azimuth_deg = 25.0
+        self.elevation_deg = 8.0
+        self.distance_mm = 450.0
+        self.focal_mm = 50.0  # on a 36 mm sensor spanning the widget's shorter side
+        self.show_features = True
+        self.texture = None
+        self.last_render_s: float | None = None
+        self._image: QImage | None = None
+        self._depth = None
+        self._camera = None
+        self._dirty = True
+        self._press = None
+        self._orbiting = False
+        self.setMinimumSize(160, 160)
+        self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
+        self.setMouseTracking(False)
+        for sig in (model.project_replaced, model.expression_changed, model.fit_changed, model.features_changed):
+            sig.connect(self.invalidate)
+        model.active_feature_changed.connect(lambda *_: self.update())
+
+    def sizeHint(self) -> QSize:
+        return QSize(360, 360)
+
+    # ------------------------------------------------------------------ what is shown
+    def vertices(self) -> tuple[np.ndarray, str]:
+        """The vertices shown and a caption."""
+        fit = self.model.fit()
+        if fit is not None and fit.vertices is not None:
+            return fit.vertices, f"fitted mesh — {self.model.expression_name}"
+        return self.model.mesh.vertices, "generic mesh (not fitted yet)"
+
+    def set_texture(self, uv: np.ndarray | None, image: np.ndarray | None) -> None:
+        """Render with a texture (uv (N, 2) per generic-mesh vertex, image (H, W, 3)); None clears."""
+        self.texture = None if uv is None or image is None else (np.asarray(uv), np.asarray(image))
+        self.invalidate()
+
+    def invalidate(self, *args) -> None:
+        self._dirty = True
+        self.update()
+
+    def camera(self, width: int, height: int):
+        V, _ = self.vertices()
+        target = 0.5 * (V.min(axis=0) + V.max(axis=0))
+        cam = orbit_camera(self.azimuth_deg, width, height, distance_mm=self.distance_mm, focal_mm=self.focal_mm,
+                           elevation_deg=self.elevation_deg, target=target)
+        cam.f = focal_mm_to_px(self.focal_mm, min(width, height))  # a tall dock still frames the head
+        return cam
+
+    def render_image(self, width: int | None = None, height: int | None = None) -> QImage:
+        """Render now at the given size (default: the widget's) and return the image."""
+        from photomodel.render import get_renderer
+
+        w = max(16, int(width or self.width()))
+        h = max(16, int(height or self.height()))
+        V, _ = self.vertices()
+        cam = self.camera(w, h)
+        t0 = time.perf_counter()
+        kw = {}
+        if self.texture is not None:
+            kw = {"uv": self.texture[0], "texture": self.texture[1]}
+        out = get_renderer().render(cam, V, self.model.mesh.faces, shading="lambert", background=BACKGROUND, **kw)
+        rgb = np.ascontiguousarray((np.clip(out.color[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8))
+        self._image = QImage(rgb.data, w, h, 3 * w, QImage.Format.Format_RGB888).copy()
+        self._depth = out.depth
+        self._camera = cam
+        self.last_render_s = time.perf_counter() - t0
+        self._dirty = False
+        return self._image
+
+    # ------------------------------------------------------------------ painting
+    def paintEvent(self, event):
+        p = QPainter(self)
+        try:
+            if self._dirty or self._image is None or self._image.size() != self.size():
+                try:
+                    self.render_image()
+                except Exception as exc:  # no OpenGL: say so in the view instead of failing the window
+                    p.fillRect(self.rect(), QColor(40, 40, 40))
+                    p.setPen(QColor(230, 230, 230))
+                    p.drawText(self.rect(), Qt.AlignmentFlag.AlignCenter | Qt.TextFlag.TextWordWrap,
+                               f"3D view unavailable:\n{exc}")
+                    return
+            p.drawImage(0, 0, self._image)
+            p.setRenderHint(QPainter.RenderHint.Antialiasing)
+            if self.show_features:
+                self._paint_features(p)
+            _, caption = self.vertices()
+            p.setPen(QColor(220, 220, 220))
+            p.drawText(QRectF(8, 4, self.width() - 16, 20), Qt.AlignmentFlag.AlignLeft, caption)
+            p.setPen(QColor(160, 160, 160))
+            p.drawText(QRectF(8, self.height() - 22, self.width() - 16, 18), Qt.AlignmentFlag.AlignLeft,
+                       "drag: orbit · wheel: zoom · click: pick feature")
+        finally:
+            p.end()
+
+    def _visible_features(self):
+        """(names, uv (n, 2), visible (n,)) of the project's features in the last render."""
+        if self._camera is None:
+            return [], np.zeros((0, 2)), np.zeros(0, bool)
+        V, _ = self.vertices()
+        names = [name for name, _, in_project, _ in self.model.catalogue() if in_project]
+        verts = np.array([self.model.project.feature(n).vertex for n in names], dtype=int)
+        return (names,) + self._project_visible(V[verts]) if len(names) else ([], np.zeros((0, 2)), np.zeros(0, bool))
+
+    def _project_visible(self, X: np.ndarray):
+        from photomodel.overlay import visible_points
+
+        uv = self._camera.project(X)
+        vis = visible_points(self._camera, X, self._depth, tolerance_mm=3.0)
+        return uv, vis
+
+    def _paint_features(self, p: QPainter):
+        names, uv, vis = self._visible_features()
+        active = self.model.active_feature
+        for name, (u, v), ok in zip(names, uv, vis, strict=True):
+            if not ok:
+                continue
+            is_active = name == active
+            p.setPen(QPen(QColor(0, 0, 0, 120), 0.8))
+            p.setBrush(QColor(255, 230, 0) if is_active else QColor(0, 190, 255, 200))
+            r = 4.0 if is_active else 1.8
+            p.drawEllipse(QPointF(u, v), r, r)
+        if active is not None:
+            v = self.model.project.feature(active).vertex if self.model.has_feature(active) else \
+                self.model.mesh.features.get(active)
+            if v is not None:
+                V, _ = self.vertices()
+                (uv1,), (ok,) = self._project_visible(V[[v]])
+                if ok:
+                    p.setPen(QPen(QColor(255, 230, 0), 2))
+                    p.setBrush(Qt.BrushStyle.NoBrush)
+                    p.drawEllipse(QPointF(*uv1), 8, 8)
+                    p.drawText(QPointF(uv1[0] + 11, uv1[1] - 6), active)
+
+    # ------------------------------------------------------------------ interaction
+    def pick(self, x: float, y: float) -> str | None:
+        """The named feature (project's or generic mesh's) nearest a widget position, if visible."""
+        if self._camera is None or self._dirty:
+            self.render_image()
+        V, _ = self.vertices()
+        names, verts = [], []
+        for name, vertex, _, _ in self.model.catalogue():
+            names.append(name)
+            verts.append(vertex)
+        if not names:
+            return None
+        uv, vis = self._project_visible(V[np.array(verts)])
+        d = np.hypot(uv[:, 0] - x, uv[:, 1] - y)
+        d[~vis] = np.inf
+        i = int(np.argmin(d))
+        return names[i] if d[i] <= PICK_RADIUS_PX else None
+
+    def mousePressEvent(self, event):
+        if event.button() == Qt.MouseButton.LeftButton:
+            self._press = event.position()
+            self._last = event.position()
+            self._orbiting = False
+            event.accept()
+
+    def mouseMoveEvent(self, event):
+        if self._press is None:
+            return
+        pos = event.position()
+        if not self._orbiting and math.hypot(pos.x() - self._press.x(), pos.y() - self._press.y()) > CLICK_SLOP_PX:
+            self._orbiting = True
+        if self._orbiting:
+            d = pos - self._last
+            self.azimuth_deg = (self.azimuth_deg - 0.4 * d.x() + 180.0) % 360.0 - 180.0
+            self.elevation_deg = float(np.clip(self.elevation_deg + 0.4 * d.y(), -85.0, 85.0))
+            self._last = pos
+            self.invalidate()
+        event.accept()
+
+    def mouseReleaseEvent(self, event):
+        if event.button() != Qt.MouseButton.LeftButton or self._press is None:
+            return
+        if not self._orbiting:
+            name = self.pick(event.position().x(), event.position().y())
+            if name is not None:
+                self.model.set_active_feature(name)
+                self.feature_picked.emit(name)
+        self._press = None
+        self._orbiting = False
+        event.accept()
+
+    def wheelEvent(self, event):
+        steps = event.angleDelta().y() / 120.0
+        self.distance_mm = float(np.clip(self.distance_mm * 0.88**steps, 200.0, 3000.0))
+        self.invalidate()
+        event.accept()
+
+    def view_from(self, azimuth_deg: float, elevation_deg: float = 0.0) -> None:
+        self.azimuth_deg, self.elevation_deg = azimuth_deg, elevation_deg
+        self.invalidate()

@@ -1,0 +1,223 @@
+"""Work off the GUI thread: fits run in a :class:`QThreadPool` worker, the window stays responsive.
+
+:class:`FitController` owns one single-thread pool. ``start(expression)`` snapshots the project
+(:meth:`StudioModel.fit_snapshot`), fits the snapshot in the worker
+(:meth:`StudioModel.compute_fit`) and hands the result back to the GUI thread through a
+queued Qt signal, where it is applied to the model — unless the project was replaced in the
+meantime (then it is dropped). Cancelling sets a flag that :func:`photomodel.fit.fit_expression`
+polls between its stages (``cancel=``).
+
+Auto-refit: after each edit, :meth:`FitController.schedule_refit` starts a warm refit
+(:mod:`photomodel.refit`) after a short debounce, when the last warm refit of the project took
+less than :data:`AUTO_REFIT_MAX_S`; edits made while a refit runs are picked up by one more
+refit when it finishes.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+
+from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
+
+from photomodel.errors import FaceStudioError
+from photomodel.fit import Cancelled
+
+from .model import StudioModel
+
+#: Refit automatically after an edit only when the last warm refit was at least this fast (s).
+AUTO_REFIT_MAX_S = 0.3
+#: Debounce between an edit and the automatic refit it triggers (ms); a drag's release and the
+#: next click within it make one refit.
+AUTO_REFIT_DELAY_MS = 60
+
+
+class _TaskSignals(QObject):
+    progress = Signal(str, float)
+    finished = Signal(object, float, bool)  # FitResult, seconds, built caches (cold)
+    failed = Signal(str)
+    cancelled = Signal()
+
+
+class FitTask(QRunnable):
+    """One fit of one expression of a project snapshot, run by a :class:`QThreadPool`."""
+
+    def __init__(self, model: StudioModel, expression: str, warm: bool):
+        super().__init__()
+        self.setAutoDelete(False)  # the controller keeps it until its signals are delivered
+        self.model, self.expression, self.warm = model, expression, warm
+        self.snapshot = model.fit_snapshot()
+        self.previous = model.warm_start(expression) if warm else None  # read here, on the GUI thread
+        self.generation = model.generation
+        self.signals = _TaskSignals()
+        self._cancel = threading.Event()
+        self.done = threading.Event()
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    @property
+    def cancelled(self) -> bool:
+        return self._cancel.is_set()
+
+    def run(self) -> None:  # worker thread
+        try:
+            result, elapsed, cold = self.model.compute_fit(
+                self.snapshot, self.expression, previous=self.previous,
+                progress=lambda stage, frac: self.signals.progress.emit(stage, float(frac)),
+                cancel=self._cancel.is_set,
+            )
+        except Cancelled:
+            self.signals.cancelled.emit()
+        except FaceStudioError as exc:
+            self.signals.failed.emit(str(exc))
+        except Exception as exc:  # an unexpected failure is reported with its cause, not swallowed
+            self.signals.failed.emit(f"{type(exc).__name__}: {exc}\n\n{traceback.format_exc(limit=6)}")
+        else:
+            if self._cancel.is_set():
+                self.signals.cancelled.emit()
+            else:
+                self.signals.finished.emit(result, elapsed, cold)
+        finally:
+            self.done.set()
+
+
+class FitController(QObject):
+    """Runs fits for a :class:`StudioModel` in a worker thread, one at a time.
+
+    Signals
+    -------
+    started (expression, interactive), progress (stage, fraction), finished (expression, seconds),
+    failed (message), cancelled (), busy_changed (bool).
+    """
+
+    started = Signal(str, bool)
+    progress = Signal(str, float)
+    finished = Signal(str, float)
+    failed = Signal(str)
+    cancelled = Signal()
+    busy_changed = Signal(bool)
+
+    def __init__(self, model: StudioModel, parent: QObject | None = None):
+        super().__init__(parent)
+        self.model = model
+        self.pool = QThreadPool(self)
+        self.pool.setMaxThreadCount(1)
+        self.pool.setExpiryTimeout(-1)  # keep the thread (and its caches) alive
+        self.task: FitTask | None = None
+        self.auto_refit = True
+        self.last_warm_s: float | None = None
+        self.last_fit_s: float | None = None
+        self._pending_expression: str | None = None
+        self._timer = QTimer(self)
+        self._timer.setSingleShot(True)
+        self._timer.setInterval(AUTO_REFIT_DELAY_MS)
+        self._timer.timeout.connect(self._auto_refit_now)
+        model.project_replaced.connect(self._on_project_replaced)
+
+    @property
+    def busy(self) -> bool:
+        return self.task is not None
+
+    def auto_refit_possible(self, expression: str | None = None) -> bool:
+        """Whether an edit would trigger a refit now: enabled, fitted before, fast enough."""
+        name = expression or self.model.expression_name
+        return (self.auto_refit and name is not None and self.model.fit(name) is not None
+                and (self.last_warm_s is None or self.last_warm_s < AUTO_REFIT_MAX_S))
+
+    def start(self, expression: str | None = None, *, warm: bool = False) -> FitTask | None:
+        """Start fitting ``expression`` (default: current); returns the task, None if busy."""
+        name = expression or self.model.expression_name
+        if name is None or self.task is not None:
+            if name is not None:
+                self._pending_expression = name if warm else self._pending_expression
+            return None
+        task = FitTask(self.model, name, warm)
+        task.signals.progress.connect(self.progress)
+        task.signals.finished.connect(lambda result, s, cold, t=task: self._on_finished(t, result, s, cold))
+        task.signals.failed.connect(lambda msg, t=task: self._on_ended(t, failed=msg))
+        task.signals.cancelled.connect(lambda t=task: self._on_ended(t, cancelled=True))
+        self.task = task
+        self.busy_changed.emit(True)
+        self.started.emit(name, warm)
+        self.pool.start(task)
+        return task
+
+    def cancel(self) -> None:
+        if self.task is not None:
+            self.task.cancel()
+        self._pending_expression = None
+        self._timer.stop()
+
+    def schedule_refit(self, expression: str | None = None) -> None:
+        """Called after an edit: refit soon if :meth:`auto_refit_possible`."""
+        name = expression or self.model.expression_name
+        if not self.auto_refit_possible(name):
+            return
+        self._pending_expression = name
+        if self.task is None:
+            self._timer.start()
+
+    def wait(self, timeout_s: float = 30.0) -> bool:
+        """Block until the running task's worker is done (tests, shutdown); signals still queue."""
+        t = self.task
+        return True if t is None else t.done.wait(timeout_s)
+
+    def _auto_refit_now(self) -> None:
+        name, self._pending_expression = self._pending_expression, None
+        if name is not None and self.task is None:
+            try:
+                self.model.project.expression(name)
+            except FaceStudioError:
+                return
+            self.start(name, warm=True)
+
+    def _on_finished(self, task: FitTask, result, seconds: float, cold: bool = False) -> None:
+        if task is not self.task:
+            return
+        applied = task.generation == self.model.generation
+        if applied:
+            try:
+                self.model.project.expression(task.expression)
+            except FaceStudioError:
+                applied = False
+        if applied:
+            self.model.apply_fit(task.expression, result, seconds)
+            self.last_fit_s = seconds
+            if task.warm and not cold:  # a refit that rebuilt the RBF cache says nothing about the next
+                self.last_warm_s = seconds
+        self._end(task)
+        if applied:
+            self.finished.emit(task.expression, seconds)
+        self._continue()
+
+    def _on_ended(self, task: FitTask, failed: str | None = None, cancelled: bool = False) -> None:
+        if task is not self.task:
+            return
+        self._end(task)
+        if failed is not None:
+            self._pending_expression = None  # the same clicks would fail again
+            self.failed.emit(failed)
+        elif cancelled:
+            self.cancelled.emit()
+        self._continue()
+
+    def _end(self, task: FitTask) -> None:
+        self.task = None
+        self.busy_changed.emit(False)
+
+    def _continue(self) -> None:
+        if self._pending_expression is not None and self.task is None:
+            self._timer.start()
+
+    def _on_project_replaced(self) -> None:
+        self.cancel()
+        self.last_warm_s = None
+        self.last_fit_s = None
+
+    def shutdown(self, timeout_s: float = 10.0) -> None:
+        """Cancel and wait for the worker (window close)."""
+        self.cancel()
+        self.wait(timeout_s)
+        self.pool.waitForDone(int(timeout_s * 1000))
+
