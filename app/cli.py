@@ -45,6 +45,9 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         f"expression {expr_name!r}: reprojection RMS {report['rms_px']:.3f} px "
         f"(pose features {report['pose']['rms_px']:.3f} px, {report['pose']['sweeps']} sweeps)"
     ]
+    if report.get("bundle"):
+        b = report["bundle"]
+        lines.append(f"  cameras re-estimated with all {b['points']} triangulated points: {b['rms_px']:.3f} px")
     lines.append(f"  {'photo':<24} {'RMS px':>8} {'points':>7} {'focal mm':>9}")
     for v in report["views"]:
         rms = "-" if v["rms_px"] is None else f"{v['rms_px']:.3f}"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -89,12 +90,16 @@ def test_warm_refit_is_one_more_curve_pass(mesh, fitted, refitter):
     project, plain = fitted
     hits = refitter.deformer.hits
     warm = refitter.fit(project, "neutral", previous=plain)
-    assert refitter.deformer.hits == hits + 2  # pose-only and full vertex sets both cached
-    three = fit_expression(project, "neutral", mesh, FitOptions(curve_passes=3))
-    # curves parameterised on the two-pass result, one pass: exactly the third pass
-    np.testing.assert_allclose(warm.vertices, three.vertices, atol=1e-6)
-    # and close to the two-pass fit: the curve passes settle to well under a millimetre on average
+    assert refitter.deformer.hits >= hits + 2  # pose-only and full vertex sets both cached
+    # close to the full fit: the curve passes settle to well under a millimetre on average
     assert np.linalg.norm(warm.vertices - plain.vertices, axis=1).mean() < 0.2
+    # Without the final camera re-estimation the warm refit is exactly one more curve pass:
+    # curves parameterised on the two-pass result, one pass, equals the third pass.
+    paper = FitOptions(bundle_all=False)
+    two = fit_expression(project, "neutral", mesh, paper)
+    warm_paper = Refitter(mesh, paper).fit(project, "neutral", previous=two)
+    three = fit_expression(project, "neutral", mesh, replace(paper, curve_passes=3))
+    np.testing.assert_allclose(warm_paper.vertices, three.vertices, atol=1e-6)
 
 
 def test_refit_after_a_moved_click_follows_the_click(mesh, fitted, refitter):
