@@ -9,8 +9,8 @@ The cylinder (:class:`CylinderMap`)
 -----------------------------------
 The axis is the head frame's vertical (``+y``, :mod:`photomodel.camera`) through the
 centre of the circle that best fits the mesh's vertices seen from above (least squares in
-``x, z``): inside the head, so that every horizontal ray towards it crosses the surface
-once (the bounding-box centre of a face mask open at the back lies behind the neck). With ``θ = atan2(x − c_x, z − c_z)``
+``x, z``), which lies inside the head (the bounding-box centre of a face mask open at the
+back would lie behind the neck, outside the surface). With ``θ = atan2(x − c_x, z − c_z)``
 the angle about it (0 in front of the face, increasing towards the subject's left) and
 ``φ = (θ − θ_cut) mod 2π`` the angle measured from the **seam** ``θ_cut``, a texel's
 ``u ∈ [0, 1]`` spans ``φ ∈ [φ_0, φ_1]`` and ``v ∈ [0, 1]`` (up, as OBJ/OpenGL) spans
@@ -26,15 +26,16 @@ Casting one ray per texel (§5.2.2 step 2) is replaced by an equivalent, faster 
 the mesh is **rasterised in cylindrical coordinates** by the one renderer
 (:mod:`photomodel.render`). Each vertex is placed at its texel position ``(u, v)`` with a
 depth that *decreases* with its distance ``r`` from the axis, so the z-buffer keeps, at
-every texel, the surface point with the largest ``r`` on the texel's ray — exactly the first
-hit of a ray cast from the cylinder towards the axis. The texel's 3D point is rebuilt from
-its ``(θ, y)`` and the rasterised ``r``; per-vertex normals (and the single-view weight of
-§5.2.4) are interpolated as float attributes. Two approximations, both far below a texel:
-a triangle is straight in 3D but its edges are slightly curved in ``(θ, y)``, and ``r`` is
-interpolated linearly in ``(θ, y)`` where the true intersection is the plane's; for a
-triangle of side ``s`` at radius ``r`` the error is about ``s² / 8r`` (≈ 0.01 mm for the
-2 mm triangles of the generic mesh). ``tests/test_texture.py`` checks the rasterised points
-against ray–triangle intersections.
+every texel, the triangle with the largest ``r`` on the texel's ray — the first triangle
+a ray cast from the cylinder towards the axis meets. The texel's 3D point is then the
+*exact* intersection of its ray with that triangle's plane; per-vertex normals (and the
+single-view weight of §5.2.4) are interpolated as float attributes. The only
+approximation is in *which* triangle wins: the z-buffer compares ``r`` interpolated
+linearly in ``(θ, y)``, which differs from the true intersection by ~0.01–0.3 mm (most
+on surfaces the ray grazes), so two surfaces closer than that along a ray (never on a
+face) could be swapped, and triangle edges are straight in ``(θ, y)`` where the true
+projections curve slightly (well under a texel). ``tests/test_texture.py`` checks the
+texel points against ray–triangle intersections.
 
 *Implementation note*: the renderer draws through a pinhole :class:`Camera`; an
 orthographic-like raster is obtained by giving each vertex camera coordinates
@@ -45,11 +46,12 @@ triangle. No extension of the renderer is needed.
 
 Seam: triangles whose ``φ`` span crosses the seam are drawn twice, once unwrapped past
 ``2π`` and once before ``0``, and the texture's ``φ`` range is widened to contain both
-copies (by at most 0.1 rad: triangles pierced by the axis, at the crown of a whole head,
-cannot be mapped to a cylinder and are clipped), so no texel near the seam is lost. For rendering with the texture, such triangles
-get duplicated vertices with the unwrapped ``u`` (:attr:`CylindricalTexture.seam_faces`);
-for meshes with no triangle across the seam (a face mask) the per-vertex ``uv`` serves
-directly.
+copies, so no texel near the seam is lost. The widening is capped at 0.1 rad: near the
+crown (and an open bottom) of a whole head, nearly horizontal triangles close to the axis
+span large angles and cannot be mapped to a cylinder at all; they are clipped. For
+rendering with the texture, seam-crossing triangles get duplicated vertices with the
+unwrapped ``u`` (:attr:`CylindricalTexture.seam_faces`); for meshes with no triangle across
+the seam (a face mask) the per-vertex ``uv`` serves directly.
 
 Hole filling: a pull–push pyramid (Gortler et al. 1996, the paper's alternative to
 one-pixel growth): texels no photograph sees, and texels off the surface, get the
@@ -57,7 +59,10 @@ normalised average of the known texels around them at the coarsest scale that ha
 which keeps the texture continuous under bilinear and mipmapped sampling.
 
 Cost (2 shared cores, llvmpipe): a 1024² texture of the 8k-vertex fitted mesh from five
-1000×1000 photographs takes ~0.5–0.8 s (``benchmarks/bench_texture.py``).
+1000×1000 photographs takes 1.05–1.6 s (load-dependent), about a third of it the five
+depth maps and the raster (``benchmarks/bench_texture.py``). The per-texel work runs on
+float32 with OpenCV's ``transform``/``perspectiveTransform``/``remap``, ~10× faster than
+numpy's matmul on ``(n, 3)`` arrays.
 """
 
 from __future__ import annotations
@@ -92,7 +97,7 @@ _MIN_GAP_DEG = 5.0
 #: Margin (texels) kept around the mesh's extent in the texture, for bilinear/mipmap sampling.
 _MARGIN_TEXELS = 2
 #: How far (rad) the texture extends past the seam to hold unwrapped seam-crossing triangles.
-#: Triangles pierced by the axis (the crown of a whole head) span up to 2π once unwrapped;
+#: Triangles close to the axis (the crown of a whole head) span large angles once unwrapped;
 #: they are clipped at this margin instead of stretching the texture.
 _MAX_UNWRAP = 0.1
 #: ``Z_0`` of the cylindrical raster (mm), see the module notes.
@@ -100,7 +105,7 @@ _RASTER_Z0_MM = 1.0e4
 #: §5.2.4 region of the generic mesh textured from a single photograph: vertices at least
 #: this far (mm) from the face mask (:attr:`GenericMesh.face_mask`) get full weight ...
 SINGLE_VIEW_OFFSET_MM = 20.0
-#: ... ramped (cubic) from 0 at the face mask's edge over this distance (mm) below the offset.
+#: ... with a cubic ramp over this distance (mm) below the offset: 0 up to 5 mm from the mask.
 SINGLE_VIEW_RAMP_MM = 15.0
 
 
@@ -361,13 +366,26 @@ def rasterise_cylinder(
         attr = attr.reshape(len(V), -1)[vidx]
     res = get_renderer().render(cam, fake, sfaces, colors=attr, near=near, far=far)
     surface = res.mask
-    radius = np.where(surface, np.float32(_RASTER_Z0_MM) - res.depth, np.nan).astype(np.float32)
+    face_id = np.where(surface, face_index[np.maximum(res.face_id, 0)], -1)
     uu, vv = cmap.texel_uv(size)
     rows, cols = np.nonzero(surface)
     origin, direction = cmap.ray(np.column_stack([uu[cols], vv[rows]]))
+    # the z-buffer has picked the first triangle on each texel's ray; the point itself is the
+    # exact intersection of the ray with that triangle's plane (the rasterised r is linear in
+    # (θ, y) and errs by up to ~0.1 mm on surfaces the ray grazes)
+    r_raster = _RASTER_Z0_MM - res.depth[rows, cols].astype(np.float64)
+    fid = face_id[rows, cols]
+    tri = V[F[fid]]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    nd = np.einsum("ij,ij->i", n, direction)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_exact = np.einsum("ij,ij->i", n, tri[:, 0] - origin) / nd
+    use = np.isfinite(r_exact) & (np.abs(r_exact - r_raster) < 1.0)  # guard degenerate/grazing
+    r = np.where(use, r_exact, r_raster)
+    radius = np.full((size, size), np.nan, np.float32)
+    radius[rows, cols] = r
     points = np.full((size, size, 3), np.nan, np.float32)
-    points[rows, cols] = origin + direction * radius[rows, cols, None]
-    face_id = np.where(surface, face_index[np.maximum(res.face_id, 0)], -1)
+    points[rows, cols] = origin + direction * r[:, None]
     attrs = np.where(surface[..., None], res.color, 0.0).astype(np.float32)
     return CylinderRaster(surface=surface, points=points, radius=radius, attributes=attrs, face_id=face_id)
 
@@ -508,7 +526,7 @@ class CylindricalTexture:
     seam_faces : (F, 3) int
         ... its triangles (seam-crossing ones use duplicated vertices) ...
     seam_uv : (M, 2) float
-        ... and their texture coordinates, unwrapped across the seam.
+        ... and their texture coordinates in [0, 1], unwrapped across the seam.
     """
 
     image: np.ndarray
@@ -673,7 +691,8 @@ def cylindrical_texture(
 
     vidx, sfaces, phi, _ = _seam_mesh(cmap, V, F, both=False)
     y0, y1 = cmap.y_range
-    seam_uv = np.column_stack([cmap.u_of_phi(phi), (V[vidx, 1] - y0) / (y1 - y0)])
+    # clipped to the texture: only triangles pierced by the axis (see _MAX_UNWRAP) reach beyond
+    seam_uv = np.clip(np.column_stack([cmap.u_of_phi(phi), (V[vidx, 1] - y0) / (y1 - y0)]), 0.0, 1.0)
     return CylindricalTexture(
         image=image,
         weight_maps=weight_maps,

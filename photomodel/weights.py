@@ -13,7 +13,9 @@ with one weight map per photograph, built from the paper's considerations:
 3. *positional certainty* ``P_k(m) = n · d_k`` (:func:`positional_certainty`);
 4. *view similarity* (view-dependent rendering only, §5.2.3):
    ``V_k(d) = d · d_k − d_ℓ · d_{ℓ+1}`` for the two photos ``ℓ, ℓ+1`` whose view
-   directions are nearest to the new one, 0 for the others (:func:`view_similarity`).
+   directions are nearest to the new one, 0 for the others (:func:`view_similarity`;
+   :func:`select_views` picks the two that *bracket* the new direction, which keeps the
+   blend continuous when the cameras are unevenly spaced).
 
 The weights are ``g_k = F_k P_k`` for the cylindrical texture (§5.2.2 step 3) and
 ``g_k = F_k P_k V_k`` for view-dependent rendering (§5.2.3).
@@ -240,6 +242,16 @@ def view_directions(cameras: Sequence[Camera], centre: np.ndarray) -> np.ndarray
 def select_views(d: np.ndarray, directions: np.ndarray) -> tuple[int, int]:
     """The two photographs ``ℓ, ℓ+1`` whose view directions are nearest to ``d`` (§5.2.3).
 
+    ``ℓ`` is the nearest photograph (largest ``d · d_k``). The second is the nearest of the
+    photographs that lie *beyond* ``d`` as seen from ``ℓ`` — those with
+    ``d · d_k > d_ℓ · d_k``, i.e. a positive ``V_k(d)`` — so that ``ℓ, ℓ+1`` bracket ``d``
+    like consecutive cameras of the paper's rig ("positioned roughly in the same plane").
+    For evenly spaced cameras this is simply the second nearest; for uneven spacing (the
+    sample rig: −75°, −35°, 0°, +40°, +80°) the plain second-nearest would switch from one
+    side to the other at a point where its weight is not zero, and the rendering would jump
+    (see ``tests/test_weights.py``). When no photograph lies beyond ``d`` (a view outside the
+    photographed arc) the second index repeats the first.
+
     Parameters
     ----------
     d : (3,) float, unit view direction of the new view.
@@ -248,21 +260,26 @@ def select_views(d: np.ndarray, directions: np.ndarray) -> tuple[int, int]:
     Returns
     -------
     (int, int)
-        indices of the nearest and second-nearest photograph (largest ``d · d_k``); with
-        one photograph, ``(0, 0)``.
     """
     dirs = np.asarray(directions, dtype=float).reshape(-1, 3)
     if len(dirs) == 0:
         raise ValueError("no photographs to select from")
-    order = np.argsort(-(dirs @ np.asarray(d, dtype=float).reshape(3)), kind="stable")
-    return int(order[0]), int(order[min(1, len(order) - 1)])
+    d = np.asarray(d, dtype=float).reshape(3)
+    cos = dirs @ d
+    nearest = int(np.argmax(cos))
+    beyond = cos - dirs @ dirs[nearest] > 1e-12
+    beyond[nearest] = False
+    if not beyond.any():
+        return nearest, nearest
+    second = int(np.flatnonzero(beyond)[np.argmax(cos[beyond])])
+    return nearest, second
 
 
 def view_similarity(d: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """View-dependent term ``V_k(d)`` of §5.2.3 for every photograph.
 
-    ``V_k(d) = d · d_k − d_ℓ · d_{ℓ+1}`` for the two nearest photographs ``ℓ, ℓ+1``
-    (:func:`select_views`) and 0 for the others: a single photograph when the new view
+    ``V_k(d) = d · d_k − d_ℓ · d_{ℓ+1}`` for the two photographs ``ℓ, ℓ+1`` of
+    :func:`select_views` and 0 for the others: a single photograph when the new view
     matches its direction exactly, a smooth blend of the two otherwise.
 
     Parameters
@@ -273,9 +290,8 @@ def view_similarity(d: np.ndarray, directions: np.ndarray) -> np.ndarray:
     Returns
     -------
     (k,) float
-        non-negative. Values below 0 (a view outside the arc spanned by the two nearest
-        photographs) are clipped to 0; when that leaves nothing (a view from behind), the
-        nearest photograph gets weight 1.
+        non-negative; the blend uses only their ratio. Outside the photographed arc (no
+        photograph beyond ``d``) the nearest photograph alone gets weight 1.
     """
     dirs = np.asarray(directions, dtype=float).reshape(-1, 3)
     d = np.asarray(d, dtype=float).reshape(3)
@@ -286,10 +302,8 @@ def view_similarity(d: np.ndarray, directions: np.ndarray) -> np.ndarray:
         V[l0] = 1.0
         return V
     base = float(dirs[l0] @ dirs[l1])
-    V[l0] = max(float(d @ dirs[l0]) - base, 0.0)
-    V[l1] = max(float(d @ dirs[l1]) - base, 0.0)
-    if V[l0] <= 0.0:
-        V[l0] = 1.0
+    V[l0] = float(d @ dirs[l0]) - base  # ≥ V[l1] > 0 by the choice of l0 and l1
+    V[l1] = float(d @ dirs[l1]) - base
     return V
 
 

@@ -1,0 +1,407 @@
+"""The blend-shape face model of tracking (Pighin et al. 2002, §6.1.1) and its rendering (Eq. 5).
+
+A :class:`FaceModel` holds ``m`` basic expressions ``E_1..E_m`` of one person on one mesh
+(``E_1`` neutral): their geometries (m, n, 3) mm in the head frame and their textures (one
+image per expression, one shared uv layout). The face is split into *control regions*
+(:data:`CONTROL_REGIONS`: the generic mesh's mouth, eyes and forehead; the rest is constant,
+§6.1.1 "the rest of the face … is constant"). Each region ``r`` has its own expression
+parameters ``α_r`` and blending weights (Eq. 4)
+
+    w_r = Q_r α_r + w*,      w* = (1, 0, …, 0),      Σ_k w_rk = 1,
+
+with ``Q_r`` (m, a_r) spanning ``Σ_k w_k = 0``. ``Q_r`` comes from Gram–Schmidt of the directions
+``E_k − E_1`` (k = 2..m) measured on the region's vertices (``basis="gram_schmidt"``; each column
+is scaled so that ``α = 1`` moves the region's vertices by 1 mm RMS) or from a principal component
+analysis of the region's geometries (``basis="pca"``). Directions that move the region by less
+than :data:`MIN_DIRECTION_MM` RMS are dropped (the eyes region of an expression set that never
+moves the eyes gets no parameter at all). Weights are limited to :data:`WEIGHT_RANGE`. The paper
+takes ``w*`` as the mean of the expressions; we take the neutral expression, because with dropped
+directions the mean is no longer reachable from the neutral (and ``α = 0`` is then the neutral face,
+the natural start of the first frame).
+
+Smooth transitions: every vertex has a *membership* ``μ_i`` (n, R) in the regions (one-hot on the
+region labels, then smoothed over the mesh graph, :data:`MEMBERSHIP_SMOOTHING` passes), and its
+blending weights are ``W_i = Σ_r μ_ir w_r`` with ``w_rest = e_1`` (neutral). The consensus geometry
+is ``X_i = Σ_k W_ik E_k,i`` and the rendered image is Eq. (5), ``Î = Σ_k W_k Î_k``.
+
+How we composite (Eq. 5)
+------------------------
+The paper rendered each ``Î_k`` with the weights in the 8-bit alpha channel, rescaled from
+[−0.5, 1.5]. Our renderer has float targets, so no rescaling is needed, and one pass is enough:
+the consensus mesh is drawn *unwelded* with each triangle's corners carrying the barycentric
+basis (1,0,0), (0,1,0), (0,0,1) as float attributes; the float target then holds, at every pixel,
+the perspective-correct barycentric coordinates and the triangle id. Any per-vertex quantity —
+uv, blending weights ``W_k``, memberships, camera-space positions, and the per-vertex derivatives
+of §6.1.3 — is interpolated from these in numpy (a gather over the covered pixels; exactly what
+rendering it as a float attribute would give, without one pass per four channels). Each texture is
+sampled at the interpolated uv (:func:`cv2.remap`, bilinear) and the samples are summed with the
+interpolated weights ``W_k`` — Eq. (5) with Gouraud-interpolated weights, as in the paper.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+import scipy.sparse as sparse
+
+from photomodel.camera import Camera
+
+__all__ = [
+    "CONTROL_REGIONS",
+    "WEIGHT_RANGE",
+    "FaceModel",
+    "ModelRender",
+    "build_face_model",
+    "control_regions",
+    "smooth_membership",
+    "expression_basis",
+    "render_model",
+]
+
+#: Regions with their own expression parameters; index 0 (``rest``) is held neutral.
+CONTROL_REGIONS = ("rest", "mouth", "eyes", "forehead")
+#: Blending weights are never extrapolated beyond this range (§6.1.1).
+WEIGHT_RANGE = (-0.5, 1.5)
+#: Passes of neighbour averaging that smooth the region memberships: with the generic mesh's
+#: ~3 mm edges, transitions about 1 cm wide (the paper blends regions smoothly, Fig. 9).
+MEMBERSHIP_SMOOTHING = 12
+#: Expression directions moving a region by less than this (mm RMS) are dropped.
+MIN_DIRECTION_MM = 0.05
+
+
+@dataclass
+class FaceModel:
+    """A blend-shape face model (§6.1.1). Build it with :func:`build_face_model`.
+
+    Attributes
+    ----------
+    names : tuple of m str
+        basic expressions, neutral first.
+    geometry : (m, n, 3) float
+        vertex positions of each basic expression, mm, head frame.
+    faces : (f, 3) int64
+    uv : (n, 2) float
+        texture coordinates (v up, OBJ convention) shared by all textures.
+    textures : list of m (Ht, Wt, 3) float32
+        each expression's texture in [0, 1]; identical entries may be the same array.
+    regions : (n,) int
+        control region of each vertex (index into :data:`CONTROL_REGIONS`).
+    membership : (n, R) float
+        smoothed region memberships, rows sum to 1.
+    bases : list of R (m, a_r) float
+        ``Q_r``; ``bases[0]`` (rest) has no column.
+    centre : (3,) float
+        the head centre (mm, head frame) about which the tracked rotation acts.
+    face_mask : (n,) bool
+        vertices used by accuracy metrics.
+    """
+
+    names: tuple
+    geometry: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray
+    textures: list
+    regions: np.ndarray
+    membership: np.ndarray
+    bases: list
+    centre: np.ndarray
+    face_mask: np.ndarray
+    _texture_groups: list = field(default_factory=list, repr=False)
+
+    # -- parameter bookkeeping --------------------------------------------------------
+    @property
+    def m(self) -> int:
+        return len(self.names)
+
+    @property
+    def n_alpha(self) -> list[int]:
+        """Number of expression parameters of each region (rest: 0)."""
+        return [Q.shape[1] for Q in self.bases]
+
+    @property
+    def alpha_slices(self) -> list[slice]:
+        """Slices of each region's ``α_r`` in the concatenated parameter vector."""
+        out, start = [], 0
+        for a in self.n_alpha:
+            out.append(slice(start, start + a))
+            start += a
+        return out
+
+    @property
+    def w_star(self) -> np.ndarray:
+        """The point ``w*`` of Eq. (4): the neutral expression ``e_1``."""
+        return np.eye(self.m)[0]
+
+    def region_weights(self, alpha: np.ndarray) -> np.ndarray:
+        """(R, m) blending weights of each region from the concatenated ``α`` (Eq. 4);
+        row 0 (rest) is neutral."""
+        alpha = np.asarray(alpha, float)
+        W = np.zeros((len(self.bases), self.m))
+        W[0, 0] = 1.0
+        for r, (Q, s) in enumerate(zip(self.bases, self.alpha_slices, strict=True)):
+            if r:
+                W[r] = Q @ alpha[s] + self.w_star
+        return W
+
+    def alpha_of_weights(self, weights: np.ndarray) -> np.ndarray:
+        """Concatenated ``α`` closest (least squares) to region weights (R, m) or (m,) for all."""
+        W = np.broadcast_to(np.asarray(weights, float), (len(self.bases), self.m))
+        parts = [np.linalg.lstsq(Q, W[r] - self.w_star, rcond=None)[0] for r, Q in enumerate(self.bases) if r]
+        return np.concatenate([np.zeros(0)] + parts)
+
+    def vertex_weights(self, region_weights: np.ndarray) -> np.ndarray:
+        """(n, m) per-vertex blending weights ``W_i = Σ_r μ_ir w_r``."""
+        return self.membership @ np.asarray(region_weights, float)
+
+    def blend_geometry(self, vertex_weights: np.ndarray) -> np.ndarray:
+        """(n, 3) mm consensus geometry ``X_i = Σ_k W_ik E_k,i``."""
+        return np.einsum("nk,knd->nd", vertex_weights, self.geometry)
+
+    def geometry_at(self, alpha: np.ndarray) -> np.ndarray:
+        """(n, 3) mm consensus geometry at expression parameters ``α``."""
+        return self.blend_geometry(self.vertex_weights(self.region_weights(alpha)))
+
+    def texture_groups(self) -> list[tuple[np.ndarray, list[int]]]:
+        """Distinct textures and the expressions that use each (shared textures are sampled once)."""
+        if not self._texture_groups:
+            groups: list[tuple[np.ndarray, list[int]]] = []
+            for k, T in enumerate(self.textures):
+                for G, ks in groups:
+                    if G is T:
+                        ks.append(k)
+                        break
+                else:
+                    groups.append((T, [k]))
+            self._texture_groups = groups
+        return self._texture_groups
+
+
+def control_regions(mesh_regions: np.ndarray, vertices: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
+    """(n,) control region of each vertex: the generic mesh's labels (:data:`CONTROL_REGIONS` order,
+    the same as :data:`photomodel.generic_mesh.REGION_NAMES`), with the jaw below the mouth corners
+    (between iBUG 3 and 13) joined to the mouth: the jaw moves with the mouth when it opens.
+
+    Parameters
+    ----------
+    mesh_regions : (n,) int, generic-mesh region labels.
+    vertices : (n, 3) float, neutral geometry, mm.
+    landmarks : (68,) int, vertex index of each iBUG-68 landmark.
+    """
+    regions = np.asarray(mesh_regions).astype(np.int64).copy()
+    L = vertices[landmarks]
+    x, y = vertices[:, 0], vertices[:, 1]
+    jaw = (regions == 0) & (y < min(L[48, 1], L[54, 1])) & (x > L[3, 0]) & (x < L[13, 0])
+    regions[jaw] = CONTROL_REGIONS.index("mouth")
+    return regions
+
+
+def smooth_membership(regions: np.ndarray, faces: np.ndarray, passes: int = MEMBERSHIP_SMOOTHING) -> np.ndarray:
+    """(n, R) memberships: one-hot of ``regions`` averaged ``passes`` times with the mesh
+    neighbours (rows keep summing to 1)."""
+    n = len(regions)
+    mu = np.eye(len(CONTROL_REGIONS))[regions]
+    edges = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    adj = sparse.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    adj = ((adj + adj.T) > 0).astype(float).tocsr()
+    mean = sparse.diags(1.0 / np.maximum(np.asarray(adj.sum(1)).ravel(), 1)) @ adj
+    for _ in range(passes):
+        mu = 0.5 * mu + 0.5 * (mean @ mu)
+    return mu / mu.sum(1, keepdims=True)
+
+
+def expression_basis(geometry: np.ndarray, weight: np.ndarray, basis: str = "gram_schmidt") -> np.ndarray:
+    """``Q`` (m, a) of one region: directions in weight space spanning ``Σ_k w_k = 0``.
+
+    Parameters
+    ----------
+    geometry : (m, n, 3) float, the basic expressions, mm.
+    weight : (n,) float, how much each vertex belongs to the region (its membership).
+    basis : ``"gram_schmidt"`` or ``"pca"``
+        Gram–Schmidt of ``E_k − E_1`` in the region's geometric inner product
+        ``⟨a, b⟩ = Σ_i μ_i (G a)_i·(G b)_i / Σ_i μ_i`` (``G`` maps weights to geometry), or the
+        principal directions of the region's ``E_k − E_1`` in that inner product.
+
+    Returns
+    -------
+    (m, a) float
+        columns with ``Σ_k Q_kl = 0``, each moving the region by 1 mm RMS per unit ``α``,
+        orthogonal in that inner product; directions under :data:`MIN_DIRECTION_MM` dropped.
+    """
+    m = geometry.shape[0]
+    sw = np.sqrt(np.asarray(weight, float) / max(float(np.sum(weight)), 1e-12))
+    G = (geometry * sw[None, :, None]).reshape(m, -1).T  # (3n, m): weights → weighted geometry
+    if basis == "gram_schmidt":
+        cols = []
+        for k in range(1, m):
+            d = np.zeros(m)
+            d[k], d[0] = 1.0, -1.0
+            for q in cols:
+                d = d - (G @ q) @ (G @ d) * q
+            norm = np.linalg.norm(G @ d)  # RMS displacement of the region, mm
+            if norm > MIN_DIRECTION_MM:
+                cols.append(d / norm)
+        return np.array(cols).T.reshape(m, len(cols))
+    if basis == "pca":
+        # principal directions of the differences from the neutral E_k − E_1 (the reachable set
+        # then contains the neutral, as with Gram–Schmidt)
+        C = np.vstack([-np.ones((1, m - 1)), np.eye(m - 1)])  # (m, m−1): coefficients → weights
+        U, S, Vt = np.linalg.svd(G @ C, full_matrices=False)
+        keep = S > MIN_DIRECTION_MM
+        return (C @ Vt[keep].T) / S[keep]
+    raise ValueError(f"basis must be 'gram_schmidt' or 'pca', got {basis!r}")
+
+
+def build_face_model(
+    names,
+    geometry: np.ndarray,
+    faces: np.ndarray,
+    uv: np.ndarray,
+    textures,
+    regions: np.ndarray,
+    *,
+    face_mask: np.ndarray | None = None,
+    basis: str = "gram_schmidt",
+    smoothing: int = MEMBERSHIP_SMOOTHING,
+) -> FaceModel:
+    """Assemble a :class:`FaceModel` from basic expressions.
+
+    Parameters
+    ----------
+    names : sequence of m str, neutral first.
+    geometry : (m, n, 3) float mm.
+    faces : (f, 3) int.
+    uv : (n, 2) float, v up.
+    textures : sequence of m images (Ht, Wt, 3), uint8 or float in [0, 1]; pass the same array
+        for expressions sharing a texture (it is then sampled once per frame).
+    regions : (n,) int, control regions (:func:`control_regions`).
+    face_mask : (n,) bool, optional, vertices of the face for metrics (default all).
+    basis : ``"gram_schmidt"`` or ``"pca"`` (:func:`expression_basis`).
+    smoothing : int, membership smoothing passes.
+    """
+    names = tuple(names)
+    E = np.asarray(geometry, float)
+    m = len(names)
+    if m < 2 or E.ndim != 3 or E.shape[0] != m or E.shape[2] != 3:
+        raise ValueError(f"geometry must be (m, n, 3) with m = {m} ≥ 2 expressions, got {E.shape}")
+    n = E.shape[1]
+    F = np.asarray(faces, np.int64)
+    uv = np.asarray(uv, float)
+    if uv.shape != (n, 2):
+        raise ValueError(f"uv must be ({n}, 2), got {uv.shape}")
+    if len(textures) != m:
+        raise ValueError(f"need one texture per expression ({m}), got {len(textures)}")
+    converted: dict[int, np.ndarray] = {}
+    tex = []
+    for T in textures:
+        if id(T) not in converted:
+            A = np.asarray(T)
+            A = A.astype(np.float32) / 255.0 if A.dtype == np.uint8 else A.astype(np.float32)
+            if A.ndim != 3 or A.shape[2] != 3:
+                raise ValueError(f"textures must be (Ht, Wt, 3) RGB, got {A.shape}")
+            converted[id(T)] = A
+        tex.append(converted[id(T)])
+    regions = np.asarray(regions, np.int64)
+    mu = smooth_membership(regions, F, smoothing)
+    bases = [np.zeros((m, 0))] + [expression_basis(E, mu[:, r], basis) for r in range(1, len(CONTROL_REGIONS))]
+    mask = np.ones(n, bool) if face_mask is None else np.asarray(face_mask, bool)
+    centre = E[0][mask].mean(axis=0)
+    return FaceModel(names, E, F, uv, tex, regions, mu, bases, centre, mask)
+
+
+# ----------------------------------------------------------------------------- rendering
+
+
+@dataclass
+class ModelRender:
+    """The model seen by a camera (Eq. 5), with what the Jacobian of §6.1.3 needs.
+
+    Attributes
+    ----------
+    image : (H, W, 3) float32
+        ``Î`` where the model covers the pixel; ``background`` (the target frame, when given)
+        elsewhere.
+    mask : (H, W) bool, covered pixels.
+    pixels : (N,) int, flat indices of the covered pixels.
+    corners : (N, 3) int, vertex of each corner of the triangle under each covered pixel.
+    bary : (N, 3) float, perspective-correct barycentric coordinates at the pixel centres.
+    X_cam : (N, 3) float, camera-space point (mm) under each covered pixel.
+    texture_colors : list of (N, 3), each distinct texture sampled at the pixels
+        (``model.texture_groups()`` order).
+    """
+
+    image: np.ndarray
+    mask: np.ndarray
+    pixels: np.ndarray
+    corners: np.ndarray
+    bary: np.ndarray
+    X_cam: np.ndarray
+    texture_colors: list
+
+    def interpolate(self, values: np.ndarray) -> np.ndarray:
+        """(N, ...) per-pixel interpolation of per-vertex ``values`` (n, ...)."""
+        v = values[self.corners]  # (N, 3, ...)
+        return np.einsum("nc,nc...->n...", self.bary, v)
+
+
+def render_model(
+    renderer,
+    camera: Camera,
+    model: FaceModel,
+    vertices: np.ndarray,
+    vertex_weights: np.ndarray,
+    background: np.ndarray | None = None,
+) -> ModelRender:
+    """Render the model with consensus geometry ``vertices`` and per-vertex weights (Eq. 5).
+
+    Parameters
+    ----------
+    renderer : photomodel.render.Renderer
+    camera : Camera, the model's pose as a camera (``X_cam = R X + t``).
+    model : FaceModel
+    vertices : (n, 3) float mm, consensus geometry (:meth:`FaceModel.blend_geometry`).
+    vertex_weights : (n, m) float, ``W``.
+    background : (H, W, 3) float, optional, image under uncovered pixels (default 0).
+    """
+    F = model.faces
+    unwelded = vertices[F].reshape(-1, 3)
+    bary_attr = _bary_attributes(len(F))
+    res = renderer.render(camera, unwelded, np.arange(len(unwelded)).reshape(-1, 3), colors=bary_attr)
+    H, W = camera.height, camera.width
+    mask = res.mask
+    pixels = np.flatnonzero(mask)
+    fid = res.face_id.reshape(-1)[pixels]
+    bary = res.color.reshape(-1, 3)[pixels].astype(float)
+    bary /= np.maximum(bary.sum(1, keepdims=True), 1e-12)
+    corners = F[fid]
+    X_cam = np.einsum("nc,ncd->nd", bary, vertices[corners]) @ camera.R.T + camera.t
+    uv = np.einsum("nc,ncd->nd", bary, model.uv[corners])
+    Wpix = np.einsum("nc,nck->nk", bary, vertex_weights[corners])
+    colors = []
+    out = np.zeros((len(pixels), 3))
+    for T, ks in model.texture_groups():
+        c = sample_texture(T, uv)
+        colors.append(c)
+        out += Wpix[:, ks].sum(1, keepdims=True) * c
+    image = np.zeros((H, W, 3), np.float32) if background is None else np.array(background, np.float32, copy=True)
+    image.reshape(-1, 3)[pixels] = out
+    return ModelRender(image, mask, pixels, corners, bary, X_cam, colors)
+
+
+_BARY_CACHE: dict[int, np.ndarray] = {}
+
+
+def _bary_attributes(n_faces: int) -> np.ndarray:
+    if n_faces not in _BARY_CACHE:
+        _BARY_CACHE[n_faces] = np.tile(np.eye(3, dtype=np.float32), (n_faces, 1))
+    return _BARY_CACHE[n_faces]
+
+
+def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """(N, 3) bilinear samples of ``texture`` (Ht, Wt, 3) at ``uv`` (N, 2) (v up, clamp to edge)."""
+    Ht, Wt = texture.shape[:2]
+    x = (uv[:, 0] * Wt - 0.5).astype(np.float32)
+    y = ((1.0 - uv[:, 1]) * Ht - 0.5).astype(np.float32)
+    out = cv2.remap(texture, x[None], y[None], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return out.reshape(-1, 3).astype(float)
