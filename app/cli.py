@@ -2,6 +2,8 @@
 
     facestudio fit PROJECT [--expression NAME] [--no-refine] [--json] [--dry-run]
     facestudio texture PROJECT [--expression NAME] [--size 1024] [--json]
+    facestudio track PROJECT --video PATH [--out DIR] [--first-pose JSON] [--focal-px F] [--frames N]
+                     [--restart] [--no-overlay] [--json]
     facestudio sample-data
     facestudio studio [PROJECT]
 
@@ -15,13 +17,12 @@ import contextlib
 import json
 import signal
 import sys
-import time
 from pathlib import Path
 
-from photomodel.errors import FaceStudioError, FitError, ProjectError
+from photomodel.errors import FaceStudioError, ProjectError
+from photomodel.texture_job import TEXTURE_SIZES
 
 #: Texture sizes ``facestudio texture`` accepts (texels per side).
-TEXTURE_SIZES = (8, 16384)
 
 
 def _progress_bar(enabled: bool):
@@ -103,87 +104,6 @@ def cmd_fit(args) -> int:
     return 0
 
 
-def _fitted_expressions(project, name: str | None) -> list[str]:
-    """The expressions to texture: ``name`` or every fitted one; FitError if not fitted."""
-    if name is not None:
-        if project.expression(name).result is None:
-            raise FitError(f"expression {name!r} has not been fitted yet: run "
-                           f"`facestudio fit {project.path}` first")
-        return [name]
-    names = [e.name for e in project.expressions if e.result is not None]
-    if not names:
-        raise FitError(f"{project.path.name}: no expression has been fitted yet: run "
-                       f"`facestudio fit {project.path}` first")
-    return names
-
-
-def _load_fitted(project, name: str):
-    """(vertices (n, 3) mm, faces (m, 3), photo ids, cameras, RGB photos) of a fitted expression.
-
-    Raises ProjectError naming the mesh or photo that is missing, unreadable or of the wrong size.
-    """
-    import cv2
-
-    from photomodel.mesh_io import read_mesh
-
-    expr = project.expression(name)
-    result = expr.result
-    if result.mesh_obj is None:
-        raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
-    mesh_path = project.resolve(result.mesh_obj)
-    if not mesh_path.is_file():
-        raise ProjectError(f"expression {name!r}: the fitted mesh {result.mesh_obj} does not exist "
-                           f"(looked for {mesh_path}); run `facestudio fit {project.path}` again")
-    try:
-        vertices, faces = read_mesh(mesh_path)
-    except Exception as exc:  # trimesh raises many kinds on a damaged file
-        raise ProjectError(f"expression {name!r}: cannot read the fitted mesh {result.mesh_obj}: {exc}") from exc
-    ids, cameras, photos = [], [], []
-    for photo in expr.photos:
-        cam = result.cameras.get(photo.id)
-        if cam is None:
-            continue  # the fit did not use this photo (no camera was recovered for it)
-        path = project.photo_path(photo)
-        who = f"expression {name!r}, photo {photo.id!r}"
-        if not path.is_file():
-            raise ProjectError(f"{who}: {photo.path} does not exist (looked for {path})")
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if img is None:
-            raise ProjectError(f"{who}: {photo.path} is not an image OpenCV can read (corrupt or unknown format)")
-        if img.shape[:2] != (cam.height, cam.width):
-            raise ProjectError(f"{who}: {photo.path} is {img.shape[1]}x{img.shape[0]} but its camera is "
-                               f"{cam.width}x{cam.height}; the photo changed since the fit")
-        ids.append(photo.id)
-        cameras.append(cam)
-        photos.append(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
-    if not cameras:
-        raise FitError(f"expression {name!r}: no photo has a recovered camera; run `facestudio fit` first")
-    return vertices, faces, ids, cameras, photos
-
-
-def _encode_texture_outputs(project, name: str, vertices, faces, ids, tex) -> tuple[dict, dict]:
-    """Encode every file of ``facestudio texture`` in memory: ({abs path: bytes}, relative paths)."""
-    from photomodel.exchange.files import encode_png
-    from photomodel.exchange.gltf import encode_glb
-    from photomodel.exchange.obj import encode_textured_obj
-    from photomodel.exchange.ply import encode_colored_ply
-    from photomodel.exchange.uv import merge_uv_seams
-
-    rel = project.default_texture_paths(name)
-    # per-corner uv in the mesh's face order: the texture's seam-split rendering mesh, merged
-    uv = merge_uv_seams(faces, tex.seam_vertices, tex.seam_faces, tex.seam_uv)
-    files = {project.resolve(rel["image"]): encode_png(tex.image)}
-    for pid, w in zip(ids, tex.weight_maps, strict=True):
-        files[project.resolve(rel["weight_maps"][pid])] = encode_png(w)  # black 0 … white 1
-    obj = encode_textured_obj(project.resolve(rel["obj"]), vertices, faces, uv, None,
-                              texture_path=project.resolve(rel["image"]), check_exists=False)
-    files.update(obj.files)  # after the PNG it refers to
-    files[project.resolve(rel["glb"])] = encode_glb(vertices, faces, uv=uv, texture=tex.image, name=name)
-    files[project.resolve(rel["ply"])] = encode_colored_ply(vertices, faces, uv=uv, texture=tex.image)
-    rel["weight_maps"] = {pid: rel["weight_maps"][pid] for pid in ids}
-    return files, rel
-
-
 @contextlib.contextmanager
 def _sigint_deferred():
     """Hold Ctrl-C while the outputs are being committed; yields a list that records it."""
@@ -196,16 +116,15 @@ def _sigint_deferred():
 
 
 def cmd_texture(args) -> int:
-    from photomodel.exchange.files import write_files
     from photomodel.generic_mesh import load_generic_mesh
-    from photomodel.project import TextureResult, load_project, save_project
-    from photomodel.texture import cylindrical_texture, single_view_weights
+    from photomodel.project import load_project, save_project
+    from photomodel.texture_job import commit_texture, encode_texture_outputs, fitted_expressions, texture_expression
 
     lo, hi = TEXTURE_SIZES
     if not lo <= args.size <= hi:
         raise FaceStudioError(f"--size {args.size}: the texture size must be between {lo} and {hi} texels")
     project = load_project(args.project)
-    names = _fitted_expressions(project, args.expression)
+    names = fitted_expressions(project, args.expression)
     generic = load_generic_mesh()
     bar, progress = _progress_bar(not args.json or sys.stderr.isatty())
     prepared = []
@@ -214,21 +133,12 @@ def cmd_texture(args) -> int:
             def stage(label, frac, i=i, name=name):
                 progress(f"{name}: {label}", (i + frac) / len(names))
 
-            stage("loading photos", 0.0)
-            vertices, faces, ids, cameras, photos = _load_fitted(project, name)
-            stage("extracting texture", 0.1)
-            t0 = time.perf_counter()
             # §5.2.4: ears, hair and neck from the single best photo (needs the generic topology)
-            single = (single_view_weights(vertices, generic.face_mask)
-                      if len(vertices) == len(generic.vertices) else None)
-            tex = cylindrical_texture(vertices, faces, cameras, photos, size=args.size, single_view=single)
-            seconds = time.perf_counter() - t0
+            job = texture_expression(project, name, args.size, face_mask=generic.face_mask,
+                                     progress=lambda label, f, stage=stage: stage(label, 0.8 * f))
             stage("encoding exports", 0.8)
-            files, rel = _encode_texture_outputs(project, name, vertices, faces, ids, tex)
-            surface = int(tex.surface.sum())
-            report = {"coverage": float(tex.coverage.sum() / max(surface, 1)), "extract_s": round(seconds, 3),
-                      "photos": ids, "single_view_fallback": single is not None}
-            prepared.append((name, files, rel, report))
+            files, rel = encode_texture_outputs(project, job)
+            prepared.append((name, job, files, rel, job.report))
         progress("done", 1.0)
     finally:
         if bar is not None:
@@ -236,17 +146,14 @@ def cmd_texture(args) -> int:
 
     # commit: every file atomically, then the project; Ctrl-C waits until this is done
     with _sigint_deferred() as interrupted:
-        for name, files, rel, report in prepared:
-            write_files(files)
-            project.expression(name).result.texture = TextureResult(
-                size=args.size, image=rel["image"], weight_maps=rel["weight_maps"],
-                exports={"obj": rel["obj"], "glb": rel["glb"], "ply": rel["ply"]}, report=report)
+        for _name, job, files, rel, _report in prepared:
+            commit_texture(project, job, files, rel)
         save_project(project)
     if interrupted:
         print("facestudio: interrupted while saving; the results were saved completely", file=sys.stderr)
 
     out = {"project": str(Path(args.project)), "expressions": []}
-    for name, _files, rel, report in prepared:
+    for name, _job, _files, rel, report in prepared:
         entry = {"name": name, "size": args.size, **report,
                  "files": {"texture": rel["image"], "weight_maps": rel["weight_maps"], "obj": rel["obj"],
                            "mtl": rel["mtl"], "glb": rel["glb"], "ply": rel["ply"]}}
@@ -263,6 +170,84 @@ def cmd_texture(args) -> int:
         print(json.dumps(out, indent=1))
     else:
         print(f"saved results into {args.project}")
+    return 0
+
+
+def _frames_saved(out_dir) -> int:
+    """Frames listed in ``out_dir``'s track.json (0 if none or unreadable)."""
+    from tracking.batch import load_track_results
+
+    try:
+        doc = load_track_results(out_dir)
+    except FaceStudioError:
+        return 0
+    return 0 if doc is None else len(doc["frames"])
+
+
+def cmd_track(args) -> int:
+    from tracking.batch import default_out_dir, track_video
+
+    if args.frames is not None and args.frames < 1:
+        raise FaceStudioError(f"--frames {args.frames}: track at least one frame")
+    if args.focal_px is not None and not args.focal_px > 0:
+        raise FaceStudioError(f"--focal-px {args.focal_px}: the focal length must be a positive number of pixels")
+    show = not args.json or sys.stderr.isatty()
+    bar = None
+    stop = []
+
+    def progress(done: int, total: int | None) -> None:
+        nonlocal bar
+        if not show:
+            return
+        if bar is None:
+            from tqdm import tqdm
+
+            bar = tqdm(total=total, initial=done - 1, unit="frame", file=sys.stderr, desc="tracking", leave=False)
+        bar.update(done - bar.n)
+
+    def on_sigint(signum, frame):  # first Ctrl-C: stop after this frame; a second one stops now
+        stop.append(signum)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        print("\nfacestudio: stopping after this frame (Ctrl-C again to stop at once)", file=sys.stderr)
+
+    out_dir = args.out
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        result = track_video(args.project, args.video, args.out, first_pose=args.first_pose, focal_px=args.focal_px,
+                             max_frames=args.frames, restart=args.restart, overlay=not args.no_overlay,
+                             progress=progress, cancel=lambda: bool(stop))  # fmt: skip
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.close()
+        if out_dir is None:
+            out_dir = default_out_dir(args.project, args.video)
+        print(f"facestudio: cancelled; {_frames_saved(out_dir)} frames saved in {out_dir}, rerun to continue",
+              file=sys.stderr)  # fmt: skip
+        return 130
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if bar is not None:
+            bar.close()
+    files = {k: str(v) for k, v in result.files.items()}
+    rms = [f["rms"] for f in result.frames]
+    summary = {
+        "project": str(Path(args.project)), "video": str(Path(args.video)), "out_dir": str(result.out_dir),
+        "frames": len(result.frames), "tracked": result.tracked, "resumed_from": result.resumed_from,
+        "complete": result.complete, "cancelled": result.cancelled, "fps": round(result.fps, 3),
+        "diverged_frames": result.diverged, "mean_rms": float(sum(rms) / len(rms)) if rms else None, "files": files,
+    }  # fmt: skip
+    if args.json:
+        print(json.dumps(summary, indent=1))
+    else:
+        resumed = f" (continuing after frame {result.resumed_from - 1})" if result.resumed_from else ""
+        print(f"tracked {result.tracked} frames{resumed} at {result.fps:.2f} frames/s; {len(result.frames)} frames "
+              f"in the results, {result.diverged} diverged, mean image RMS {summary['mean_rms'] or 0:.4f}")
+        for name, path in files.items():
+            print(f"  {name:<12} {path}")
+    if result.cancelled:
+        print(f"facestudio: cancelled; {len(result.frames)} frames saved in {result.out_dir}, rerun to continue",
+              file=sys.stderr)  # fmt: skip
+        return 130
     return 0
 
 
@@ -301,6 +286,22 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--size", type=int, default=1024, help="texture size in texels per side (default 1024)")
     t.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     t.set_defaults(func=cmd_texture)
+    k = sub.add_parser("track", help="track head pose and expression through a video: JSON + CSV per frame, "
+                                     "plots, overlay video")
+    k.add_argument("project", help="project file (*.facestudio.json); for now only the sample project has a "
+                                   "face model of several expressions")
+    k.add_argument("--video", required=True, help="video file (anything OpenCV decodes) or folder of PNG/JPG frames")
+    k.add_argument("--out", type=Path, help="output folder (default: <project folder>/results/track_<video name>); "
+                                            "a rerun continues what is there")
+    k.add_argument("--first-pose", type=Path, help="first frame's pose or clicks, JSON (default: <video "
+                                                   "stem>.first_pose.json beside the video; see docs/tracking.md)")
+    k.add_argument("--focal-px", type=float, help="the video camera's focal length in pixels (overrides the "
+                                                  "first-pose file's)")
+    k.add_argument("--frames", type=int, help="track only the first N frames (a later run may raise N)")
+    k.add_argument("--restart", action="store_true", help="discard earlier results in the output folder")
+    k.add_argument("--no-overlay", action="store_true", help="do not write the overlay video")
+    k.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+    k.set_defaults(func=cmd_track)
     s = sub.add_parser("sample-data", help="fetch, verify and cache the sample data; print its folder")
     s.set_defaults(func=cmd_sample_data)
     g = sub.add_parser("studio", help="open the studio window (click points, draw curves, fit, look)")

@@ -10,7 +10,14 @@ Everything the window shows observes one :class:`~app.model.StudioModel`; edits 
 :mod:`app.commands` pushed on a :class:`QUndoStack`; fits run in a worker
 (:class:`~app.workers.FitController`). Files: new, open (with recovery of a newer autosave),
 save, save as, recent files (``QSettings``), an unsaved-changes prompt, and an autosave timer
-writing ``<file>.autosave``. Every failure is shown in a dialog whose text is the cause
+writing ``<file>.autosave`` (a never-saved project: a recovery file in the user's data folder,
+``QStandardPaths.AppDataLocation``, offered at the next start).
+
+Texture (§5.2): *Texture → Extract texture* runs :mod:`photomodel.texture_job` in a worker
+(:class:`~app.workers.JobController`) behind a cancellable progress dialog; the 3D view then
+shows the model with the cylindrical texture or view-dependently (a toggle), and the
+:class:`~app.texture_views.WeightMapPanel` dock shows the weight maps. *Expression → Side by
+side* docks the :class:`~app.texture_views.ExpressionsView`. Every failure is shown in a dialog whose text is the cause
 (e.g. ``james.facestudio.json: expressions[0].photos[2].points.nose_tip: expected [u, v] …``).
 """
 
@@ -20,7 +27,7 @@ import sys
 import traceback
 from pathlib import Path
 
-from PySide6.QtCore import QSettings, Qt, QTimer
+from PySide6.QtCore import QDateTime, QSettings, QStandardPaths, Qt, QTimer
 from PySide6.QtGui import QAction, QActionGroup, QKeySequence, QUndoStack
 from PySide6.QtWidgets import (
     QApplication,
@@ -44,12 +51,25 @@ from .feature_list import FeaturePanel
 from .model import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, remove_autosave
 from .photo_view import CURVE, POINTS, PhotoView
 from .qt_compat import check_pyside
+from .texture_views import ExpressionsView, WeightMapPanel
 from .view3d import View3D
-from .workers import FitController
+from .workers import FitController, JobController
 
 #: Autosave period (ms).
 AUTOSAVE_INTERVAL_MS = 60_000
 MAX_RECENT = 8
+#: Default texture size (texels per side); the setting ``texture/size`` overrides it.
+DEFAULT_TEXTURE_SIZE = 1024
+#: How the 3D view draws a textured model.
+TEXTURE_MODES = ("untextured", "cylindrical", "view_dependent")
+#: Name of the recovery file of a never-saved project, in the user's data folder.
+RECOVERY_NAME = "untitled.recovery" + FILE_SUFFIX
+
+
+def default_recovery_file() -> Path:
+    """Where a never-saved project is autosaved: ``<AppDataLocation>/untitled.recovery.facestudio.json``."""
+    folder = QStandardPaths.writableLocation(QStandardPaths.StandardLocation.AppDataLocation)
+    return Path(folder or Path.home() / ".facestudio") / RECOVERY_NAME
 PROJECT_FILTER = f"Face Studio projects (*{FILE_SUFFIX});;JSON files (*.json);;All files (*)"
 IMAGE_FILTER = "Images (" + " ".join(f"*{s}" for s in IMAGE_SUFFIXES) + ");;All files (*)"
 
@@ -73,16 +93,22 @@ class MainWindow(QMainWindow):
     model : StudioModel, optional (default: a new one with an empty project)
     settings : QSettings, optional (default: the user's; tests pass their own file)
     autosave_interval_ms : int, the autosave period (0 disables the timer)
+    recovery_file : path, optional
+        where a never-saved project is autosaved (default :func:`default_recovery_file`).
     """
 
     def __init__(self, model: StudioModel | None = None, settings: QSettings | None = None,
-                 autosave_interval_ms: int = AUTOSAVE_INTERVAL_MS):
+                 autosave_interval_ms: int = AUTOSAVE_INTERVAL_MS, recovery_file=None):
         check_pyside()
         super().__init__()
         self.model = model if model is not None else StudioModel()
         self.settings = settings if settings is not None else QSettings("FaceStudio", "studio")
         self.undo_stack = QUndoStack(self)
         self.fits = FitController(self.model, self)
+        self.jobs = JobController(self.model, self)
+        self.recovery_file = Path(recovery_file) if recovery_file is not None else default_recovery_file()
+        self.texture_mode = "cylindrical"
+        self._texture_progress: QProgressDialog | None = None
         self.views: dict[str, PhotoView] = {}
         self.mode = POINTS
         self.show_overlay = True
@@ -121,6 +147,25 @@ class MainWindow(QMainWindow):
         self.resizeDocks([dock, dock3], [330, 400], Qt.Orientation.Horizontal)
         self.view3d_dock = dock3
 
+        self.weights_panel = WeightMapPanel(self.model)
+        dockw = QDockWidget("Texture and weight maps", self)
+        dockw.setObjectName("weight_maps")
+        dockw.setWidget(self.weights_panel)
+        dockw.setFeatures(movable | QDockWidget.DockWidgetFeature.DockWidgetClosable)
+        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dockw)
+        self.splitDockWidget(dock3, dockw, Qt.Orientation.Vertical)  # under the 3D view
+        dockw.hide()  # shown by the first texture
+        self.weights_dock = dockw
+
+        self.expressions_view = ExpressionsView(self.model)
+        docke = QDockWidget("Expressions side by side", self)
+        docke.setObjectName("expressions")
+        docke.setWidget(self.expressions_view)
+        docke.setFeatures(movable | QDockWidget.DockWidgetFeature.DockWidgetClosable)
+        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, docke)
+        docke.hide()
+        self.expressions_dock = docke
+
         self.fit_label = QLabel("not fitted")
         self.statusBar().addPermanentWidget(self.fit_label)
 
@@ -134,6 +179,8 @@ class MainWindow(QMainWindow):
         m.photos_changed.connect(lambda *_: self._rebuild_tabs())
         m.photo_changed.connect(lambda *_: self._sync_preset())
         m.fit_changed.connect(self._on_fit_changed)
+        m.texture_changed.connect(self._on_texture_changed)
+        m.expression_changed.connect(lambda *_: self._on_texture_changed(self.model.expression_name))
         m.modified_changed.connect(lambda value: self.setWindowModified(bool(value)))
         m.path_changed.connect(lambda *_: self._update_title())
         self.undo_stack.indexChanged.connect(self._on_edit)
@@ -142,6 +189,10 @@ class MainWindow(QMainWindow):
         self.fits.finished.connect(self._on_fit_finished)
         self.fits.failed.connect(self._on_fit_failed)
         self.fits.cancelled.connect(self._on_fit_cancelled)
+        self.jobs.progress.connect(self._on_texture_progress)
+        self.jobs.finished.connect(self._on_texture_finished)
+        self.jobs.failed.connect(self._on_texture_failed)
+        self.jobs.cancelled.connect(self._on_texture_cancelled)
 
         self.autosave_timer = QTimer(self)
         self.autosave_timer.timeout.connect(self.autosave)
@@ -196,6 +247,21 @@ class MainWindow(QMainWindow):
         group = QActionGroup(self)
         group.addAction(self.act_mode_points)
         group.addAction(self.act_mode_curve)
+        self.act_texture = A("Extract &texture", self.run_texture, "Ctrl+T",
+                             tip="blend the photos into a cylindrical texture of the fitted mesh (§5.2.2)")
+        self.act_texture_size = A("Texture si&ze…", self.texture_size_dialog)
+        self.act_tex_modes = {
+            "untextured": A("&Untextured", lambda on: on and self.set_texture_mode("untextured"), checkable=True),
+            "cylindrical": A("&Cylindrical texture", lambda on: on and self.set_texture_mode("cylindrical"),
+                             checkable=True, checked=True, tip="the view-independent texture map (§5.2.2)"),
+            "view_dependent": A("&View-dependent texture", lambda on: on and self.set_texture_mode("view_dependent"),
+                                checkable=True, tip="blend the two photos nearest the 3D view's direction (§5.2.3)"),
+        }
+        tgroup = QActionGroup(self)
+        for a in self.act_tex_modes.values():
+            tgroup.addAction(a)
+        self.act_side_by_side = A("Expressions &side by side", self.show_expressions,
+                                  tip="every fitted expression from the same camera, with its RMS")
 
     def _build_menus(self):
         mb = self.menuBar()
@@ -220,9 +286,16 @@ class MainWindow(QMainWindow):
         e.addAction(self.act_hide)
         x = mb.addMenu("E&xpression")
         x.addAction(self.act_new_expr)
+        x.addAction(self.act_side_by_side)
         fm = mb.addMenu("F&it")
         fm.addAction(self.act_fit)
         fm.addAction(self.act_auto)
+        t = mb.addMenu("&Texture")
+        t.addAction(self.act_texture)
+        t.addAction(self.act_texture_size)
+        t.addSeparator()
+        for a in self.act_tex_modes.values():
+            t.addAction(a)
         v = mb.addMenu("&View")
         for a in (self.act_mode_points, self.act_mode_curve):
             v.addAction(a)
@@ -232,6 +305,8 @@ class MainWindow(QMainWindow):
         v.addSeparator()
         v.addAction(self.features_dock.toggleViewAction())
         v.addAction(self.view3d_dock.toggleViewAction())
+        v.addAction(self.weights_dock.toggleViewAction())
+        v.addAction(self.expressions_dock.toggleViewAction())
 
     def _build_toolbar(self):
         tb = self.addToolBar("Main")
@@ -249,6 +324,7 @@ class MainWindow(QMainWindow):
         tb.addAction(self.act_fit)
         tb.addAction(self.act_auto)
         tb.addAction(self.act_overlay)
+        tb.addAction(self.act_texture)
         tb.addSeparator()
         tb.addWidget(QLabel(" Photo view "))
         self.preset_combo = QComboBox()
@@ -286,6 +362,8 @@ class MainWindow(QMainWindow):
         if answer == QMessageBox.StandardButton.Discard:
             if self.model.path is not None:
                 remove_autosave(self.model.path)
+            else:
+                self.recovery_file.unlink(missing_ok=True)
             return True
         return False
 
@@ -359,6 +437,7 @@ class MainWindow(QMainWindow):
         return self._save_to(Path(path))
 
     def _save_to(self, path: Path) -> bool:
+        untitled = self.model.path is None
         try:
             written = self.model.save(path)
         except FaceStudioError as exc:
@@ -368,18 +447,47 @@ class MainWindow(QMainWindow):
             self.show_error("Cannot save the project", f"{path}: {exc.strerror or exc}")
             return False
         self.undo_stack.setClean()
+        if untitled:  # it has a file now: its recovery file is obsolete
+            self.recovery_file.unlink(missing_ok=True)
         self._add_recent(written)
         self._status(f"saved {written}")
         return True
 
     def autosave(self) -> None:
+        """Autosave: ``<file>.autosave``, or for a never-saved project :attr:`recovery_file`."""
         try:
-            written = self.model.autosave()
+            written = self.model.autosave(recovery=self.recovery_file)
         except (FaceStudioError, OSError) as exc:
             self._status(f"autosave failed: {exc}", 10000)
             return
         if written is not None:
             self._status(f"autosaved to {written.name}", 3000)
+
+    def offer_recovery(self) -> bool:
+        """At start: offer the recovery file of a never-saved project, if there is one.
+
+        Yes opens it (without a file, marked modified); No deletes it. Returns True if recovered.
+        """
+        f = self.recovery_file
+        if not f.is_file():
+            return False
+        when = QDateTime.fromSecsSinceEpoch(int(f.stat().st_mtime)).toString("yyyy-MM-dd hh:mm")
+        answer = QMessageBox.question(
+            self, "Recover unsaved project",
+            f"A project that was never saved was autosaved at {when} (e.g. before a crash). Recover it?\n\n"
+            f"(No deletes {f})",
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
+        if answer != QMessageBox.StandardButton.Yes:
+            f.unlink(missing_ok=True)
+            return False
+        try:
+            self.model.recover(f)
+        except (FaceStudioError, OSError) as exc:
+            self.show_error("Cannot recover the project", f"{f}: {exc}")
+            return False
+        self.undo_stack.clear()
+        self._status(f"recovered the unsaved project from {f}")
+        return True
 
     def recent_files(self) -> list[str]:
         value = self.settings.value("recent_files", [])
@@ -652,6 +760,119 @@ class MainWindow(QMainWindow):
             self.fit_label.setText(f"RMS {fit.report.get('rms_px', float('nan')):.2f} px{t}")
         self._update_tab_titles()
 
+    # ------------------------------------------------------------------ texture
+    @property
+    def texture_size(self) -> int:
+        """Texels per side of the next texture (setting ``texture/size``)."""
+        try:
+            return int(self.settings.value("texture/size", DEFAULT_TEXTURE_SIZE))
+        except (TypeError, ValueError):
+            return DEFAULT_TEXTURE_SIZE
+
+    @texture_size.setter
+    def texture_size(self, value: int) -> None:
+        self.settings.setValue("texture/size", int(value))
+
+    def texture_size_dialog(self) -> None:
+        size, ok = QInputDialog.getInt(self, "Texture size", "Texels per side:", self.texture_size, 64, 8192, 256)
+        if ok:
+            self.texture_size = size
+
+    def run_texture(self) -> bool:
+        """Extract the current expression's texture in a worker, with a cancellable progress dialog."""
+        if self.jobs.busy:
+            self._status("a texture is already being extracted")
+            return False
+        try:
+            inputs = self.model.texture_inputs()
+        except FaceStudioError as exc:
+            self.show_error("Cannot extract the texture", str(exc))
+            return False
+        size = self.texture_size
+        vertices = inputs[2]
+
+        def work(progress, cancel):
+            return StudioModel.compute_texture(inputs, size, progress=progress, cancel=cancel), vertices
+
+        self.jobs.start(work)
+        dlg = QProgressDialog("Extracting the texture…", "Cancel", 0, 100, self)
+        dlg.setWindowTitle("Texture")
+        dlg.setWindowModality(Qt.WindowModality.WindowModal)
+        dlg.setMinimumDuration(300)
+        dlg.setAutoClose(False)
+        dlg.setAutoReset(False)
+        dlg.canceled.connect(self.jobs.cancel)
+        self._texture_progress = dlg
+        self._status(f"extracting a {size}×{size} texture of {inputs[1]!r}…", 0)
+        return True
+
+    def _close_texture_progress(self):
+        if self._texture_progress is not None:
+            self._texture_progress.canceled.disconnect(self.jobs.cancel)
+            self._texture_progress.close()
+            self._texture_progress.deleteLater()
+            self._texture_progress = None
+
+    def _on_texture_progress(self, stage: str, fraction: float):
+        if self._texture_progress is not None:
+            self._texture_progress.setLabelText(stage)
+            self._texture_progress.setValue(int(round(100 * fraction)))
+
+    def _on_texture_finished(self, result):
+        self._close_texture_progress()
+        job, vertices = result
+        if not self.model.apply_texture(job, vertices):
+            self._status("the expression was refitted meanwhile: the texture was discarded")
+            return
+        self._status(f"texture of {job.expression!r}: {job.report['coverage']:.1%} of the surface seen, "
+                     f"{job.report['extract_s']:.2f} s; it is written with the project")
+        self.weights_dock.show()
+
+    def _on_texture_failed(self, message: str):
+        self._close_texture_progress()
+        self._status("")
+        self.show_error("The texture extraction failed", message)
+
+    def _on_texture_cancelled(self):
+        self._close_texture_progress()
+        self._status("texture extraction cancelled; nothing changed")
+
+    def set_texture_mode(self, mode: str) -> None:
+        """How the 3D view draws a textured model: one of :data:`TEXTURE_MODES`."""
+        if mode not in TEXTURE_MODES:
+            raise ValueError(f"texture mode must be one of {TEXTURE_MODES}, got {mode!r}")
+        self.texture_mode = mode
+        if not self.act_tex_modes[mode].isChecked():
+            self.act_tex_modes[mode].setChecked(True)
+        self._on_texture_changed(self.model.expression_name)
+
+    def _on_texture_changed(self, expression):
+        if expression != self.model.expression_name:
+            return
+        tex = self.model.texture()
+        v3 = self.view3d
+        if tex is None or self.texture_mode == "untextured":
+            v3.view_dependent = None
+            v3.set_texture(None, None)
+            return
+        if self.texture_mode == "view_dependent":
+            try:
+                vd = tex.view_dependent()
+            except Exception as exc:  # e.g. no OpenGL for the depth maps
+                self.show_error("Cannot draw the view-dependent texture", f"{type(exc).__name__}: {exc}")
+                return
+            v3.texture = None
+            v3.set_view_dependent(vd)
+        else:
+            _, faces, uv = tex.job.texture.render_mesh(tex.vertices)
+            v3.view_dependent = None
+            v3.set_texture(uv, tex.job.texture.image, vertex_index=tex.job.texture.seam_vertices, faces=faces)
+
+    def show_expressions(self) -> None:
+        self.expressions_dock.show()
+        self.expressions_dock.raise_()
+        self.expressions_view.refresh()
+
     def _on_edit(self, *_):
         self.fits.schedule_refit()
 
@@ -680,6 +901,7 @@ class MainWindow(QMainWindow):
             event.ignore()
             return
         self.fits.shutdown()
+        self.jobs.shutdown()
         self.autosave_timer.stop()
         event.accept()
 
@@ -707,6 +929,8 @@ def run_studio(project: str | None = None, argv: list[str] | None = None) -> int
     sys.excepthook = _excepthook
     if project is not None:
         window.open_project(project, ask_to_save=False)
+    else:
+        window.offer_recovery()
     return app.exec()
 
 

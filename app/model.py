@@ -78,6 +78,33 @@ class MissingPhotos(ProjectError):
 
 
 @dataclass
+class TextureState:
+    """The texture extracted for one expression's fit (:mod:`photomodel.texture_job`).
+
+    Attributes
+    ----------
+    job : photomodel.texture_job.TextureJob, the texture, its weight maps and inputs.
+    vertices : (N, 3) float mm, the fitted mesh it was made for (a new fit drops it).
+    saved : bool, its files (``results/<expr>_texture.png`` …) are written next to the project.
+    """
+
+    job: object
+    vertices: np.ndarray
+    saved: bool = False
+    _view_dependent: object = None
+
+    def view_dependent(self):
+        """The :class:`photomodel.view_dependent.ViewDependentTexture` of the same photos (built once)."""
+        if self._view_dependent is None:
+            from photomodel.view_dependent import ViewDependentTexture
+
+            i = self.job.inputs
+            self._view_dependent = ViewDependentTexture(i.vertices, i.faces, i.cameras, i.photos,
+                                                        single_view=self.job.single_view)
+        return self._view_dependent
+
+
+@dataclass
 class FitState:
     """The last fit of one expression as the studio holds it.
 
@@ -123,6 +150,7 @@ class StudioModel:
     curves_changed (expression, photo_id, curve) — a drawn curve added, replaced or deleted.
     features_changed () — the project's feature or curve definitions.
     fit_changed (expression) — a new fit (or none).
+    texture_changed (expression) — a new texture (or none; a new fit drops the texture).
     active_feature_changed (name or None), active_curve_changed (name or None).
     modified_changed (bool), path_changed (Path or None).
     """
@@ -136,6 +164,7 @@ class StudioModel:
         self.curves_changed = Signal()
         self.features_changed = Signal()
         self.fit_changed = Signal()
+        self.texture_changed = Signal()
         self.active_feature_changed = Signal()
         self.active_curve_changed = Signal()
         self.modified_changed = Signal()
@@ -148,6 +177,7 @@ class StudioModel:
         self._residual_cache = None
         self.generation = 0  # bumped whenever the project object is replaced (stale fits are dropped)
         self.fits: dict[str, FitState] = {}
+        self.textures: dict[str, TextureState] = {}
         self.modified = False
         self._autosaved_revision = self.revision = 0
         self.active_feature: str | None = None
@@ -210,6 +240,11 @@ class StudioModel:
         """The last fit of an expression (default: the current one), or None."""
         name = expression or self.expression_name
         return self.fits.get(name) if name is not None else None
+
+    def texture(self, expression: str | None = None) -> TextureState | None:
+        """The texture of an expression's current fit (default: the current expression), or None."""
+        name = expression or self.expression_name
+        return self.textures.get(name) if name is not None else None
 
     def feature_names(self) -> list[str]:
         return self.project.feature_names()
@@ -407,6 +442,7 @@ class StudioModel:
         i = self.project.expressions.index(e)
         self.project.expressions.pop(i)
         self.fits.pop(name, None)
+        self._drop_texture(name)
         self._touch()
         if self.expression_name == name:
             exprs = self.project.expressions
@@ -507,6 +543,7 @@ class StudioModel:
                                     report=result.report)
         self.fits[expression] = FitState(cams, pts, np.asarray(result.vertices), result.report, result,
                                          elapsed_s, saved=False)
+        self._drop_texture(expression)  # it was made for the previous mesh
         self._touch()
         self.fit_changed.emit(expression)
 
@@ -514,7 +551,52 @@ class StudioModel:
         # a fit is of a set of photos; adding or removing one invalidates it
         if self.fits.pop(expression, None) is not None:
             self._expr(expression).result = None
+            self._drop_texture(expression)
             self.fit_changed.emit(expression)
+
+    # ------------------------------------------------------------------ textures
+    def texture_inputs(self, expression: str | None = None):
+        """What texturing the expression's fit needs, read on the GUI thread (no pixels yet).
+
+        Returns ``(snapshot Project, expression name, vertices (N, 3), faces, face_mask)``;
+        :class:`ProjectError` / :class:`FitError` when the expression is not fitted with a mesh.
+        """
+        from photomodel.errors import FitError
+
+        name = expression or self.expression_name
+        fit = self.fit(name)
+        if name is None or fit is None:
+            raise FitError(f"expression {name!r} is not fitted yet: fit it first (Fit → Fit)")
+        if fit.vertices is None:
+            raise FitError(f"expression {name!r}: its fitted mesh is missing; fit it again")
+        return self.fit_snapshot(), name, fit.vertices, self.mesh.faces, self.mesh.face_mask
+
+    @staticmethod
+    def compute_texture(inputs, size: int, *, progress=None, cancel=None):
+        """Extract the texture of :meth:`texture_inputs` (worker thread): a TextureJob."""
+        from photomodel.texture_job import texture_expression
+
+        snapshot, name, vertices, faces, face_mask = inputs
+        return texture_expression(snapshot, name, size, face_mask=face_mask, vertices=vertices, faces=faces,
+                                  progress=progress, cancel=cancel)
+
+    def apply_texture(self, job, vertices: np.ndarray) -> bool:
+        """Store a texture (GUI thread) if the expression's fit is still the mesh it was made for.
+
+        Its files are written with the project (:meth:`save`). Returns False (nothing stored)
+        when the expression was refitted or removed meanwhile.
+        """
+        fit = self.fits.get(job.expression)
+        if fit is None or fit.vertices is None or fit.vertices is not vertices:
+            return False
+        self.textures[job.expression] = TextureState(job, vertices, saved=False)
+        self._touch()
+        self.texture_changed.emit(job.expression)
+        return True
+
+    def _drop_texture(self, expression: str) -> None:
+        if self.textures.pop(expression, None) is not None:
+            self.texture_changed.emit(expression)
 
     # ------------------------------------------------------------------ files
     def new(self, name: str = "untitled") -> None:
@@ -571,12 +653,30 @@ class StudioModel:
         if recover:
             self._touch()
 
-    def _loaded_fit(self, project: Project, e: Expression) -> FitState:
+    def recover(self, path: str | os.PathLike) -> None:
+        """Open the recovery file of a never-saved project (:meth:`autosave` ``recovery``).
+
+        The project comes back without a file (save asks where) and marked modified; missing
+        photos show as placeholders. Raises :class:`ProjectError` for an unreadable file.
+        """
+        path = Path(path).absolute()
+        project = load_project(path)
+        project.path = None
+        for e in project.expressions:
+            for photo in e.photos:
+                photo.path = (path.parent / photo.path).absolute().as_posix()
+        project.check_vertices(len(self.mesh.vertices))
+        fits = {e.name: self._loaded_fit(project, e, path.parent) for e in project.expressions
+                if e.result is not None}
+        self._set_project(project, fits)
+        self._touch()
+
+    def _loaded_fit(self, project: Project, e: Expression, folder: Path | None = None) -> FitState:
         vertices = None
         for rel in (e.result.mesh_ply, e.result.mesh_obj):
             if rel is None:
                 continue
-            f = project.resolve(rel)
+            f = project.resolve(rel) if folder is None else (folder / rel).absolute()
             if f.is_file():
                 try:
                     from photomodel.mesh_io import read_mesh
@@ -605,6 +705,19 @@ class StudioModel:
         from photomodel.mesh_io import write_mesh
 
         moved = old_path is None or target.parent != old_path.parent
+        from photomodel.texture_job import commit_texture, encode_texture_outputs
+
+        at_target = copy.copy(self.project)  # shares the expressions; resolves paths in the target folder
+        at_target.path = target
+        for name, tex in self.textures.items():
+            if tex.saved and not moved:
+                continue
+            try:
+                files, rel = encode_texture_outputs(at_target, tex.job)
+                commit_texture(at_target, tex.job, files, rel)
+            except OSError as exc:
+                raise ProjectError(f"{target.parent}: could not write the texture of {name!r}: "
+                                   f"{exc.strerror or exc}") from exc
         for name, fit in self.fits.items():
             e = self.project.expression(name)
             if fit.vertices is None or e.result is None or (fit.saved and not moved):
@@ -622,6 +735,8 @@ class StudioModel:
         written = save_project(self.project, target)
         for fit in self.fits.values():
             fit.saved = fit.vertices is not None
+        for tex in self.textures.values():
+            tex.saved = True
         if moved:
             # result paths relative to the old folder: take them as written (photo paths are
             # absolute in memory, see open())
@@ -650,15 +765,22 @@ class StudioModel:
             self.path_changed.emit(written)
         return written
 
-    def autosave(self) -> Path | None:
+    def autosave(self, recovery: str | os.PathLike | None = None) -> Path | None:
         """Write ``<file>.autosave`` if there are changes since the last save or autosave.
 
-        Only for a project that has a file; the project itself and its ``.bak`` are untouched.
-        Returns the file written, or None.
+        A project that has never been saved goes to ``recovery`` instead (the studio passes a
+        file in the user's data folder, offered at the next start by :meth:`recover`); without
+        ``recovery`` such a project is not autosaved. The project itself and its ``.bak`` are
+        untouched. Returns the file written, or None.
         """
-        if self.project.path is None or not self.modified or self.revision == self._autosaved_revision:
+        if not self.modified or self.revision == self._autosaved_revision:
             return None
-        target = autosave_path(self.project.path)
+        if self.project.path is None:
+            if recovery is None:
+                return None
+            target = Path(recovery).absolute()
+        else:
+            target = autosave_path(self.project.path)
         snapshot = copy.copy(self.project)  # save_project sets .path on what it saves
         save_project(snapshot, target)
         bak = target.with_name(target.name + ".bak")
@@ -686,6 +808,7 @@ class StudioModel:
     def _set_project(self, project: Project, fits: dict | None = None) -> None:
         self.project = project
         self.fits = dict(fits or {})
+        self.textures = {}
         self.generation += 1
         self.expression_name = project.expressions[0].name if project.expressions else None
         names = project.feature_names()

@@ -37,8 +37,12 @@ class View3D(QWidget):
     ----------
     azimuth_deg, elevation_deg, distance_mm : float, the orbit camera.
     last_render_s : float or None, time of the last render.
-    texture : (uv (N, 2), image) or None, an optional texture to render with (set by the
-        texturing tools; the view only draws it).
+    texture : (uv (M, 2), image, vertex_index (M,) or None, faces (F, 3) or None) or None, an
+        optional cylindrical texture to render with (set by the texturing tools; the view only
+        draws it).
+    view_dependent : photomodel.view_dependent.ViewDependentTexture or None; when set, the mesh
+        is drawn view-dependently (§5.2.3) for the view's camera instead (``align=False``: the
+        paper's plain blend, for interactive speed).
     """
 
     feature_picked = Signal(str)
@@ -52,6 +56,7 @@ class View3D(QWidget):
         self.focal_mm = 50.0  # on a 36 mm sensor spanning the widget's shorter side
         self.show_features = True
         self.texture = None
+        self.view_dependent = None
         self.last_render_s: float | None = None
         self._image: QImage | None = None
         self._depth = None
@@ -74,12 +79,30 @@ class View3D(QWidget):
         """The vertices shown and a caption."""
         fit = self.model.fit()
         if fit is not None and fit.vertices is not None:
-            return fit.vertices, f"fitted mesh — {self.model.expression_name}"
+            how = (" — view-dependent texture" if self.view_dependent is not None
+                   else " — cylindrical texture" if self.texture is not None else "")
+            return fit.vertices, f"fitted mesh — {self.model.expression_name}{how}"
         return self.model.mesh.vertices, "generic mesh (not fitted yet)"
 
-    def set_texture(self, uv: np.ndarray | None, image: np.ndarray | None) -> None:
-        """Render with a texture (uv (N, 2) per generic-mesh vertex, image (H, W, 3)); None clears."""
-        self.texture = None if uv is None or image is None else (np.asarray(uv), np.asarray(image))
+    def set_texture(self, uv: np.ndarray | None, image: np.ndarray | None, *, vertex_index: np.ndarray | None = None,
+                    faces: np.ndarray | None = None) -> None:
+        """Render with a texture; ``uv=None`` clears it.
+
+        ``uv`` (N, 2) per mesh vertex with ``image`` (H, W, 3) uint8; or, for a mesh whose
+        triangles cross the texture's seam, the seam-split rendering mesh of
+        :meth:`photomodel.texture.CylindricalTexture.render_mesh`: ``uv`` (M, 2) per rendering
+        vertex, ``vertex_index`` (M,) its mesh vertex and ``faces`` (F, 3) its triangles.
+        """
+        if uv is None or image is None:
+            self.texture = None
+        else:
+            index = None if vertex_index is None else np.asarray(vertex_index)
+            self.texture = (np.asarray(uv), np.asarray(image), index, None if faces is None else np.asarray(faces))
+        self.invalidate()
+
+    def set_view_dependent(self, texture) -> None:
+        """Draw with a :class:`~photomodel.view_dependent.ViewDependentTexture` (None: stop)."""
+        self.view_dependent = texture
         self.invalidate()
 
     def invalidate(self, *args) -> None:
@@ -103,11 +126,23 @@ class View3D(QWidget):
         V, _ = self.vertices()
         cam = self.camera(w, h)
         t0 = time.perf_counter()
-        kw = {}
-        if self.texture is not None:
-            kw = {"uv": self.texture[0], "texture": self.texture[1]}
-        out = get_renderer().render(cam, V, self.model.mesh.faces, shading="lambert", background=BACKGROUND, **kw)
-        rgb = np.ascontiguousarray((np.clip(out.color[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8))
+        faces = self.model.mesh.faces
+        vd = self.view_dependent
+        if vd is not None and len(vd.vertices) != len(V):
+            vd = None  # made for another mesh
+        if vd is not None:
+            out = get_renderer().render(cam, V, faces, background=BACKGROUND)  # depth for the feature dots
+            color = vd.render(cam, background=BACKGROUND, align=False).color
+        elif self.texture is not None:
+            uv, image, index, tfaces = self.texture
+            Vt, Ft = (V, faces) if index is None else (V[index], tfaces)
+            # the photographs hold the lighting: no shading on top (as the view-dependent image)
+            out = get_renderer().render(cam, Vt, Ft, background=BACKGROUND, uv=uv, texture=image)
+            color = out.color
+        else:
+            out = get_renderer().render(cam, V, faces, shading="lambert", background=BACKGROUND)
+            color = out.color
+        rgb = np.ascontiguousarray((np.clip(color[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8))
         self._image = QImage(rgb.data, w, h, 3 * w, QImage.Format.Format_RGB888).copy()
         self._depth = out.depth
         self._camera = cam

@@ -221,3 +221,120 @@ class FitController(QObject):
         self.wait(timeout_s)
         self.pool.waitForDone(int(timeout_s * 1000))
 
+
+
+class _JobSignals(QObject):
+    progress = Signal(str, float)
+    finished = Signal(object)
+    failed = Signal(str)
+    cancelled = Signal()
+
+
+class JobTask(QRunnable):
+    """Any slow computation ``function(progress=, cancel=)`` run by a :class:`QThreadPool`.
+
+    ``function`` must only read what it was given (snapshots taken on the GUI thread); it polls
+    ``cancel()`` and may raise :class:`photomodel.fit.Cancelled`.
+    """
+
+    def __init__(self, function, generation: int):
+        super().__init__()
+        self.setAutoDelete(False)
+        self.function, self.generation = function, generation
+        self.signals = _JobSignals()
+        self._cancel = threading.Event()
+        self.done = threading.Event()
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    @property
+    def cancelled(self) -> bool:
+        return self._cancel.is_set()
+
+    def run(self) -> None:  # worker thread
+        try:
+            result = self.function(progress=lambda stage, frac: self.signals.progress.emit(stage, float(frac)),
+                                   cancel=self._cancel.is_set)
+        except Cancelled:
+            self.signals.cancelled.emit()
+        except FaceStudioError as exc:
+            self.signals.failed.emit(str(exc))
+        except Exception as exc:  # reported with its cause, not swallowed
+            self.signals.failed.emit(f"{type(exc).__name__}: {exc}\n\n{traceback.format_exc(limit=6)}")
+        else:
+            if self._cancel.is_set():  # finished after Cancel was pressed: the result is discarded
+                self.signals.cancelled.emit()
+            else:
+                self.signals.finished.emit(result)
+        finally:
+            self.done.set()
+
+
+class JobController(QObject):
+    """Runs one :class:`JobTask` at a time in its own worker thread (texture extraction).
+
+    A result is handed to ``on_result`` on the GUI thread unless the task was cancelled or the
+    project was replaced meanwhile (then it is dropped).
+
+    Signals
+    -------
+    progress (stage, fraction), finished (result), failed (message), cancelled (), busy_changed (bool).
+    """
+
+    progress = Signal(str, float)
+    finished = Signal(object)
+    failed = Signal(str)
+    cancelled = Signal()
+    busy_changed = Signal(bool)
+
+    def __init__(self, model: StudioModel, parent: QObject | None = None):
+        super().__init__(parent)
+        self.model = model
+        self.pool = QThreadPool(self)
+        self.pool.setMaxThreadCount(1)
+        self.task: JobTask | None = None
+        model.project_replaced.connect(self.cancel)
+
+    @property
+    def busy(self) -> bool:
+        return self.task is not None
+
+    def start(self, function) -> JobTask | None:
+        """Run ``function(progress=, cancel=)`` in the worker; None if a job is running."""
+        if self.task is not None:
+            return None
+        task = JobTask(function, self.model.generation)
+        task.signals.progress.connect(self.progress)
+        task.signals.finished.connect(lambda result, t=task: self._on_done(t, result=result))
+        task.signals.failed.connect(lambda msg, t=task: self._on_done(t, failed=msg))
+        task.signals.cancelled.connect(lambda t=task: self._on_done(t, cancelled=True))
+        self.task = task
+        self.busy_changed.emit(True)
+        self.pool.start(task)
+        return task
+
+    def cancel(self) -> None:
+        if self.task is not None:
+            self.task.cancel()
+
+    def wait(self, timeout_s: float = 30.0) -> bool:
+        t = self.task
+        return True if t is None else t.done.wait(timeout_s)
+
+    def _on_done(self, task: JobTask, result=None, failed: str | None = None, cancelled: bool = False) -> None:
+        if task is not self.task:
+            return
+        self.task = None
+        self.busy_changed.emit(False)
+        if failed is not None:
+            self.failed.emit(failed)
+        elif cancelled or task.cancelled or task.generation != self.model.generation:
+            self.cancelled.emit()
+        else:
+            self.finished.emit(result)
+
+    def shutdown(self, timeout_s: float = 10.0) -> None:
+        self.cancel()
+        self.wait(timeout_s)
+        self.pool.waitForDone(int(timeout_s * 1000))

@@ -11,7 +11,14 @@ so the sample project itself is not modified, and grabs widgets with ``QWidget.g
   coloured by reprojection error, the worst clicks and the per-photo RMS;
 * ``photo_closeup.png`` — a zoomed photo: markers, the active feature's label, drawn curves
   (pink), the fitted mesh's grid (blue) and curves (yellow);
-* ``view3d.png`` — the fitted mesh in the 3D view, rendered by ``photomodel.render``.
+* ``view3d.png`` — the fitted mesh in the 3D view, rendered by ``photomodel.render``;
+* ``view3d_textured.png`` — after *Texture → Extract texture*: the cylindrical texture (left) and
+  the view-dependent rendering (right) of the same view;
+* ``studio_textured.png`` — the window with the textured model and the weight-map panel;
+* ``expressions.png`` — *Expression → Side by side* with a second expression, ``open_mouth``:
+  five photos of the scan deformed by :mod:`tracking.expressions`' jaw opening (rendered here
+  from the sample rig's cameras), clicked as the sample's neutral photos are (projections of the
+  true points plus 1 px hand noise, no curves), fitted in the studio.
 """
 
 from __future__ import annotations
@@ -22,11 +29,49 @@ import shutil
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+
+
+def make_expression_photos(folder: Path, project, name: str = "open_mouth", seed: int = 5):
+    """Render photos of the scan in expression ``name`` from the sample rig; return (files, clicks).
+
+    ``clicks[photo file stem][feature] = (u, v)``: the true points of the expression on the
+    generic mesh projected where visible, with 1 px of noise (as ``sample_projects/make_james.py``).
+    """
+    from photomodel import synthetic
+    from photomodel.generic_mesh import load_generic_mesh
+    from photomodel.render import write_png
+    from photomodel.sample_data import load_james_scan
+    from tracking.expressions import EXPRESSION_NAMES, deformed_scan_vertices, true_expression_geometry
+
+    scan = load_james_scan()
+    mesh = load_generic_mesh()
+    k = EXPRESSION_NAMES.index(name)
+    weights = np.eye(len(EXPRESSION_NAMES))[k]
+    moved = replace(scan, vertices=deformed_scan_vertices(scan, weights))
+    truth = true_expression_geometry(mesh, scan)[k]
+    names = [f.name for f in project.features]
+    points3d = truth[[f.vertex for f in project.features]]
+    rng = np.random.default_rng(seed)
+    files, clicks = [], {}
+    for cam in synthetic.rig("sample", 1000, 1000):
+        pid = synthetic.preset_for(cam)
+        result = synthetic.render_scan(cam, moved, background=(0.86, 0.86, 0.85), supersample=3)
+        f = folder / f"{name}_{pid}.png"
+        write_png(f, result.color)
+        vis = synthetic.visible(cam, points3d, moved, depth=np.asarray(result.depth, float),
+                                tol_mm=synthetic.CLICK_TOL_MM, min_cos=synthetic.CLICK_MIN_COS)
+        uv = synthetic.synthesize_clicks([cam], points3d, vis[None], 1.0, rng)[0]
+        files.append(f)
+        clicks[f.stem] = {n: uv[j] for j, n in enumerate(names) if vis[j]}
+    return files, clicks
 
 
 def main(argv=None) -> int:
@@ -34,9 +79,11 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=REPO / "docs" / "screenshots")
     args = ap.parse_args(argv)
 
-    from PySide6.QtCore import QSettings
+    from PySide6.QtCore import QSettings, Qt
+    from PySide6.QtGui import QColor, QImage, QPainter
     from PySide6.QtWidgets import QApplication
 
+    from app.commands import AddExpressionCommand
     from app.main_window import MainWindow
 
     app = QApplication.instance() or QApplication([])
@@ -57,7 +104,7 @@ def main(argv=None) -> int:
     try:
         shutil.copytree(REPO / "sample_projects" / "james", tmp / "james", ignore=shutil.ignore_patterns("results"))
         window = MainWindow(settings=QSettings(str(tmp / "settings.ini"), QSettings.Format.IniFormat),
-                            autosave_interval_ms=0)
+                            autosave_interval_ms=0, recovery_file=tmp / "recovery.facestudio.json")
         window.resize(1600, 960)
         window.show()
         if not window.open_project(tmp / "james" / "james.facestudio.json"):
@@ -90,6 +137,51 @@ def main(argv=None) -> int:
         v3.resize(640, 640)
         v3.render_image(640, 640).save(str(args.out / "view3d.png"))
         print(args.out / "view3d.png")
+
+        # -- texture: cylindrical and view-dependent, the weight maps
+        window.texture_size = 1024
+        window.run_texture()
+        while window.jobs.busy or model.texture() is None:
+            settle(0.05)
+        v3.view_from(30.0, 5.0)
+        v3.distance_mm = 520.0
+        halves = []
+        for mode in ("cylindrical", "view_dependent"):
+            window.set_texture_mode(mode)
+            halves.append(v3.render_image(560, 640))
+        both = QImage(1120, 640, QImage.Format.Format_RGB888)
+        painter = QPainter(both)
+        for i, (img, label) in enumerate(zip(halves, ("cylindrical texture (§5.2.2)",
+                                                     "view-dependent, this camera (§5.2.3)"), strict=True)):
+            painter.drawImage(560 * i, 0, img)
+            painter.setPen(QColor(230, 230, 230))
+            painter.drawText(560 * i + 12, 24, label)
+        painter.end()
+        both.save(str(args.out / "view3d_textured.png"))
+        print(args.out / "view3d_textured.png")
+        window.set_texture_mode("cylindrical")
+        window.show_photo("three_quarter_right")
+        window.resizeDocks([window.view3d_dock, window.weights_dock], [520, 420], Qt.Orientation.Vertical)
+        v3.view_from(-35.0, 5.0)
+        settle(0.5)
+        save(window, "studio_textured.png")
+
+        # -- a second expression, added, photographed, clicked and fitted in the studio
+        files, clicks = make_expression_photos(tmp / "james" / "photos", model.project)
+        window.undo_stack.push(AddExpressionCommand(model, "open_mouth"))
+        window.add_photos([str(f) for f in files])
+        stems = {Path(p.path).stem: p.id for p in model.photos}
+        for stem, pts in clicks.items():
+            for feature, uv in pts.items():
+                model.set_point("open_mouth", stems[stem], feature, uv)
+        window.run_fit()
+        while window.fits.busy or model.fit("open_mouth") is None:
+            settle(0.05)
+        window.show_expressions()
+        window.expressions_dock.setFloating(True)
+        window.expressions_dock.resize(2 * 260 + 40, 360)
+        settle(0.5)
+        save(window.expressions_view, "expressions.png")
         model.modified = False
         window.close()
     finally:

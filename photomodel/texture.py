@@ -585,6 +585,8 @@ def cylindrical_texture(
     depths: Sequence[np.ndarray] | None = None,
     cylinder: CylinderMap | None = None,
     fill: bool = True,
+    progress=None,
+    cancel=None,
 ) -> CylindricalTexture:
     """Extract the view-independent cylindrical texture of a fitted mesh (§5.2.2).
 
@@ -621,10 +623,20 @@ def cylindrical_texture(
         default :func:`cylinder_map_for` the mesh.
     fill : bool
         fill the holes (default True).
+    progress : callable ``(stage: str, fraction: float)``, optional
+        called before the raster, each photograph and the hole filling (fraction in [0, 1]).
+    cancel : callable returning bool, optional
+        polled at the same points; when it returns True, :class:`photomodel.fit.Cancelled` is
+        raised (the studio's Cancel button).
 
     Returns
     -------
     CylindricalTexture
+
+    Raises
+    ------
+    photomodel.fit.Cancelled
+        ``cancel()`` returned True.
     """
     from photomodel.render import vertex_normals
 
@@ -644,6 +656,17 @@ def cylindrical_texture(
         single_view = np.asarray(single_view, dtype=np.float32).reshape(-1)
         if single_view.shape != (len(V),):
             raise ValueError(f"single_view must be ({len(V)},), got shape {np.shape(single_view)}")
+    k = len(cameras)
+
+    def step(stage: str, fraction: float) -> None:
+        if cancel is not None and cancel():
+            from photomodel.fit import Cancelled
+
+            raise Cancelled(f"texture extraction cancelled ({stage})")
+        if progress is not None:
+            progress(stage, fraction)
+
+    step("cylindrical raster", 0.0)
     cmap = cylinder or cylinder_map_for(V, F, size)
 
     normals = vertex_normals(V, F)
@@ -660,12 +683,12 @@ def cylindrical_texture(
     sx = r_med * (cmap.phi_range[1] - cmap.phi_range[0]) / size
     sy = (cmap.y_range[1] - cmap.y_range[0]) / size
 
-    k = len(cameras)
     weight_maps = np.zeros((k, size, size), np.float32)
     g = np.zeros((k, idx.size), np.float32)
     colors = np.zeros((k, idx.size, 3), np.uint8)
     binary = np.ones((size, size), bool)
     for i, (cam, photo) in enumerate(zip(cameras, photos, strict=True)):
+        step(f"photo {i + 1} of {k}", 0.15 + 0.7 * i / k)
         depth = render_depth(cam, V, F) if depths is None else depths[i]
         uv, z = project_points(cam, pts)
         P = positional_certainty(cam, pts, nrm)  # > 0: front-facing (§5.2.1, consideration 1)
@@ -677,6 +700,7 @@ def cylindrical_texture(
         colors[i] = sample_image(photo, uv)
         weight_maps[i].reshape(-1)[idx] = g[i]
 
+    step("blending and hole filling", 0.85)
     s = None if single_view is None else raster.attributes.reshape(-1, 4)[idx, 3]
     blended, total = blend(colors, apply_single_view(g, s))
     image = np.zeros((size * size, 3), np.float32)

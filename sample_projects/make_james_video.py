@@ -8,7 +8,10 @@ Run from the repository root::
 It writes ``<out>/video/james_track.mp4`` (300×300, 10 fps, OpenCV's ``mp4v`` codec — a kept
 encoder; the frames are lossy-compressed like real footage) and ``<out>/video_truth.json`` (per
 frame: head rotation ``R`` and translation ``t`` with ``X_cam = R X + t`` in mm, the blending
-weights of each control region, the camera's focal length). Deterministic.
+weights of each control region, the camera's focal length) and ``<out>/video/james_track.first_pose.json``,
+what a user gives ``facestudio track`` for the first frame: the video camera's focal length and the
+13 pose features of the project clicked in frame 0 (their true positions with 0.5 px noise, as a
+careful user would click them). Deterministic.
 """
 
 from __future__ import annotations
@@ -25,9 +28,31 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from tracking.samples import render_video_frame, video_truth  # noqa: E402
+from photomodel.project import load_project  # noqa: E402
+from tracking.samples import render_video_frame, sample_face_model, video_truth  # noqa: E402
 
 FPS = 10
+PROJECT = REPO / "sample_projects" / "james" / "james.facestudio.json"
+#: Click noise (px, per coordinate) of the sample's first-pose clicks.
+CLICK_NOISE_PX = 0.5
+
+
+def first_pose_clicks(truth) -> dict:
+    """The first-pose JSON of the sample video (:func:`tracking.batch.load_first_pose`): the focal
+    length and the project's pose features clicked in frame 0 (true positions + noise)."""
+    project = load_project(PROJECT)
+    names = project.feature_names(pose_only=True)
+    model = sample_face_model(truth.names)
+    X = model.blend_geometry(model.vertex_weights(truth.weights[0]))[project.feature_vertices(names)]
+    uv = truth.camera(0).project(X) + np.random.default_rng(2).normal(0.0, CLICK_NOISE_PX, (len(names), 2))
+    return {"focal_px": truth.focal_px, "clicks": {n: [round(float(u), 2), round(float(v), 2)]
+                                                   for n, (u, v) in zip(names, uv, strict=True)}}
+
+
+def first_pose_json(spec: dict) -> str:
+    """The first-pose JSON text with one line per click (easy to edit by hand)."""
+    clicks = ",\n".join(f"  {json.dumps(n)}: {json.dumps(uv)}" for n, uv in spec["clicks"].items())
+    return f'{{\n "focal_px": {spec["focal_px"]},\n "clicks": {{\n{clicks}\n }}\n}}\n'
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -48,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
         writer.write(np.clip(rgb[..., ::-1] * 255.0 + 0.5, 0, 255).astype(np.uint8))
     writer.release()
     (args.out / "video_truth.json").write_text(json.dumps(truth.to_dict(), indent=1))
+    (folder / "james_track.first_pose.json").write_text(first_pose_json(first_pose_clicks(truth)))
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, {truth.frames} frames) and video_truth.json")
     return 0
 

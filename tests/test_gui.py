@@ -308,7 +308,7 @@ def test_studio_command_opens_the_project(qtbot, qapp, project_copy, monkeypatch
     """``facestudio studio PROJECT`` (also ``python -m app PROJECT``) opens a window on the project."""
     import sys
 
-    from PySide6.QtCore import QTimer
+    from PySide6.QtCore import QEventLoop, QTimer
     from PySide6.QtWidgets import QApplication
 
     from app.cli import main
@@ -324,8 +324,15 @@ def test_studio_command_opens_the_project(qtbot, qapp, project_copy, monkeypatch
                 seen["path"] = w.model.path
                 seen["photos"] = [p.id for p in w.model.photos]
                 w.close()
-        qapp.quit()
 
-    QTimer.singleShot(200, inspect_and_close)
+    # the event loop of run_studio: a local loop, not QApplication.exec(); after the application's
+    # own loop has been quit, Qt refuses to run nested loops, which pytest-qt's waits use
+    def exec_():
+        loop = QEventLoop()
+        QTimer.singleShot(200, lambda: (inspect_and_close(), loop.quit()))
+        loop.exec()
+        return 0
+
+    monkeypatch.setattr(QApplication, "exec", staticmethod(exec_))
     assert main(["studio", str(project_copy)]) == 0
     assert seen["path"] == project_copy.absolute() and len(seen["photos"]) == 5

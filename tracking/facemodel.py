@@ -323,12 +323,14 @@ class ModelRender:
         ``Î`` where the model covers the pixel; ``background`` (the target frame, when given)
         elsewhere.
     mask : (H, W) bool, covered pixels.
-    pixels : (N,) int, flat indices of the covered pixels.
+    pixels : (N,) int, flat indices of the covered pixels (row-major order).
     corners : (N, 3) int, vertex of each corner of the triangle under each covered pixel.
-    bary : (N, 3) float, perspective-correct barycentric coordinates at the pixel centres.
+    bary : (N, 3) float32, perspective-correct barycentric coordinates at the pixel centres.
     X_cam : (N, 3) float, camera-space point (mm) under each covered pixel.
-    texture_colors : list of (N, 3), each distinct texture sampled at the pixels
+    texture_colors : list of (N, 3) float32, each distinct texture sampled at the pixels
         (``model.texture_groups()`` order).
+    box : (y0, y1, x0, x1) int, the image rows/columns holding the projected model (clipped to
+        the image); every covered pixel lies inside.
     """
 
     image: np.ndarray
@@ -338,11 +340,14 @@ class ModelRender:
     bary: np.ndarray
     X_cam: np.ndarray
     texture_colors: list
+    box: tuple = (0, 0, 0, 0)
 
     def interpolate(self, values: np.ndarray) -> np.ndarray:
         """(N, ...) per-pixel interpolation of per-vertex ``values`` (n, ...)."""
-        v = values[self.corners]  # (N, 3, ...)
-        return np.einsum("nc,nc...->n...", self.bary, v)
+        values = np.asarray(values)
+        b = self.bary.reshape(self.bary.shape + (1,) * (values.ndim - 1))
+        c = self.corners
+        return b[:, 0] * values[c[:, 0]] + b[:, 1] * values[c[:, 1]] + b[:, 2] * values[c[:, 2]]
 
 
 def render_model(
@@ -355,6 +360,10 @@ def render_model(
 ) -> ModelRender:
     """Render the model with consensus geometry ``vertices`` and per-vertex weights (Eq. 5).
 
+    One GL pass draws the barycentric coordinates and triangle ids (:class:`_BaryRasterizer`,
+    reading back only the model's bounding box); uv, weights and camera-space points are
+    interpolated at the covered pixels in numpy, the textures sampled with :func:`cv2.remap`.
+
     Parameters
     ----------
     renderer : photomodel.render.Renderer
@@ -365,43 +374,168 @@ def render_model(
     background : (H, W, 3) float, optional, image under uncovered pixels (default 0).
     """
     F = model.faces
-    unwelded = vertices[F].reshape(-1, 3)
-    bary_attr = _bary_attributes(len(F))
-    res = renderer.render(camera, unwelded, np.arange(len(unwelded)).reshape(-1, 3), colors=bary_attr)
+    V = np.asarray(vertices, float)
+    if V.shape != (model.geometry.shape[1], 3):
+        raise ValueError(f"vertices must be ({model.geometry.shape[1]}, 3) mm, got {V.shape}")
     H, W = camera.height, camera.width
-    mask = res.mask
-    pixels = np.flatnonzero(mask)
-    fid = res.face_id.reshape(-1)[pixels]
-    bary = res.color.reshape(-1, 3)[pixels].astype(float)
-    bary /= np.maximum(bary.sum(1, keepdims=True), 1e-12)
+    Xc = V @ camera.R.T + camera.t  # (n, 3) camera mm, float64 on the CPU
+    box, raw = _rasterizer(renderer).draw(camera, Xc, F)
+    y0, y1, x0, x1 = box
+    w = x1 - x0
+    flat = raw.reshape(-1, 4)
+    local = np.flatnonzero(flat[:, 2] > 0.5)  # face id + 1; 0 is the cleared background
+    py, px = np.divmod(local, max(w, 1))
+    pixels = (py + y0) * W + (px + x0)
+    b = flat[local]
+    fid = b[:, 2].astype(np.int64) - 1
+    bary = np.empty((len(local), 3), np.float32)
+    bary[:, 1:] = b[:, :2]
+    bary[:, 0] = 1.0 - b[:, 0] - b[:, 1]
     corners = F[fid]
-    X_cam = np.einsum("nc,ncd->nd", bary, vertices[corners]) @ camera.R.T + camera.t
-    uv = np.einsum("nc,ncd->nd", bary, model.uv[corners])
-    Wpix = np.einsum("nc,nck->nk", bary, vertex_weights[corners])
+    groups = model.texture_groups()
+    Wg = np.column_stack([np.asarray(vertex_weights)[:, ks].sum(1) for _, ks in groups])
+    # (n, 5 + G) per-vertex attributes, float32 (camera mm to ~1e-4 mm), interpolated at once
+    table = np.concatenate([Xc, model.uv, Wg], axis=1).astype(np.float32)
+    at = bary[:, 0, None] * table[corners[:, 0]] + bary[:, 1, None] * table[corners[:, 1]]
+    at += bary[:, 2, None] * table[corners[:, 2]]
+    X_cam, uv, Wpix = at[:, :3], at[:, 3:5], at[:, 5:].astype(np.float32)
     colors = []
-    out = np.zeros((len(pixels), 3))
-    for T, ks in model.texture_groups():
+    out = np.zeros((len(pixels), 3), np.float32)
+    for g, (T, _) in enumerate(groups):
         c = sample_texture(T, uv)
         colors.append(c)
-        out += Wpix[:, ks].sum(1, keepdims=True) * c
+        out += Wpix[:, g : g + 1] * c
     image = np.zeros((H, W, 3), np.float32) if background is None else np.array(background, np.float32, copy=True)
     image.reshape(-1, 3)[pixels] = out
-    return ModelRender(image, mask, pixels, corners, bary, X_cam, colors)
+    mask = np.zeros((H, W), bool)
+    mask.reshape(-1)[pixels] = True
+    return ModelRender(image, mask, pixels, corners, bary, X_cam, colors, box)
 
 
-_BARY_CACHE: dict[int, np.ndarray] = {}
+# The barycentric pass: welded vertices (camera coordinates) and the triangle list stay in GL
+# buffers; a geometry shader gives each triangle's corners the barycentric basis and its id, so
+# the mesh need not be unwelded. The target is one RGBA32F image: (b1, b2, id + 1, 0).
+_BARY_VS = """
+#version 330
+uniform mat4 proj;
+in vec3 in_pos;
+void main() { gl_Position = proj * vec4(in_pos, 1.0); }
+"""
+_BARY_GS = """
+#version 330
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 3) out;
+out vec2 g_bary;
+flat out float g_face;
+void main() {
+    for (int i = 0; i < 3; i++) {
+        gl_Position = gl_in[i].gl_Position;
+        g_bary = vec2(i == 1 ? 1.0 : 0.0, i == 2 ? 1.0 : 0.0);
+        g_face = float(gl_PrimitiveIDIn + 1);
+        EmitVertex();
+    }
+    EndPrimitive();
+}
+"""
+_BARY_FS = """
+#version 330
+in vec2 g_bary;
+flat in float g_face;
+out vec4 out_bary;
+void main() { out_bary = vec4(g_bary, g_face, 0.0); }
+"""
 
 
-def _bary_attributes(n_faces: int) -> np.ndarray:
-    if n_faces not in _BARY_CACHE:
-        _BARY_CACHE[n_faces] = np.tile(np.eye(3, dtype=np.float32), (n_faces, 1))
-    return _BARY_CACHE[n_faces]
+class _BaryRasterizer:
+    """Barycentric/triangle-id rendering of one renderer's context, with buffers kept between
+    calls: the index buffer is uploaded when the triangle list changes, the vertex buffer is
+    rewritten per call (8k vertices, ~0.1 ms), and only the bounding box is cleared and read."""
+
+    def __init__(self, renderer):
+        self.renderer = renderer
+        ctx = renderer.ctx
+        with ctx:
+            self.prog = ctx.program(vertex_shader=_BARY_VS, geometry_shader=_BARY_GS, fragment_shader=_BARY_FS)
+        self._faces = None
+        self._n = -1
+        self.vbo = self.ibo = self.vao = None
+        self._fbos: dict = {}
+
+    def _buffers(self, n: int, faces: np.ndarray):
+        ctx = self.renderer.ctx
+        if self._faces is faces and self._n == n:
+            return
+        for obj in (self.vao, self.vbo, self.ibo):
+            if obj is not None:
+                obj.release()
+        self.vbo = ctx.buffer(reserve=n * 12)
+        self.ibo = ctx.buffer(np.ascontiguousarray(faces, np.int32).tobytes())
+        self.vao = ctx.vertex_array(self.prog, [(self.vbo, "3f", "in_pos")], index_buffer=self.ibo,
+                                    index_element_size=4)  # fmt: skip
+        self._faces, self._n = faces, n
+
+    def _framebuffer(self, W: int, H: int):
+        if (W, H) not in self._fbos:
+            ctx = self.renderer.ctx
+            color = ctx.renderbuffer((W, H), components=4, dtype="f4")
+            depth = ctx.depth_renderbuffer((W, H))
+            self._fbos[(W, H)] = (ctx.framebuffer([color], depth), color, depth)
+        return self._fbos[(W, H)][0]
+
+    def draw(self, camera: Camera, Xc: np.ndarray, faces: np.ndarray) -> tuple[tuple, np.ndarray]:
+        """Rasterise camera-space vertices ``Xc`` (n, 3) mm; returns the box (y0, y1, x0, x1) and
+        its (h, w, 4) float32 image of (b1, b2, id + 1, 0)."""
+        import moderngl
+
+        from photomodel.render import auto_near_far, gl_projection
+
+        self.renderer._check_usable()
+        W, H = camera.width, camera.height
+        z = Xc[:, 2]
+        planes = auto_near_far(z)
+        front = z > (planes[0] if planes else np.inf)
+        if planes is None or not np.any(front):
+            return (0, 0, 0, 0), np.zeros((0, 0, 4), np.float32)
+        if np.all(front):
+            uv = camera.f * Xc[:, :2] / z[:, None] + camera.principal_point
+            (u0, v0), (u1, v1) = uv.min(0), uv.max(0)
+            x0, x1 = int(np.clip(np.floor(u0), 0, W)), int(np.clip(np.ceil(u1) + 1, 0, W))
+            y0, y1 = int(np.clip(np.floor(v0), 0, H)), int(np.clip(np.ceil(v1) + 1, 0, H))
+        else:  # vertices behind the near plane: their projections say nothing; take the frame
+            x0, x1, y0, y1 = 0, W, 0, H
+        if x1 <= x0 or y1 <= y0:
+            return (0, 0, 0, 0), np.zeros((0, 0, 4), np.float32)
+        proj = gl_projection(camera, *planes)
+        ctx = self.renderer.ctx
+        out = np.empty((y1 - y0, x1 - x0, 4), np.float32)
+        with ctx:
+            self._buffers(len(Xc), faces)
+            fbo = self._framebuffer(W, H)
+            fbo.use()
+            fbo.viewport = (0, 0, W, H)
+            ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
+            ctx.enable(moderngl.DEPTH_TEST)
+            view = (x0, y0, x1 - x0, y1 - y0)  # framebuffer row i is image row i (gl_projection)
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=view)
+            self.prog["proj"].write(proj.T.astype(np.float32).tobytes())
+            self.vbo.write(np.ascontiguousarray(Xc, np.float32).tobytes())
+            self.vao.render(moderngl.TRIANGLES)
+            fbo.read_into(out, viewport=view, components=4, attachment=0, dtype="f4", alignment=1)
+        return (y0, y1, x0, x1), out
+
+
+def _rasterizer(renderer) -> _BaryRasterizer:
+    """The renderer's barycentric rasteriser (kept on the renderer: same context, same lifetime)."""
+    r = getattr(renderer, "_face_model_rasterizer", None)
+    if r is None:
+        r = renderer._face_model_rasterizer = _BaryRasterizer(renderer)
+    return r
 
 
 def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """(N, 3) bilinear samples of ``texture`` (Ht, Wt, 3) at ``uv`` (N, 2) (v up, clamp to edge)."""
+    """(N, 3) float32 bilinear samples of ``texture`` (Ht, Wt, 3) at ``uv`` (N, 2) (v up, clamp to edge)."""
     Ht, Wt = texture.shape[:2]
     x = (uv[:, 0] * Wt - 0.5).astype(np.float32)
     y = ((1.0 - uv[:, 1]) * Ht - 0.5).astype(np.float32)
     out = cv2.remap(texture, x[None], y[None], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return out.reshape(-1, 3).astype(float)
+    return out.reshape(-1, 3)

@@ -1,7 +1,8 @@
 """The sample tracking data: the james face model and a synthetic video with its ground truth.
 
 Tests, benchmarks and ``sample_projects/make_james_video.py`` use this module; the tracker
-(:mod:`tracking.fit`, :mod:`tracking.batch`) never does.
+(:mod:`tracking.fit`) never does, and :mod:`tracking.batch` only for the sample project's face model
+(until expressions are modeled from a project's photos).
 
 * :func:`sample_face_model` — the blend-shape model (§6.1.1) of the james basic expressions
   (:mod:`tracking.expressions`) on the generic mesh, from their **true** geometries (the generic
@@ -40,6 +41,7 @@ __all__ = [
     "video_camera",
     "render_video_frame",
     "true_vertices",
+    "true_scan_vertices",
 ]
 
 TEXTURE_DOWNSAMPLE = 4
@@ -224,6 +226,16 @@ def true_vertices(truth: VideoTruth, i: int) -> np.ndarray:
     return model.blend_geometry(model.vertex_weights(truth.weights[i]))
 
 
+def true_scan_vertices(truth: VideoTruth, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """The true surface of frame ``i``: the scan deformed by the frame's region weights (what
+    :func:`render_video_frame` draws), as vertices (n_scan, 3) mm in the head frame and triangles."""
+    from photomodel.sample_data import load_james_scan
+
+    scan = load_james_scan()
+    Wv = _scan_membership() @ truth.weights[i]  # (n_scan, m)
+    return scan.vertices + np.einsum("nk,knd->nd", Wv, _scan_displacements(truth.names)), scan.faces
+
+
 def render_video_frame(truth: VideoTruth, i: int, *, supersample: int = 3) -> np.ndarray:
     """(H, W, 3) float32 in [0, 1]: frame ``i`` — the textured scan deformed by the frame's
     region weights, seen by the video camera at the frame's head pose, on a plain background."""
@@ -231,9 +243,7 @@ def render_video_frame(truth: VideoTruth, i: int, *, supersample: int = 3) -> np
     from photomodel.sample_data import load_james_scan
 
     scan = load_james_scan()
-    D = _scan_displacements(truth.names)
-    Wv = _scan_membership() @ truth.weights[i]  # (n_scan, m)
-    V = scan.vertices + np.einsum("nk,knd->nd", Wv, D)
+    V, _ = true_scan_vertices(truth, i)
     res = get_renderer().render(
         truth.camera(i), V, scan.faces, uv=scan.uv, texture=_scan_texture_handle(),
         background=BACKGROUND_RGB, supersample=supersample,

@@ -1,0 +1,269 @@
+"""Texture one fitted expression of a project and store the result: shared by ``facestudio texture`` and the studio.
+
+Pighin et al. (2002) §5.2: once the cameras are recovered and the mesh fitted, the photographs
+are blended into a view-independent cylindrical texture (§5.2.2), the ears, hair and neck coming
+from the single best photograph (§5.2.4). The steps, each a function so that a caller can run
+the slow one in a worker and commit on its own thread:
+
+1. :func:`load_texture_inputs` — the fitted mesh (from the project's mesh file, or the vertices
+   the caller holds in memory), the recovered cameras and the RGB photographs, all checked;
+2. :func:`extract_texture` — :func:`photomodel.texture.cylindrical_texture` with the §5.2.4
+   fallback weights (when the mesh has the generic mesh's topology), ``progress`` / ``cancel``;
+3. :func:`encode_texture_outputs` — every file in memory: the texture PNG, one weight-map PNG per
+   photo (black 0 … white 1), textured OBJ+MTL, glb and coloured PLY;
+4. :func:`commit_texture` — writes the files atomically and records a
+   :class:`~photomodel.project.TextureResult` in the expression's result (the caller saves the
+   project file).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from photomodel.errors import FitError, ProjectError
+
+__all__ = [
+    "TEXTURE_SIZES",
+    "TextureInputs",
+    "TextureJob",
+    "commit_texture",
+    "encode_texture_outputs",
+    "extract_texture",
+    "fitted_expressions",
+    "load_texture_inputs",
+    "texture_expression",
+]
+
+#: Texture sizes accepted (texels per side), as :func:`photomodel.texture.cylindrical_texture`.
+TEXTURE_SIZES = (8, 16384)
+
+
+@dataclass
+class TextureInputs:
+    """What texturing one expression needs.
+
+    Attributes
+    ----------
+    expression : str
+    vertices : (N, 3) float, mm, the fitted mesh.
+    faces : (M, 3) int.
+    photo_ids : list[str], the photos that have a recovered camera, in project order.
+    cameras : list[Camera], their cameras.
+    photos : list[(H, W, 3) uint8], RGB, each the size of its camera.
+    """
+
+    expression: str
+    vertices: np.ndarray
+    faces: np.ndarray
+    photo_ids: list
+    cameras: list
+    photos: list
+
+
+@dataclass
+class TextureJob:
+    """A texture extracted for one expression, not yet written.
+
+    Attributes
+    ----------
+    inputs : TextureInputs
+    size : int, texels per side.
+    texture : photomodel.texture.CylindricalTexture
+    single_view : (N,) float32 or None, the §5.2.4 fallback weights used.
+    report : dict, ``coverage`` (fraction of the surface texels seen by a photo), ``extract_s``,
+        ``photos``, ``single_view_fallback`` — the project's texture report.
+    """
+
+    inputs: TextureInputs
+    size: int
+    texture: object
+    single_view: np.ndarray | None
+    report: dict = field(default_factory=dict)
+
+    @property
+    def expression(self) -> str:
+        return self.inputs.expression
+
+
+def fitted_expressions(project, name: str | None) -> list[str]:
+    """The expressions to texture: ``name`` or every fitted one; FitError if not fitted."""
+    if name is not None:
+        if project.expression(name).result is None:
+            raise FitError(f"expression {name!r} has not been fitted yet: run "
+                           f"`facestudio fit {project.path}` first")
+        return [name]
+    names = [e.name for e in project.expressions if e.result is not None]
+    if not names:
+        where = project.path.name if project.path is not None else project.name
+        raise FitError(f"{where}: no expression has been fitted yet: run `facestudio fit {project.path}` first")
+    return names
+
+
+def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
+                        faces: np.ndarray | None = None) -> TextureInputs:
+    """The fitted mesh, cameras and RGB photographs of a fitted expression.
+
+    Parameters
+    ----------
+    project : Project
+    name : str, a fitted expression (its ``result`` holds the cameras).
+    vertices, faces : optional, the fitted mesh held in memory (the studio, before a save);
+        default: read the expression's ``result.mesh_obj``.
+
+    Raises
+    ------
+    FitError
+        the expression is not fitted, or no photo has a camera.
+    ProjectError
+        naming the mesh or photo that is missing, unreadable or of the wrong size.
+    """
+    import cv2
+
+    expr = project.expression(name)
+    result = expr.result
+    if result is None:
+        raise FitError(f"expression {name!r} has not been fitted yet")
+    if vertices is None or faces is None:
+        from photomodel.mesh_io import read_mesh
+
+        if result.mesh_obj is None:
+            raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
+        mesh_path = project.resolve(result.mesh_obj)
+        if not mesh_path.is_file():
+            raise ProjectError(f"expression {name!r}: the fitted mesh {result.mesh_obj} does not exist "
+                               f"(looked for {mesh_path}); run `facestudio fit {project.path}` again")
+        try:
+            vertices, faces = read_mesh(mesh_path)
+        except Exception as exc:  # trimesh raises many kinds on a damaged file
+            raise ProjectError(f"expression {name!r}: cannot read the fitted mesh {result.mesh_obj}: {exc}") from exc
+    ids, cameras, photos = [], [], []
+    for photo in expr.photos:
+        cam = result.cameras.get(photo.id)
+        if cam is None:
+            continue  # the fit did not use this photo (no camera was recovered for it)
+        path = project.photo_path(photo)
+        who = f"expression {name!r}, photo {photo.id!r}"
+        if not path.is_file():
+            raise ProjectError(f"{who}: {photo.path} does not exist (looked for {path})")
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ProjectError(f"{who}: {photo.path} is not an image OpenCV can read (corrupt or unknown format)")
+        if img.shape[:2] != (cam.height, cam.width):
+            raise ProjectError(f"{who}: {photo.path} is {img.shape[1]}x{img.shape[0]} but its camera is "
+                               f"{cam.width}x{cam.height}; the photo changed since the fit")
+        ids.append(photo.id)
+        cameras.append(cam)
+        photos.append(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
+    if not cameras:
+        raise FitError(f"expression {name!r}: no photo has a recovered camera; run `facestudio fit` first")
+    return TextureInputs(name, np.asarray(vertices, dtype=float), np.asarray(faces), ids, cameras, photos)
+
+
+def extract_texture(inputs: TextureInputs, size: int = 1024, *, face_mask: np.ndarray | None = None,
+                    progress: Callable[[str, float], None] | None = None,
+                    cancel: Callable[[], bool] | None = None) -> TextureJob:
+    """The cylindrical texture of §5.2.2 with the §5.2.4 ears/hair fallback.
+
+    Parameters
+    ----------
+    inputs : TextureInputs
+    size : int, texels per side, within :data:`TEXTURE_SIZES`.
+    face_mask : (N,) bool, optional
+        the generic mesh's face (:attr:`GenericMesh.face_mask`); when given and the fitted mesh
+        has as many vertices, vertices away from it are textured from the single best photo.
+    progress, cancel : see :func:`photomodel.texture.cylindrical_texture` (``cancel`` raises
+        :class:`photomodel.fit.Cancelled`).
+
+    Raises
+    ------
+    FaceStudioError (ProjectError) for a size out of range.
+    """
+    from photomodel.texture import cylindrical_texture, single_view_weights
+
+    lo, hi = TEXTURE_SIZES
+    if not lo <= int(size) <= hi:
+        raise ProjectError(f"texture size {size}: it must be between {lo} and {hi} texels")
+    V = inputs.vertices
+    t0 = time.perf_counter()
+    single = (single_view_weights(V, face_mask) if face_mask is not None and len(face_mask) == len(V) else None)
+    tex = cylindrical_texture(V, inputs.faces, inputs.cameras, inputs.photos, size=int(size), single_view=single,
+                              progress=progress, cancel=cancel)
+    seconds = time.perf_counter() - t0
+    surface = int(tex.surface.sum())
+    report = {"coverage": float(tex.coverage.sum() / max(surface, 1)), "extract_s": round(seconds, 3),
+              "photos": list(inputs.photo_ids), "single_view_fallback": single is not None}
+    return TextureJob(inputs, int(size), tex, single, report)
+
+
+def encode_texture_outputs(project, job: TextureJob) -> tuple[dict, dict]:
+    """Encode every file of a texture in memory: ``({absolute path: bytes}, relative paths)``.
+
+    The relative paths are :meth:`Project.default_texture_paths` (``image``, ``weight_maps``
+    {photo id: path} for the photos used, ``obj``, ``mtl``, ``glb``, ``ply``); the project must
+    have a file (``project.path``) for them to resolve.
+    """
+    from photomodel.exchange.files import encode_png
+    from photomodel.exchange.gltf import encode_glb
+    from photomodel.exchange.obj import encode_textured_obj
+    from photomodel.exchange.ply import encode_colored_ply
+    from photomodel.exchange.uv import merge_uv_seams
+
+    if project.path is None:
+        raise ProjectError("the project has no file yet: save it before writing the texture")
+    name, tex = job.expression, job.texture
+    vertices, faces, ids = job.inputs.vertices, job.inputs.faces, job.inputs.photo_ids
+    rel = project.default_texture_paths(name)
+    # per-corner uv in the mesh's face order: the texture's seam-split rendering mesh, merged
+    uv = merge_uv_seams(faces, tex.seam_vertices, tex.seam_faces, tex.seam_uv)
+    files = {project.resolve(rel["image"]): encode_png(tex.image)}
+    for pid, w in zip(ids, tex.weight_maps, strict=True):
+        files[project.resolve(rel["weight_maps"][pid])] = encode_png(w)  # black 0 … white 1
+    obj = encode_textured_obj(project.resolve(rel["obj"]), vertices, faces, uv, None,
+                              texture_path=project.resolve(rel["image"]), check_exists=False)
+    files.update(obj.files)  # after the PNG it refers to
+    files[project.resolve(rel["glb"])] = encode_glb(vertices, faces, uv=uv, texture=tex.image, name=name)
+    files[project.resolve(rel["ply"])] = encode_colored_ply(vertices, faces, uv=uv, texture=tex.image)
+    rel["weight_maps"] = {pid: rel["weight_maps"][pid] for pid in ids}
+    return files, rel
+
+
+def commit_texture(project, job: TextureJob, files: dict, rel: dict) -> None:
+    """Write the encoded files (each atomically) and record the texture in the expression's result.
+
+    The project file itself is not written: the caller saves it (``save_project`` or the studio).
+    """
+    from photomodel.exchange.files import write_files
+    from photomodel.project import TextureResult
+
+    result = project.expression(job.expression).result
+    if result is None:
+        raise FitError(f"expression {job.expression!r} is no longer fitted; its texture is not stored")
+    write_files(files)
+    result.texture = TextureResult(size=job.size, image=rel["image"], weight_maps=rel["weight_maps"],
+                                   exports={"obj": rel["obj"], "glb": rel["glb"], "ply": rel["ply"]},
+                                   report=dict(job.report))
+
+
+def texture_expression(project, name: str, size: int = 1024, *, face_mask: np.ndarray | None = None,
+                       vertices: np.ndarray | None = None, faces: np.ndarray | None = None,
+                       progress: Callable[[str, float], None] | None = None,
+                       cancel: Callable[[], bool] | None = None) -> TextureJob:
+    """:func:`load_texture_inputs` then :func:`extract_texture` (progress 0 → 1 over both)."""
+    def stage(label: str, frac: float) -> None:
+        if progress is not None:
+            progress(label, frac)
+
+    stage("loading photos", 0.0)
+    if cancel is not None and cancel():
+        from photomodel.fit import Cancelled
+
+        raise Cancelled("texture extraction cancelled")
+    inputs = load_texture_inputs(project, name, vertices, faces)
+    job = extract_texture(inputs, size, face_mask=face_mask, cancel=cancel,
+                          progress=lambda label, f: stage(label, 0.1 + 0.85 * f))
+    stage("done", 1.0)
+    return job
