@@ -95,6 +95,19 @@ RIG_NAMES = tuple(_RIGS)
 # ----------------------------------------------------------------------------- surface
 
 
+def barycentric_coordinates(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(n, 3) barycentric coordinates of ``points`` (n, 3) in ``triangles`` (n, 3, 3), clipped to
+    [0, 1] (points are expected on or next to their triangle)."""
+    tri = triangles
+    e0, e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
+    d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
+    d20, d21 = (e2 * e0).sum(1), (e2 * e1).sum(1)
+    den = np.where(np.abs(d00 * d11 - d01**2) > 1e-18, d00 * d11 - d01**2, 1.0)
+    b1 = (d11 * d20 - d01 * d21) / den
+    b2 = (d00 * d21 - d01 * d20) / den
+    return np.clip(np.column_stack([1.0 - b1 - b2, b1, b2]), 0.0, 1.0)
+
+
 class ScanSurface:
     """Exact closest-point queries on a triangle surface (no spatial-index dependency).
 
@@ -181,14 +194,7 @@ class ScanSurface:
     def normals_at(self, points: np.ndarray, face: np.ndarray) -> np.ndarray:
         """(n, 3) unit normals at surface ``points`` on triangles ``face``: the vertex
         normals interpolated barycentrically (smooth across edges)."""
-        tri = self.triangles[face]
-        e0, e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
-        d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
-        d20, d21 = (e2 * e0).sum(1), (e2 * e1).sum(1)
-        den = np.where(np.abs(d00 * d11 - d01**2) > 1e-18, d00 * d11 - d01**2, 1.0)
-        b1 = (d11 * d20 - d01 * d21) / den
-        b2 = (d00 * d21 - d01 * d20) / den
-        bary = np.clip(np.column_stack([1.0 - b1 - b2, b1, b2]), 0.0, 1.0)
+        bary = barycentric_coordinates(points, self.triangles[face])
         n = np.einsum("nk,nkd->nd", bary, self.vertex_normals[self.faces[face]])
         return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 

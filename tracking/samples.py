@@ -57,7 +57,7 @@ BACKGROUND_RGB = (0.55, 0.6, 0.65)
 def scan_uv_of_points(scan, points: np.ndarray) -> np.ndarray:
     """(n, 2) uv of the scan's texture at surface ``points`` (n, 3) mm (closest scan triangle,
     barycentric interpolation of its corners' uv)."""
-    from photomodel.synthetic import scan_surface
+    from photomodel.synthetic import barycentric_coordinates, scan_surface
 
     surf = scan_surface(scan)
     closest, _, face = surf.closest(points)
@@ -67,14 +67,7 @@ def scan_uv_of_points(scan, points: np.ndarray) -> np.ndarray:
     remap = np.searchsorted(order, scan.obj_vertex)
     key_textured = {tuple(sorted(f)): i for i, f in enumerate(remap[scan.faces])}
     tri_ids = np.array([key_textured[tuple(sorted(f))] for f in np.asarray(welded.faces)[face]])
-    tri = scan.vertices[scan.faces[tri_ids]]
-    e0, e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], closest - tri[:, 0]
-    d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
-    d20, d21 = (e2 * e0).sum(1), (e2 * e1).sum(1)
-    den = np.where(np.abs(d00 * d11 - d01**2) > 1e-18, d00 * d11 - d01**2, 1.0)
-    b1 = (d11 * d20 - d01 * d21) / den
-    b2 = (d00 * d21 - d01 * d20) / den
-    bary = np.clip(np.column_stack([1.0 - b1 - b2, b1, b2]), 0.0, 1.0)
+    bary = barycentric_coordinates(closest, scan.vertices[scan.faces[tri_ids]])
     bary /= bary.sum(1, keepdims=True)
     return np.einsum("nc,ncd->nd", bary, scan.uv[scan.faces[tri_ids]])
 
