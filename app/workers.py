@@ -39,17 +39,14 @@ class _TaskSignals(QObject):
     cancelled = Signal()
 
 
-class FitTask(QRunnable):
-    """One fit of one expression of a project snapshot, run by a :class:`QThreadPool`."""
+class _CancellableTask(QRunnable):
+    """A :class:`QRunnable` that can be cancelled and reports through ``signals`` (progress,
+    finished, failed, cancelled); kept alive by its controller until its signals are delivered."""
 
-    def __init__(self, model: StudioModel, expression: str, warm: bool):
+    def __init__(self, signals: QObject):
         super().__init__()
-        self.setAutoDelete(False)  # the controller keeps it until its signals are delivered
-        self.model, self.expression, self.warm = model, expression, warm
-        self.snapshot = model.fit_snapshot()
-        self.previous = model.warm_start(expression) if warm else None  # read here, on the GUI thread
-        self.generation = model.generation
-        self.signals = _TaskSignals()
+        self.setAutoDelete(False)
+        self.signals = signals
         self._cancel = threading.Event()
         self.done = threading.Event()
 
@@ -60,13 +57,12 @@ class FitTask(QRunnable):
     def cancelled(self) -> bool:
         return self._cancel.is_set()
 
-    def run(self) -> None:  # worker thread
+    def _progress(self, stage: str, frac: float) -> None:
+        self.signals.progress.emit(stage, float(frac))
+
+    def _guarded(self, compute, finish) -> None:  # worker thread
         try:
-            result, elapsed, cold = self.model.compute_fit(
-                self.snapshot, self.expression, previous=self.previous,
-                progress=lambda stage, frac: self.signals.progress.emit(stage, float(frac)),
-                cancel=self._cancel.is_set,
-            )
+            out = compute()
         except Cancelled:
             self.signals.cancelled.emit()
         except FaceStudioError as exc:
@@ -74,12 +70,32 @@ class FitTask(QRunnable):
         except Exception as exc:  # an unexpected failure is reported with its cause, not swallowed
             self.signals.failed.emit(f"{type(exc).__name__}: {exc}\n\n{traceback.format_exc(limit=6)}")
         else:
-            if self._cancel.is_set():
+            if self._cancel.is_set():  # finished after Cancel was pressed: the result is discarded
                 self.signals.cancelled.emit()
             else:
-                self.signals.finished.emit(result, elapsed, cold)
+                finish(out)
         finally:
             self.done.set()
+
+
+class FitTask(_CancellableTask):
+    """One fit of one expression of a project snapshot, run by a :class:`QThreadPool`."""
+
+    def __init__(self, model: StudioModel, expression: str, warm: bool):
+        super().__init__(_TaskSignals())
+        self.model, self.expression, self.warm = model, expression, warm
+        self.snapshot = model.fit_snapshot()
+        self.previous = model.warm_start(expression) if warm else None  # read here, on the GUI thread
+        self.generation = model.generation
+
+    def run(self) -> None:  # worker thread
+        self._guarded(
+            lambda: self.model.compute_fit(
+                self.snapshot, self.expression, previous=self.previous, progress=self._progress,
+                cancel=self._cancel.is_set,
+            ),
+            lambda out: self.signals.finished.emit(*out),
+        )
 
 
 class FitController(QObject):
@@ -230,7 +246,7 @@ class _JobSignals(QObject):
     cancelled = Signal()
 
 
-class JobTask(QRunnable):
+class JobTask(_CancellableTask):
     """Any slow computation ``function(progress=, cancel=)`` run by a :class:`QThreadPool`.
 
     ``function`` must only read what it was given (snapshots taken on the GUI thread); it polls
@@ -238,37 +254,12 @@ class JobTask(QRunnable):
     """
 
     def __init__(self, function, generation: int):
-        super().__init__()
-        self.setAutoDelete(False)
+        super().__init__(_JobSignals())
         self.function, self.generation = function, generation
-        self.signals = _JobSignals()
-        self._cancel = threading.Event()
-        self.done = threading.Event()
-
-    def cancel(self) -> None:
-        self._cancel.set()
-
-    @property
-    def cancelled(self) -> bool:
-        return self._cancel.is_set()
 
     def run(self) -> None:  # worker thread
-        try:
-            result = self.function(progress=lambda stage, frac: self.signals.progress.emit(stage, float(frac)),
-                                   cancel=self._cancel.is_set)
-        except Cancelled:
-            self.signals.cancelled.emit()
-        except FaceStudioError as exc:
-            self.signals.failed.emit(str(exc))
-        except Exception as exc:  # reported with its cause, not swallowed
-            self.signals.failed.emit(f"{type(exc).__name__}: {exc}\n\n{traceback.format_exc(limit=6)}")
-        else:
-            if self._cancel.is_set():  # finished after Cancel was pressed: the result is discarded
-                self.signals.cancelled.emit()
-            else:
-                self.signals.finished.emit(result)
-        finally:
-            self.done.set()
+        self._guarded(lambda: self.function(progress=self._progress, cancel=self._cancel.is_set),
+                      self.signals.finished.emit)
 
 
 class JobController(QObject):
