@@ -17,7 +17,9 @@ Texture (§5.2): *Texture → Extract texture* runs :mod:`photomodel.texture_job
 (:class:`~app.workers.JobController`) behind a cancellable progress dialog; the 3D view then
 shows the model with the cylindrical texture or view-dependently (a toggle), and the
 :class:`~app.texture_views.WeightMapPanel` dock shows the weight maps. *Expression → Side by
-side* docks the :class:`~app.texture_views.ExpressionsView`. Every failure is shown in a dialog whose text is the cause
+side* docks the :class:`~app.texture_views.ExpressionsView`. *Tracking → Track video…* / *Open
+results…* dock the :class:`~app.tracking_view.TrackingView` (§6.2: the footage with the model
+overlaid, a frame scrubber, the parameter curves). Every failure is shown in a dialog whose text is the cause
 (e.g. ``james.facestudio.json: expressions[0].photos[2].points.nose_tip: expected [u, v] …``).
 """
 
@@ -52,6 +54,7 @@ from .model import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, r
 from .photo_view import CURVE, POINTS, PhotoView
 from .qt_compat import check_pyside
 from .texture_views import ExpressionsView, WeightMapPanel
+from .tracking_view import TrackingView
 from .view3d import View3D
 from .workers import FitController, JobController
 
@@ -166,6 +169,16 @@ class MainWindow(QMainWindow):
         docke.hide()
         self.expressions_dock = docke
 
+        self.tracking_view = TrackingView(self.model)
+        dockt = QDockWidget("Tracking", self)
+        dockt.setObjectName("tracking")
+        dockt.setWidget(self.tracking_view)
+        dockt.setFeatures(movable | QDockWidget.DockWidgetFeature.DockWidgetClosable)
+        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, dockt)
+        self.tabifyDockWidget(docke, dockt)
+        dockt.hide()
+        self.tracking_dock = dockt
+
         self.fit_label = QLabel("not fitted")
         self.statusBar().addPermanentWidget(self.fit_label)
 
@@ -262,6 +275,10 @@ class MainWindow(QMainWindow):
             tgroup.addAction(a)
         self.act_side_by_side = A("Expressions &side by side", self.show_expressions,
                                   tip="every fitted expression from the same camera, with its RMS")
+        self.act_track_video = A("&Track video…", self.track_video_dialog,
+                                 tip="estimate head pose and expression weights in every frame of a video (§6.2)")
+        self.act_open_tracking = A("&Open results…", self.open_tracking_dialog,
+                                   tip="show the tracking results of a folder (its track.json)")
 
     def _build_menus(self):
         mb = self.menuBar()
@@ -296,6 +313,9 @@ class MainWindow(QMainWindow):
         t.addSeparator()
         for a in self.act_tex_modes.values():
             t.addAction(a)
+        tr = mb.addMenu("T&racking")
+        tr.addAction(self.act_track_video)
+        tr.addAction(self.act_open_tracking)
         v = mb.addMenu("&View")
         for a in (self.act_mode_points, self.act_mode_curve):
             v.addAction(a)
@@ -307,6 +327,7 @@ class MainWindow(QMainWindow):
         v.addAction(self.view3d_dock.toggleViewAction())
         v.addAction(self.weights_dock.toggleViewAction())
         v.addAction(self.expressions_dock.toggleViewAction())
+        v.addAction(self.tracking_dock.toggleViewAction())
 
     def _build_toolbar(self):
         tb = self.addToolBar("Main")
@@ -873,6 +894,35 @@ class MainWindow(QMainWindow):
         self.expressions_dock.raise_()
         self.expressions_view.refresh()
 
+    # ------------------------------------------------------------------ tracking
+    def show_tracking(self) -> None:
+        self.tracking_dock.show()
+        self.tracking_dock.raise_()
+
+    def track_video_dialog(self) -> bool:
+        """Choose a video file and track it in the tracking view (results in the default folder)."""
+        if self.model.path is None:
+            self.show_error("Cannot track", "save the project first: tracking reads the project file")
+            return False
+        start = str(Path(self.model.path).parent / "video")
+        path, _ = QFileDialog.getOpenFileName(self, "Track video", start,
+                                              "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)")
+        if not path:
+            return False
+        self.show_tracking()
+        ok = self.tracking_view.start_tracking(path)
+        self._status(self.tracking_view.last_message, 0 if ok else 6000)
+        return ok
+
+    def open_tracking_dialog(self) -> bool:
+        """Choose a tracking results folder and show it in the tracking view."""
+        start = str(Path(self.model.path).parent / "results") if self.model.path is not None else ""
+        folder = QFileDialog.getExistingDirectory(self, "Open tracking results", start)
+        if not folder:
+            return False
+        self.show_tracking()
+        return self.tracking_view.load_results(folder)
+
     def _on_edit(self, *_):
         self.fits.schedule_refit()
 
@@ -902,6 +952,7 @@ class MainWindow(QMainWindow):
             return
         self.fits.shutdown()
         self.jobs.shutdown()
+        self.tracking_view.jobs.shutdown()
         self.autosave_timer.stop()
         event.accept()
 

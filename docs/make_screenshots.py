@@ -18,7 +18,10 @@ so the sample project itself is not modified, and grabs widgets with ``QWidget.g
 * ``expressions.png`` — *Expression → Side by side* with a second expression, ``open_mouth``:
   five photos of the scan deformed by :mod:`tracking.expressions`' jaw opening (rendered here
   from the sample rig's cameras), clicked as the sample's neutral photos are (projections of the
-  true points plus 1 px hand noise, no curves), fitted in the studio.
+  true points plus 1 px hand noise, no curves), fitted in the studio;
+* ``tracking.png`` — *Tracking → Track video…* on the sample video (its first
+  :data:`TRACK_FRAMES` frames): the footage with the model overlaid, the frame scrubber and the
+  expression-weight curves with the current-frame marker (``--only tracking`` makes just this one).
 """
 
 from __future__ import annotations
@@ -74,9 +77,38 @@ def make_expression_photos(folder: Path, project, name: str = "open_mouth", seed
     return files, clicks
 
 
+#: Frames of the sample video tracked for ``tracking.png`` (a few seconds).
+TRACK_FRAMES = 16
+
+
+def tracking_screenshot(window, settle, save) -> None:
+    """*Tracking → Track video…* on the sample video, then frame 10 shown: ``tracking.png``."""
+    from PySide6.QtWidgets import QFileDialog
+
+    view = window.tracking_view
+    video = Path(window.model.path).parent / "video" / "james_track.mp4"
+    view.limit_box.setValue(TRACK_FRAMES)
+    original = QFileDialog.getOpenFileName
+    QFileDialog.getOpenFileName = staticmethod(lambda *a, **k: (str(video), ""))
+    try:
+        window.act_track_video.trigger()
+    finally:
+        QFileDialog.getOpenFileName = original
+    while view.jobs.busy or view.frame_count < TRACK_FRAMES:
+        settle(0.05)
+    window.tracking_dock.setFloating(True)
+    window.tracking_dock.resize(1500, 640)
+    view.set_frame(10)
+    settle(0.5)
+    save(view, "tracking.png")
+    window.tracking_dock.setFloating(False)
+    window.tracking_dock.hide()
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=REPO / "docs" / "screenshots")
+    ap.add_argument("--only", choices=("all", "tracking"), default="all", help="make every screenshot, or one")
     args = ap.parse_args(argv)
 
     from PySide6.QtCore import QSettings, Qt
@@ -110,6 +142,10 @@ def main(argv=None) -> int:
         if not window.open_project(tmp / "james" / "james.facestudio.json"):
             raise SystemExit("could not open the sample project")
         model = window.model
+        if args.only == "tracking":
+            tracking_screenshot(window, settle, save)
+            window.close()
+            return 0
         window.show_photo("front")
         model.set_active_feature("nose_tip")
         settle()
@@ -182,6 +218,9 @@ def main(argv=None) -> int:
         window.expressions_dock.resize(2 * 260 + 40, 360)
         settle(0.5)
         save(window.expressions_view, "expressions.png")
+        window.expressions_dock.setFloating(False)
+        window.expressions_dock.hide()
+        tracking_screenshot(window, settle, save)
         model.modified = False
         window.close()
     finally:

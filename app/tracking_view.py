@@ -1,0 +1,400 @@
+"""The studio's tracking view: track a video in a worker, then scrub through the result (§6.2).
+
+:class:`TrackingView` (docked by the main window, *Tracking → Track video…* / *Open results…*)
+runs :func:`tracking.batch.track_video` in its own :class:`~app.workers.JobController` behind a
+cancellable progress dialog; the results land in :func:`tracking.batch.default_out_dir`
+(``<project folder>/results/track_<video stem>``), cancel-safe and resumable, exactly as
+``facestudio track`` writes them. It then shows
+
+* the footage frame with the model rendered over it — :func:`tracking.batch.overlay_frame`, the
+  code path of ``overlay.mp4`` — or the bare frame (a switch);
+* a frame scrubber (slider, frame label; ←/→ step a frame, Home/End jump);
+* the parameter curves of :func:`tracking.plots.track_plots` (weights per region, rotation,
+  translation, RMS: the paper's Figs. 12–19), each with a vertical marker at the current frame
+  drawn on a copy of the plot image (:func:`plot_with_marker`).
+
+Nothing here computes tracking itself: the view reads ``track.json`` (:func:`load_track_results`)
+and renders overlays on the GUI thread with a :class:`tracking.fit.FrameFitter` of the run's model
+and camera (the renderer is per thread).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QPixmap
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QHBoxLayout,
+    QLabel,
+    QMessageBox,
+    QProgressDialog,
+    QPushButton,
+    QScrollArea,
+    QSizePolicy,
+    QSlider,
+    QSpinBox,
+    QSplitter,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from photomodel.errors import FaceStudioError
+from tracking.plots import MARGINS
+
+from .model import StudioModel
+from .texture_views import to_qimage
+from .workers import JobController
+
+__all__ = ["MARKER_COLOR", "plot_with_marker", "TrackingView"]
+
+#: Colour (RGB) of the current-frame marker on the plots.
+MARKER_COLOR = (255, 120, 0)
+#: Order and titles of the plot tabs (file names of :func:`tracking.plots.track_plots`).
+PLOT_TABS = (("weights.png", "Weights"), ("rotation.png", "Rotation"), ("translation.png", "Translation"),
+             ("rms.png", "RMS"))  # fmt: skip
+
+
+def plot_with_marker(image: np.ndarray, frames: np.ndarray, frame: int) -> np.ndarray:
+    """A copy of a :func:`tracking.plots.track_plots` image with a vertical line at ``frame``.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8 RGB, a plot (one panel or panels stacked, all of one width).
+    frames : (T,) the frame indices the plot was drawn over (its x range is their min..max).
+    frame : int, where to draw the marker.
+
+    Returns
+    -------
+    (H, W, 3) uint8 RGB. The x mapping is :func:`tracking.plots.line_panel`'s (margins
+    :data:`tracking.plots.MARGINS`, a single frame centred in a range of ±0.5).
+    """
+    img = np.array(image, np.uint8, copy=True)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"a plot must be an (H, W, 3) RGB image, got shape {img.shape}")
+    x = np.asarray(frames, float)
+    x0, x1 = (float(x.min()), float(x.max())) if x.size else (0.0, 1.0)
+    if x1 - x0 < 1e-9:
+        x0, x1 = x0 - 0.5, x1 + 0.5
+    ml, mr = MARGINS[0], MARGINS[1]
+    pw = img.shape[1] - ml - mr
+    u = int(round(ml + (float(frame) - x0) / (x1 - x0) * pw))
+    cv2.line(img, (u, 0), (u, img.shape[0] - 1), MARKER_COLOR, 2)
+    return img
+
+
+class TrackingView(QWidget):
+    """Track a video of the current project and inspect the result frame by frame.
+
+    Parameters
+    ----------
+    model : StudioModel, whose saved project file is tracked (:attr:`StudioModel.path`).
+
+    Attributes
+    ----------
+    doc : dict or None, the shown ``track.json``.
+    out_dir : Path or None, the folder it came from.
+    image : (H, W, 3) float32 or None, the image now shown (overlay or bare frame).
+    jobs : JobController, the tracking worker.
+    """
+
+    def __init__(self, model: StudioModel, parent=None):
+        super().__init__(parent)
+        self.model = model
+        self.doc: dict | None = None
+        self.out_dir: Path | None = None
+        self.image: np.ndarray | None = None
+        self._pixmap: QPixmap | None = None
+        self._records: list[dict] = []
+        self._footage: list[np.ndarray] = []  # uint8 RGB, one per tracked frame
+        self._footage_error = ""
+        self._plots: dict[str, np.ndarray] = {}
+        self._fitter = None
+        self._progress: QProgressDialog | None = None
+        self._pending_out: Path | None = None
+        self.last_message = ""
+        self.jobs = JobController(model, self)
+        self.jobs.progress.connect(self._on_progress)
+        self.jobs.finished.connect(self._on_finished)
+        self.jobs.failed.connect(self._on_failed)
+        self.jobs.cancelled.connect(self._on_cancelled)
+
+        self.caption = QLabel("<i>No tracking results: Tracking → Track video… or Open results…</i>")
+        self.caption.setWordWrap(True)
+        self.frame_label = QLabel()
+        self.frame_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.frame_label.setMinimumSize(200, 200)
+        self.frame_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Ignored)
+        self.slider = QSlider(Qt.Orientation.Horizontal)
+        self.slider.setEnabled(False)
+        self.slider.valueChanged.connect(self._show_frame)
+        self.index_label = QLabel("frame –")
+        self.index_label.setMinimumWidth(150)
+        self.overlay_box = QCheckBox("model overlay")
+        self.overlay_box.setChecked(True)
+        self.overlay_box.toggled.connect(lambda *_: self._show_frame(self.slider.value()))
+        self.limit_box = QSpinBox()
+        self.limit_box.setRange(0, 1_000_000)
+        self.limit_box.setSpecialValueText("whole video")
+        self.limit_box.setToolTip("track only the first N frames (a later run may raise it and continue)")
+        self.cancel_button = QPushButton("Cancel tracking")
+        self.cancel_button.setEnabled(False)
+        self.cancel_button.clicked.connect(self.jobs.cancel)
+        self.jobs.busy_changed.connect(self.cancel_button.setEnabled)
+
+        top = QHBoxLayout()
+        top.addWidget(QLabel("frames to track"))
+        top.addWidget(self.limit_box)
+        top.addWidget(self.overlay_box)
+        top.addStretch(1)
+        top.addWidget(self.cancel_button)
+        scrub = QHBoxLayout()
+        scrub.addWidget(self.slider, 1)
+        scrub.addWidget(self.index_label)
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        lv.setContentsMargins(0, 0, 0, 0)
+        lv.addWidget(self.frame_label, 1)
+        lv.addLayout(scrub)
+
+        self.plot_tabs = QTabWidget()
+        self.plot_labels: dict[str, QLabel] = {}
+        for name, title in PLOT_TABS:
+            label = QLabel()
+            label.setAlignment(Qt.AlignmentFlag.AlignTop | Qt.AlignmentFlag.AlignLeft)
+            area = QScrollArea()
+            area.setWidget(label)
+            area.setWidgetResizable(True)
+            self.plot_labels[name] = label
+            self.plot_tabs.addTab(area, title)
+        split = QSplitter(Qt.Orientation.Horizontal)
+        split.addWidget(left)
+        split.addWidget(self.plot_tabs)
+        split.setStretchFactor(0, 2)
+        split.setStretchFactor(1, 3)
+
+        lay = QVBoxLayout(self)
+        lay.addWidget(self.caption)
+        lay.addLayout(top)
+        lay.addWidget(split, 1)
+        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
+
+    # ------------------------------------------------------------------ state
+    @property
+    def frame_count(self) -> int:
+        """Frames tracked in the shown results."""
+        return len(self._records)
+
+    @property
+    def current_frame(self) -> int | None:
+        """The frame index shown (None without results)."""
+        return self.slider.value() if self._records else None
+
+    def set_frame(self, index: int) -> None:
+        """Show frame ``index`` (clamped to the tracked frames)."""
+        if self._records:
+            self.slider.setValue(int(np.clip(index, 0, len(self._records) - 1)))
+
+    def keyPressEvent(self, event):
+        key = event.key()
+        steps = {Qt.Key.Key_Left: -1, Qt.Key.Key_Right: 1, Qt.Key.Key_PageUp: -10, Qt.Key.Key_PageDown: 10}
+        if self._records and key in steps:
+            self.set_frame(self.slider.value() + steps[key])
+        elif self._records and key == Qt.Key.Key_Home:
+            self.set_frame(0)
+        elif self._records and key == Qt.Key.Key_End:
+            self.set_frame(len(self._records) - 1)
+        else:
+            super().keyPressEvent(event)
+            return
+        event.accept()
+
+    # ------------------------------------------------------------------ tracking
+    def start_tracking(self, video: str | Path, max_frames: int | None = None) -> bool:
+        """Track ``video`` with the saved project in the worker, behind a cancellable progress dialog.
+
+        ``max_frames`` None uses the "frames to track" box (0: the whole video). Returns False
+        (with a dialog saying why) when nothing was started.
+        """
+        if self.jobs.busy:
+            self.last_message = "a video is already being tracked"
+            return False
+        project_path = self.model.path
+        if project_path is None:
+            self._error("Cannot track", "save the project first: tracking reads the project file")
+            return False
+        if max_frames is None:
+            max_frames = self.limit_box.value() or None
+        from tracking.batch import default_out_dir
+
+        video = Path(video).absolute()
+        out = default_out_dir(project_path, video)
+        self._pending_out = out
+
+        def work(progress, cancel):
+            from tracking.batch import track_video
+
+            def report(done, total):
+                frac = done / total if total else 0.0
+                progress(f"tracked frame {done} of {total if total else '?'}", frac)
+
+            return track_video(project_path, video, out, max_frames=max_frames, progress=report, cancel=cancel)
+
+        self.jobs.start(work)
+        dlg = QProgressDialog(f"Tracking {video.name}…", "Cancel", 0, 100, self)
+        dlg.setWindowTitle("Tracking")
+        dlg.setWindowModality(Qt.WindowModality.WindowModal)
+        dlg.setMinimumDuration(300)
+        dlg.setAutoClose(False)
+        dlg.setAutoReset(False)
+        dlg.canceled.connect(self.jobs.cancel)
+        self._progress = dlg
+        self.last_message = f"tracking {video.name} into {out}…"
+        return True
+
+    def _close_progress(self):
+        if self._progress is not None:
+            self._progress.canceled.disconnect(self.jobs.cancel)
+            self._progress.close()
+            self._progress.deleteLater()
+            self._progress = None
+
+    def _on_progress(self, stage: str, fraction: float):
+        if self._progress is not None:
+            self._progress.setLabelText(stage)
+            self._progress.setValue(int(round(100 * fraction)))
+
+    def _on_finished(self, result):
+        self._close_progress()
+        self.load_results(result.out_dir)
+        self.last_message = (f"tracked {result.tracked} frames ({result.fps:.1f} frames/s), "
+                             f"{result.diverged} diverged; results in {result.out_dir}")  # fmt: skip
+        self.caption.setText(self._caption() + f" — {result.tracked} frames tracked, {result.fps:.1f} frames/s")
+
+    def _on_failed(self, message: str):
+        self._close_progress()
+        self._error("Tracking failed", message)
+
+    def _on_cancelled(self):
+        self._close_progress()
+        # the frames tracked before the cancel are saved (cancel-safe): show them
+        out = self._pending_out
+        if out is not None and (out / "track.json").is_file():
+            self.load_results(out)
+        self.last_message = (f"tracking cancelled after {self.frame_count} frames; a new run continues "
+                             f"from there")  # fmt: skip
+        self.caption.setText(self._caption() + f" — {self.last_message}")
+
+    def _error(self, title: str, message: str) -> None:
+        self.last_message = message
+        QMessageBox.critical(self, title, message)
+
+    # ------------------------------------------------------------------ results
+    def load_results(self, out_dir: str | Path) -> bool:
+        """Show the tracking results in ``out_dir`` (its ``track.json``); False (with a dialog) if none."""
+        from tracking.batch import VideoFrames, load_track_results
+        from tracking.fit import DIVERGED_RMS
+        from tracking.plots import track_plots
+
+        out = Path(out_dir).absolute()
+        try:
+            doc = load_track_results(out)
+        except FaceStudioError as exc:
+            self._error("Cannot open the tracking results", str(exc))
+            return False
+        if doc is None:
+            self._error("Cannot open the tracking results", f"{out} holds no track.json (run Track video… first)")
+            return False
+        self.doc, self.out_dir = doc, out
+        self._records = list(doc["frames"])
+        self._fitter = None
+        self._footage, self._footage_error = [], ""
+        if self._records:
+            try:
+                video = VideoFrames(doc["video"]["path"])
+                self._footage = [np.round(f * 255).astype(np.uint8) for _, f in video.frames(0, len(self._records))]
+            except FaceStudioError as exc:
+                self._footage_error = str(exc)
+        regions = doc["model"]["regions_with_parameters"]
+        self._plots = track_plots(self._records, regions, doc["model"]["expressions"], DIVERGED_RMS) \
+            if self._records else {}  # fmt: skip
+        self.slider.blockSignals(True)
+        self.slider.setRange(0, max(len(self._records) - 1, 0))
+        self.slider.setValue(0)
+        self.slider.blockSignals(False)
+        self.slider.setEnabled(bool(self._records))
+        self.caption.setText(self._caption())
+        self._show_frame(0)
+        return True
+
+    def _caption(self) -> str:
+        if self.doc is None:
+            return ""
+        d = self.doc
+        n = len(self._records)
+        total = d["video"].get("frames")
+        state = "complete" if d.get("complete") else f"{n} of {total if total else '?'} frames"
+        return f"<b>{Path(d['video']['path']).name}</b>: {n} frames tracked ({state}) — {self.out_dir}"
+
+    def _overlay_fitter(self):
+        """A :class:`FrameFitter` of the run's model and camera, built once per results."""
+        if self._fitter is None:
+            from photomodel.project import load_project
+            from tracking.batch import project_face_model
+            from tracking.fit import FrameFitter
+
+            cam = self.doc["camera"]
+            model, _ = project_face_model(load_project(self.doc["project"]))
+            self._fitter = FrameFitter(model, cam["focal_px"], cam["width"], cam["height"])
+        return self._fitter
+
+    def _fit_pixmap(self) -> None:
+        """The frame scaled to the label (aspect kept, nearest pixel: the footage's pixels stay visible)."""
+        if self._pixmap is not None:
+            size = self.frame_label.contentsRect().size()
+            self.frame_label.setPixmap(self._pixmap.scaled(size, Qt.AspectRatioMode.KeepAspectRatio,
+                                                           Qt.TransformationMode.FastTransformation))
+
+    def resizeEvent(self, event):
+        super().resizeEvent(event)
+        self._fit_pixmap()
+
+    def _show_frame(self, index: int) -> None:
+        if not self._records:
+            self.image = self._pixmap = None
+            self.frame_label.setText("no frames tracked")
+            self.index_label.setText("frame –")
+            for label in self.plot_labels.values():
+                label.clear()
+            return
+        index = int(np.clip(index, 0, len(self._records) - 1))
+        rec = self._records[index]
+        self.index_label.setText(f"frame {index} / {len(self._records) - 1}   rms {rec['rms']:.3f}"
+                                 + ("  DIVERGED" if rec["diverged"] else ""))  # fmt: skip
+        if index < len(self._footage):
+            frame = self._footage[index].astype(np.float32) / 255.0
+            if self.overlay_box.isChecked():
+                from tracking.batch import overlay_frame
+
+                try:
+                    frame = overlay_frame(self._overlay_fitter(), frame, rec)
+                except FaceStudioError as exc:
+                    self._footage_error = f"no overlay: {exc}"
+                    self.overlay_box.setChecked(False)
+            self.image = frame
+            self._pixmap = QPixmap.fromImage(to_qimage(np.round(np.clip(frame, 0, 1) * 255).astype(np.uint8)))
+            self._fit_pixmap()
+        else:
+            self.image = self._pixmap = None
+            self.frame_label.setText(self._footage_error or f"frame {index} of the footage could not be read")
+        x = np.array([r["frame"] for r in self._records], float)
+        for name, label in self.plot_labels.items():
+            plot = self._plots.get(name)
+            if plot is None:
+                label.clear()
+            else:
+                label.setPixmap(QPixmap.fromImage(to_qimage(plot_with_marker(plot, x, rec["frame"]))))
