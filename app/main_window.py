@@ -277,6 +277,8 @@ class MainWindow(QMainWindow):
                                   tip="every fitted expression from the same camera, with its RMS")
         self.act_track_video = A("&Track video…", self.track_video_dialog,
                                  tip="estimate head pose and expression weights in every frame of a video (§6.2)")
+        self.act_first_pose = A("Set &first pose…", lambda: self.tracking_view.first_pose_dialog(),
+                                tip="click the pose features in frame 0 of a video (the pose tracking starts from)")
         self.act_open_tracking = A("&Open results…", self.open_tracking_dialog,
                                    tip="show the tracking results of a folder (its track.json)")
 
@@ -314,6 +316,7 @@ class MainWindow(QMainWindow):
         for a in self.act_tex_modes.values():
             t.addAction(a)
         tr = mb.addMenu("T&racking")
+        tr.addAction(self.act_first_pose)
         tr.addAction(self.act_track_video)
         tr.addAction(self.act_open_tracking)
         v = mb.addMenu("&View")

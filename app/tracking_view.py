@@ -20,16 +20,24 @@ and camera (the renderer is per thread).
 
 from __future__ import annotations
 
+import json
+import math
+import os
 from pathlib import Path
 
 import cv2
 import numpy as np
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QPixmap
+from PySide6.QtCore import QPointF, QRectF, Qt, Signal
+from PySide6.QtGui import QColor, QImage, QPainter, QPen, QPixmap
 from PySide6.QtWidgets import (
     QCheckBox,
+    QDialog,
+    QDoubleSpinBox,
+    QFileDialog,
     QHBoxLayout,
     QLabel,
+    QListWidget,
+    QListWidgetItem,
     QMessageBox,
     QProgressDialog,
     QPushButton,
@@ -50,7 +58,7 @@ from .model import StudioModel
 from .texture_views import to_qimage
 from .workers import JobController
 
-__all__ = ["MARKER_COLOR", "plot_with_marker", "TrackingView"]
+__all__ = ["MARKER_COLOR", "plot_with_marker", "TrackingView", "ClickCanvas", "FirstPoseDialog"]
 
 #: Colour (RGB) of the current-frame marker on the plots.
 MARKER_COLOR = (255, 120, 0)
@@ -141,6 +149,10 @@ class TrackingView(QWidget):
         self.limit_box.setRange(0, 1_000_000)
         self.limit_box.setSpecialValueText("whole video")
         self.limit_box.setToolTip("track only the first N frames (a later run may raise it and continue)")
+        self.first_pose_button = QPushButton("Set first pose…")
+        self.first_pose_button.setToolTip("click the pose features in frame 0: tracking starts from that pose")
+        self.first_pose_button.clicked.connect(lambda: self.first_pose_dialog())
+        self.first_pose_dialog_widget: FirstPoseDialog | None = None
         self.cancel_button = QPushButton("Cancel tracking")
         self.cancel_button.setEnabled(False)
         self.cancel_button.clicked.connect(self.jobs.cancel)
@@ -151,6 +163,7 @@ class TrackingView(QWidget):
         top.addWidget(self.limit_box)
         top.addWidget(self.overlay_box)
         top.addStretch(1)
+        top.addWidget(self.first_pose_button)
         top.addWidget(self.cancel_button)
         scrub = QHBoxLayout()
         scrub.addWidget(self.slider, 1)
@@ -255,6 +268,31 @@ class TrackingView(QWidget):
         self._progress = dlg
         self.last_message = f"tracking {video.name} into {out}…"
         return True
+
+    def first_pose_dialog(self, video: str | Path | None = None, modal: bool = True) -> FirstPoseDialog | None:
+        """Open :class:`FirstPoseDialog` on ``video`` (asked for when None) with the current project.
+
+        ``modal`` runs it with ``exec()``; otherwise it is shown and returned (tests). None (with a
+        message box) when no video was chosen or frame 0 cannot be read.
+        """
+        if video is None:
+            start = str(Path(self.model.path).parent / "video") if self.model.path is not None else ""
+            video, _ = QFileDialog.getOpenFileName(self, "Set the first pose of a video", start,
+                                                   "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)")
+            if not video:
+                return None
+        try:
+            dlg = FirstPoseDialog(self.model.project, video, parent=self)
+        except FaceStudioError as exc:
+            self._error("Cannot set the first pose", str(exc))
+            return None
+        self.first_pose_dialog_widget = dlg
+        if modal:
+            dlg.exec()
+            self.last_message = dlg.last_message
+        else:
+            dlg.show()
+        return dlg
 
     def _close_progress(self):
         if self._progress is not None:
@@ -398,3 +436,308 @@ class TrackingView(QWidget):
                 label.clear()
             else:
                 label.setPixmap(QPixmap.fromImage(to_qimage(plot_with_marker(plot, x, rec["frame"]))))
+
+
+class ClickCanvas(QWidget):
+    """Frame 0 with one draggable marker per clicked feature (image px, centres at integers).
+
+    A press near a marker (≤ :attr:`GRAB_PX` screen px) drags it; elsewhere it places the
+    feature :attr:`current` there. Emits :attr:`changed` after every placement or drag.
+    """
+
+    GRAB_PX = 8.0
+    changed = Signal()
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.image: np.ndarray | None = None  # (H, W, 3) uint8 RGB
+        self._qimage: QImage | None = None
+        self.clicks: dict[str, tuple[float, float]] = {}
+        self.current: str | None = None
+        self._drag: str | None = None
+        self.setMinimumSize(300, 300)
+        self.setMouseTracking(False)
+
+    def set_image(self, image: np.ndarray) -> None:
+        self.image = np.ascontiguousarray(image)
+        self._qimage = to_qimage(self.image)
+        self.update()
+
+    def _geometry(self) -> tuple[float, float, float]:
+        """(scale, x0, y0): widget = x0 + scale · (u + 0.5)."""
+        h, w = self.image.shape[:2]
+        s = min(self.width() / w, self.height() / h)
+        return s, (self.width() - s * w) / 2, (self.height() - s * h) / 2
+
+    def to_image(self, x: float, y: float) -> tuple[float, float]:
+        """Widget position → image pixel (u, v)."""
+        s, x0, y0 = self._geometry()
+        return (x - x0) / s - 0.5, (y - y0) / s - 0.5
+
+    def to_widget(self, u: float, v: float) -> QPointF:
+        """Image pixel (u, v) → widget position."""
+        s, x0, y0 = self._geometry()
+        return QPointF(x0 + s * (u + 0.5), y0 + s * (v + 0.5))
+
+    def paintEvent(self, event):
+        p = QPainter(self)
+        p.fillRect(self.rect(), QColor(40, 40, 40))
+        if self._qimage is None:
+            return
+        s, x0, y0 = self._geometry()
+        h, w = self.image.shape[:2]
+        p.drawImage(QRectF(x0, y0, s * w, s * h), self._qimage)
+        for name, (u, v) in self.clicks.items():
+            c = self.to_widget(u, v)
+            color = QColor(255, 200, 0) if name == self.current else QColor(0, 230, 255)
+            p.setPen(QPen(color, 1.5))
+            p.drawEllipse(c, 4.0, 4.0)
+            p.drawLine(c + QPointF(-6, 0), c + QPointF(6, 0))
+            p.drawLine(c + QPointF(0, -6), c + QPointF(0, 6))
+            p.drawText(c + QPointF(6, -6), name)
+
+    def _near(self, pos: QPointF) -> str | None:
+        best, dist = None, self.GRAB_PX
+        for name, (u, v) in self.clicks.items():
+            d = math.hypot(*(self.to_widget(u, v) - pos).toTuple())
+            if d <= dist:
+                best, dist = name, d
+        return best
+
+    def mousePressEvent(self, event):
+        if self.image is None or event.button() != Qt.MouseButton.LeftButton:
+            return super().mousePressEvent(event)
+        pos = event.position()
+        self._drag = self._near(pos) or self.current
+        if self._drag is not None:
+            self.current = self._drag
+            self._place(pos)
+
+    def mouseMoveEvent(self, event):
+        if self._drag is not None:
+            self._place(event.position())
+
+    def mouseReleaseEvent(self, event):
+        self._drag = None
+
+    def _place(self, pos: QPointF) -> None:
+        h, w = self.image.shape[:2]
+        u, v = self.to_image(pos.x(), pos.y())
+        self.clicks[self._drag] = (float(np.clip(u, -0.5, w - 0.5)), float(np.clip(v, -0.5, h - 0.5)))
+        self.update()
+        self.changed.emit()
+
+
+class FirstPoseDialog(QDialog):
+    """Set or correct the first frame's pose of a video by clicking the project's pose features (§6.2).
+
+    Shows frame 0, the project's pose features (``project.feature_names(pose_only=True)``) and a
+    focal length, pre-filled from an existing first-pose JSON (:func:`tracking.batch.load_first_pose`
+    format). *Solve* runs :func:`tracking.fit.pose_from_clicks` (≥ 6 clicks) and shows the model
+    over frame 0 (:func:`tracking.batch.overlay_frame`); *Save* writes ``{"focal_px", "clicks"}``
+    atomically to :attr:`path` (default :func:`tracking.batch.default_first_pose_path`).
+
+    Parameters
+    ----------
+    project : photomodel.project.Project, whose features are clicked (and whose face model is fitted).
+    video : path of the video file or frame folder.
+    path : where to read/write the first pose (default beside the video).
+
+    Attributes
+    ----------
+    canvas : ClickCanvas, frame 0 and the clicks (image px).
+    features : QListWidget, the pose features (check marks: clicked).
+    focal_box : QDoubleSpinBox, focal length in px.
+    state : FrameState or None, the last solved pose.
+    overlay : (H, W, 3) float32 or None, the last solved overlay image.
+    last_message : str
+    """
+
+    def __init__(self, project, video: str | Path, path: str | Path | None = None, parent=None):
+        super().__init__(parent)
+        from tracking.batch import VideoFrames, default_first_pose_path
+
+        self.project = project
+        self.video = Path(video).absolute()
+        self.path = Path(path).absolute() if path is not None else default_first_pose_path(self.video)
+        self.state = None
+        self.overlay: np.ndarray | None = None
+        self.last_message = ""
+        self._model = None
+        self._fitter = None
+        frames = VideoFrames(self.video)  # raises VideoError naming the file
+        self.frame0 = next(frames.frames(0, 1))[1]
+        self.width, self.height = frames.width, frames.height
+        self.setWindowTitle(f"First pose — {self.video.name}")
+
+        self.canvas = ClickCanvas()
+        self.canvas.set_image(np.round(self.frame0 * 255).astype(np.uint8))
+        self.canvas.changed.connect(self._sync_list)
+        self.features = QListWidget()
+        for name in project.feature_names(pose_only=True):
+            item = QListWidgetItem(name)
+            item.setData(Qt.ItemDataRole.UserRole, name)
+            self.features.addItem(item)
+        self.features.currentRowChanged.connect(self._select)
+        self.focal_box = QDoubleSpinBox()
+        self.focal_box.setRange(1.0, 1e6)
+        self.focal_box.setDecimals(2)
+        self.focal_box.setSuffix(" px")
+        self.focal_box.setValue(max(self.width, self.height) * 1.5)
+        clear = QPushButton("Clear click")
+        clear.clicked.connect(lambda: self.canvas.current and self.remove_click(self.canvas.current))
+        self.solve_button = QPushButton("Solve")
+        self.solve_button.clicked.connect(self.solve)
+        self.save_button = QPushButton("Save")
+        self.save_button.clicked.connect(lambda: self.save() and self.accept())
+        close = QPushButton("Close")
+        close.clicked.connect(self.reject)
+        self.info = QLabel("click each feature's position in frame 0 (≥ 6), then Solve")
+        self.info.setWordWrap(True)
+
+        side = QVBoxLayout()
+        side.addWidget(QLabel("pose features"))
+        side.addWidget(self.features, 1)
+        side.addWidget(clear)
+        side.addWidget(QLabel("focal length"))
+        side.addWidget(self.focal_box)
+        side.addWidget(self.solve_button)
+        side.addWidget(self.save_button)
+        side.addWidget(close)
+        row = QHBoxLayout()
+        row.addWidget(self.canvas, 1)
+        row.addLayout(side)
+        lay = QVBoxLayout(self)
+        lay.addLayout(row, 1)
+        lay.addWidget(self.info)
+        self.resize(760, 560)
+        self._prefill()
+        if self.features.count():
+            self.features.setCurrentRow(0)
+
+    # ------------------------------------------------------------------ public API
+    @property
+    def clicks(self) -> dict[str, tuple[float, float]]:
+        """{feature: (u, v)} image px of the features clicked so far (a copy)."""
+        return dict(self.canvas.clicks)
+
+    def set_click(self, name: str, uv) -> None:
+        """Place feature ``name`` at image pixel ``uv`` = (u, v)."""
+        u, v = (float(x) for x in uv)
+        if not (math.isfinite(u) and math.isfinite(v)):
+            raise ValueError(f"the click of {name!r} must be finite pixels, got {uv!r}")
+        self.canvas.clicks[name] = (u, v)
+        self.canvas.update()
+        self._sync_list()
+
+    def remove_click(self, name: str) -> None:
+        self.canvas.clicks.pop(name, None)
+        self.canvas.update()
+        self._sync_list()
+
+    def spec(self) -> dict:
+        """The first-pose JSON object: ``{"focal_px": f, "clicks": {name: [u, v]}}``."""
+        return {"focal_px": float(self.focal_box.value()),
+                "clicks": {n: [round(u, 3), round(v, 3)] for n, (u, v) in self.canvas.clicks.items()}}  # fmt: skip
+
+    def solve(self) -> bool:
+        """Pose from the clicks (:func:`tracking.fit.pose_from_clicks`) and its overlay on frame 0.
+
+        False (with a message box) with fewer than 6 clicks or when no pose is found."""
+        from tracking.batch import overlay_frame
+        from tracking.fit import FrameFitter, pose_from_clicks
+
+        names = list(self.canvas.clicks)
+        if len(names) < 6:
+            return self._fail(f"{len(names)} features clicked: the first frame's pose needs at least 6")
+        try:
+            model = self._face_model()
+            vertices = self.project.feature_vertices(names)
+            uv = np.array([self.canvas.clicks[n] for n in names], float)
+            focal = float(self.focal_box.value())
+            state = pose_from_clicks(model, vertices, uv, focal, self.width, self.height)
+            if self._fitter is None or self._fitter.f != focal:
+                self._fitter = FrameFitter(model, focal, self.width, self.height)
+            rec = {"R": state.R.tolist(), "centre_mm": state.t.tolist(), "alpha": state.alpha.tolist(),
+                   "frame": 0, "rms": 0.0, "diverged": False}  # fmt: skip
+            overlay = overlay_frame(self._fitter, self.frame0, rec)
+        except (FaceStudioError, cv2.error) as exc:
+            return self._fail(f"no pose from these clicks: {exc}")
+        self.state, self.overlay = state, overlay
+        self.canvas.set_image(np.round(np.clip(overlay, 0, 1) * 255).astype(np.uint8))
+        depth = float(state.t[2])
+        self.last_message = f"pose from {len(names)} clicks: model centre {depth:.0f} mm from the camera"
+        self.info.setText(self.last_message)
+        return True
+
+    def save(self, path: str | Path | None = None) -> bool:
+        """Write :meth:`spec` atomically (temp file + ``os.replace``) to ``path`` (default :attr:`path`).
+
+        False (with a message box) with fewer than 6 clicks or when the file cannot be written."""
+        target = Path(path).absolute() if path is not None else self.path
+        if len(self.canvas.clicks) < 6:
+            return self._fail(f"{len(self.canvas.clicks)} features clicked: save at least 6")
+        tmp = target.with_name(target.name + ".tmp")
+        try:
+            tmp.write_text(json.dumps(self.spec(), indent=1) + "\n")
+            os.replace(tmp, target)
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            return self._fail(f"cannot write {target}: {exc}")
+        self.path = target
+        self.last_message = f"first pose saved to {target}"
+        self.info.setText(self.last_message)
+        return True
+
+    # ------------------------------------------------------------------ internals
+    def _face_model(self):
+        if self._model is None:
+            from tracking.batch import project_face_model
+
+            self._model, _ = project_face_model(self.project)
+        return self._model
+
+    def _prefill(self) -> None:
+        if not self.path.is_file():
+            return
+        try:
+            spec = json.loads(self.path.read_text())
+        except (OSError, ValueError) as exc:
+            self.last_message = f"{self.path} is not readable JSON ({exc}); starting without clicks"
+            self.info.setText(self.last_message)
+            return
+        if not isinstance(spec, dict):
+            return
+        from photomodel.camera import focal_mm_to_px
+
+        try:
+            if "focal_px" in spec:
+                self.focal_box.setValue(float(spec["focal_px"]))
+            elif "focal_mm" in spec:
+                self.focal_box.setValue(focal_mm_to_px(float(spec["focal_mm"]), self.width))
+            for name, uv in (spec.get("clicks") or {}).items():
+                self.set_click(name, uv)
+        except (TypeError, ValueError) as exc:
+            self.last_message = f"{self.path}: some entries were ignored ({exc})"
+            self.info.setText(self.last_message)
+
+    def _select(self, row: int) -> None:
+        item = self.features.item(row)
+        self.canvas.current = item.data(Qt.ItemDataRole.UserRole) if item is not None else None
+        self.canvas.update()
+
+    def _sync_list(self) -> None:
+        """Check marks on the clicked features; the list follows the canvas's current feature."""
+        for i in range(self.features.count()):
+            item = self.features.item(i)
+            name = item.data(Qt.ItemDataRole.UserRole)
+            item.setText(f"{name}  ✓" if name in self.canvas.clicks else name)
+            if name == self.canvas.current and self.features.currentRow() != i:
+                self.features.blockSignals(True)
+                self.features.setCurrentRow(i)
+                self.features.blockSignals(False)
+
+    def _fail(self, message: str) -> bool:
+        self.last_message = message
+        QMessageBox.critical(self, "First pose", message)
+        return False

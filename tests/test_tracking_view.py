@@ -135,3 +135,59 @@ def test_plot_marker_at_frame():
     assert (plot == 255).all()  # drawn on a copy
     with pytest.raises(ValueError, match="RGB"):
         plot_with_marker(plot[..., 0], frames, 0)
+
+
+def test_first_pose_dialog_click_solve_save(qtbot, window, errors, project_copy, tmp_path):
+    import json
+
+    from PySide6.QtCore import QPoint
+
+    view = window.tracking_view
+    video = video_of(project_copy)
+    dlg = view.first_pose_dialog(video, modal=False)
+    qtbot.addWidget(dlg)
+    dlg.resize(760, 560)
+    qtbot.waitExposed(dlg)
+    stored = json.loads((video.with_name("james_track.first_pose.json")).read_text())
+    # pre-filled from the sample's first-pose file
+    assert dlg.focal_box.value() == pytest.approx(stored["focal_px"])
+    assert set(dlg.clicks) == set(stored["clicks"])
+    for name, uv in stored["clicks"].items():
+        np.testing.assert_allclose(dlg.clicks[name], uv, atol=1e-9)
+
+    # drag the chin marker 10 image px down with the mouse (markers are grabbed within 8 screen px)
+    canvas = dlg.canvas
+    u, v = stored["clicks"]["chin"]
+    start = canvas.to_widget(u, v).toPoint()
+    s = canvas._geometry()[0]
+    end = start + QPoint(0, round(10 * s))
+    qtbot.mousePress(canvas, Qt.MouseButton.LeftButton, pos=start)
+    qtbot.mouseMove(canvas, end)
+    qtbot.mouseRelease(canvas, Qt.MouseButton.LeftButton, pos=end)
+    # widget positions are whole pixels: the round trip is exact to 1/scale image px
+    assert dlg.clicks["chin"][1] == pytest.approx(v + 10, abs=1.0 / s + 1e-6)
+    assert dlg.clicks["chin"][0] == pytest.approx(u, abs=1.0 / s + 1e-6)
+    dlg.set_click("chin", (u, v))  # back through the public API
+
+    assert dlg.solve(), errors
+    assert dlg.overlay is not None and dlg.overlay.shape == (300, 300, 3)
+    assert np.abs(dlg.overlay - dlg.frame0).max() > 0.1  # the model is drawn over frame 0
+    assert 200 < dlg.state.t[2] < 2000  # the head is tens of cm in front of the camera (mm)
+
+    out = tmp_path / "pose.json"
+    assert dlg.save(out) and not errors
+    saved = json.loads(out.read_text())
+    assert saved["focal_px"] == pytest.approx(stored["focal_px"])
+    for name, uv in stored["clicks"].items():
+        np.testing.assert_allclose(saved["clicks"][name], uv, atol=1e-3)  # rounded to 1/1000 px
+    assert not out.with_name(out.name + ".tmp").exists()
+    again = type(dlg)(window.model.project, video, path=out)
+    qtbot.addWidget(again)
+    assert again.clicks.keys() == dlg.clicks.keys()
+
+    # too few clicks: a clear error, nothing written
+    for name in list(dlg.clicks)[:-5]:
+        dlg.remove_click(name)
+    assert not dlg.solve()
+    assert "at least 6" in errors[-1][1]
+    assert not dlg.save(tmp_path / "other.json") and not (tmp_path / "other.json").exists()
