@@ -3,23 +3,15 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from app.cli import main
 from photomodel.mesh_io import read_mesh
 from photomodel.project import load_project
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
-
-
-@pytest.fixture
-def project_copy(tmp_path):
-    shutil.copytree(SAMPLE, tmp_path / "james")
-    return tmp_path / "james" / "james.facestudio.json"
 
 
 def test_fit_writes_results_into_the_project(project_copy, capsys):

@@ -30,12 +30,6 @@ from photomodel.synthetic import load_ground_truth  # noqa: E402
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
 
-@pytest.fixture
-def project_copy(tmp_path):
-    shutil.copytree(SAMPLE, tmp_path / "james", ignore=shutil.ignore_patterns("results"))
-    return tmp_path / "james" / "james.facestudio.json"
-
-
 class _Shown(list):
     answers: dict
 

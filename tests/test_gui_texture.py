@@ -8,7 +8,6 @@ fit it, compare the expressions side by side, and get a never-saved project back
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -24,12 +23,6 @@ from app.main_window import MainWindow  # noqa: E402
 from photomodel.project import load_project  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
-
-
-@pytest.fixture
-def project_copy(tmp_path):
-    shutil.copytree(SAMPLE, tmp_path / "james", ignore=shutil.ignore_patterns("results"))
-    return tmp_path / "james" / "james.facestudio.json"
 
 
 @pytest.fixture

@@ -18,12 +18,6 @@ SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
 
 @pytest.fixture
-def project_copy(tmp_path):
-    shutil.copytree(SAMPLE, tmp_path / "james", ignore=shutil.ignore_patterns("results"))
-    return tmp_path / "james" / "james.facestudio.json"
-
-
-@pytest.fixture
 def model(project_copy):
     m = StudioModel()
     m.open(project_copy)

@@ -7,7 +7,6 @@ this file at a few seconds: a frame takes ~0.15 s after ~1.5 s of set-up on the 
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -24,12 +23,6 @@ from app.tracking_view import MARKER_COLOR, plot_with_marker  # noqa: E402
 from tracking.batch import default_out_dir, load_track_results  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
-
-
-@pytest.fixture
-def project_copy(tmp_path):
-    shutil.copytree(SAMPLE, tmp_path / "james", ignore=shutil.ignore_patterns("results"))
-    return tmp_path / "james" / "james.facestudio.json"
 
 
 @pytest.fixture
