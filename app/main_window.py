@@ -52,6 +52,7 @@ from .commands import AddExpressionCommand, AddPhotosCommand, RemovePhotoCommand
 from .feature_list import FeaturePanel
 from .model import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, remove_autosave
 from .photo_view import CURVE, POINTS, PhotoView
+from .progress import close_progress, open_progress, update_progress
 from .qt_compat import check_pyside
 from .texture_views import ExpressionsView, WeightMapPanel
 from .tracking_view import TrackingView
@@ -731,30 +732,18 @@ class MainWindow(QMainWindow):
         if task is None:
             self._status("a fit is already running")
             return False
-        dlg = QProgressDialog("Fitting…", "Cancel", 0, 100, self)
-        dlg.setWindowTitle("Fit")
-        dlg.setWindowModality(Qt.WindowModality.WindowModal)
-        dlg.setMinimumDuration(400)
-        dlg.setAutoClose(False)
-        dlg.setAutoReset(False)
-        dlg.canceled.connect(self.fits.cancel)
-        self._progress = dlg
+        self._progress = open_progress(self, "Fit", "Fitting…", self.fits.cancel, min_duration_ms=400)
         return True
 
     def _close_progress(self):
-        if self._progress is not None:
-            self._progress.canceled.disconnect(self.fits.cancel)
-            self._progress.close()
-            self._progress.deleteLater()
-            self._progress = None
+        close_progress(self._progress, self.fits.cancel)
+        self._progress = None
 
     def _on_fit_started(self, expression: str, warm: bool):
         self.fit_label.setText("refitting…" if warm else "fitting…")
 
     def _on_fit_progress(self, stage: str, fraction: float):
-        if self._progress is not None:
-            self._progress.setLabelText(stage)
-            self._progress.setValue(int(round(100 * fraction)))
+        update_progress(self._progress, stage, fraction)
 
     def _on_fit_finished(self, expression: str, seconds: float):
         self._close_progress()
@@ -819,28 +808,16 @@ class MainWindow(QMainWindow):
             return StudioModel.compute_texture(inputs, size, progress=progress, cancel=cancel), vertices
 
         self.jobs.start(work)
-        dlg = QProgressDialog("Extracting the texture…", "Cancel", 0, 100, self)
-        dlg.setWindowTitle("Texture")
-        dlg.setWindowModality(Qt.WindowModality.WindowModal)
-        dlg.setMinimumDuration(300)
-        dlg.setAutoClose(False)
-        dlg.setAutoReset(False)
-        dlg.canceled.connect(self.jobs.cancel)
-        self._texture_progress = dlg
+        self._texture_progress = open_progress(self, "Texture", "Extracting the texture…", self.jobs.cancel)
         self._status(f"extracting a {size}×{size} texture of {inputs[1]!r}…", 0)
         return True
 
     def _close_texture_progress(self):
-        if self._texture_progress is not None:
-            self._texture_progress.canceled.disconnect(self.jobs.cancel)
-            self._texture_progress.close()
-            self._texture_progress.deleteLater()
-            self._texture_progress = None
+        close_progress(self._texture_progress, self.jobs.cancel)
+        self._texture_progress = None
 
     def _on_texture_progress(self, stage: str, fraction: float):
-        if self._texture_progress is not None:
-            self._texture_progress.setLabelText(stage)
-            self._texture_progress.setValue(int(round(100 * fraction)))
+        update_progress(self._texture_progress, stage, fraction)
 
     def _on_texture_finished(self, result):
         self._close_texture_progress()

@@ -55,6 +55,7 @@ from photomodel.errors import FaceStudioError
 from tracking.plots import MARGINS
 
 from .model import StudioModel
+from .progress import close_progress, open_progress, update_progress
 from .texture_views import to_qimage
 from .workers import JobController
 
@@ -258,14 +259,7 @@ class TrackingView(QWidget):
             return track_video(project_path, video, out, max_frames=max_frames, progress=report, cancel=cancel)
 
         self.jobs.start(work)
-        dlg = QProgressDialog(f"Tracking {video.name}…", "Cancel", 0, 100, self)
-        dlg.setWindowTitle("Tracking")
-        dlg.setWindowModality(Qt.WindowModality.WindowModal)
-        dlg.setMinimumDuration(300)
-        dlg.setAutoClose(False)
-        dlg.setAutoReset(False)
-        dlg.canceled.connect(self.jobs.cancel)
-        self._progress = dlg
+        self._progress = open_progress(self, "Tracking", f"Tracking {video.name}…", self.jobs.cancel)
         self.last_message = f"tracking {video.name} into {out}…"
         return True
 
@@ -295,16 +289,11 @@ class TrackingView(QWidget):
         return dlg
 
     def _close_progress(self):
-        if self._progress is not None:
-            self._progress.canceled.disconnect(self.jobs.cancel)
-            self._progress.close()
-            self._progress.deleteLater()
-            self._progress = None
+        close_progress(self._progress, self.jobs.cancel)
+        self._progress = None
 
     def _on_progress(self, stage: str, fraction: float):
-        if self._progress is not None:
-            self._progress.setLabelText(stage)
-            self._progress.setValue(int(round(100 * fraction)))
+        update_progress(self._progress, stage, fraction)
 
     def _on_finished(self, result):
         self._close_progress()
