@@ -202,7 +202,7 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def write_png(path, image: np.ndarray) -> Path:
-    """Write an RGB(A) or grey image as PNG (via OpenCV) and return the path.
+    """Write an RGB(A) or grey image as PNG, atomically, and return the path.
 
     Parameters
     ----------
@@ -213,24 +213,9 @@ def write_png(path, image: np.ndarray) -> Path:
         they are swapped to OpenCV's BGR(A) on the way out. NaN and ±inf are written as 0/255
         after clipping (NaN → 0).
     """
-    import cv2
+    from .exchange.files import atomic_write_bytes, encode_png
 
-    img = np.asarray(image)
-    if img.ndim == 3 and img.shape[2] == 1:
-        img = img[:, :, 0]
-    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (3, 4)):
-        raise ValueError(f"write_png needs an (H, W), (H, W, 3) or (H, W, 4) image, got shape {img.shape}")
-    if img.dtype != np.uint8:
-        if not np.issubdtype(img.dtype, np.floating):
-            raise ValueError(f"write_png needs uint8 or float (0..1) pixels, got {img.dtype}")
-        img = np.round(np.clip(np.nan_to_num(img, nan=0.0), 0.0, 1.0) * 255.0).astype(np.uint8)
-    if img.ndim == 3:
-        img = cv2.cvtColor(img, cv2.COLOR_RGB2BGR if img.shape[2] == 3 else cv2.COLOR_RGBA2BGRA)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), img):
-        raise OSError(f"could not write PNG {path} (is the folder writable and the name *.png?)")
-    return path
+    return atomic_write_bytes(path, encode_png(image))
 
 
 # ----------------------------------------------------------------------------- result
