@@ -638,14 +638,10 @@ def cylindrical_texture(
     photomodel.fit.Cancelled
         ``cancel()`` returned True.
     """
+    from photomodel.exchange.uv import check_mesh
     from photomodel.render import vertex_normals
 
-    V = np.asarray(vertices, dtype=float)
-    F = np.asarray(faces)
-    if V.ndim != 2 or V.shape[1] != 3 or len(V) == 0:
-        raise ValueError(f"vertices must be (N, 3) mm, got shape {V.shape}")
-    if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or not np.issubdtype(F.dtype, np.integer):
-        raise ValueError(f"faces must be (M, 3) integers, got shape {F.shape}")
+    V, F = check_mesh(vertices, faces)
     size = int(size)
     if not 8 <= size <= 16384:
         raise ValueError(f"texture size must be between 8 and 16384 texels, got {size}")

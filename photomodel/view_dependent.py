@@ -133,14 +133,10 @@ class ViewDependentTexture:
         depths: Sequence[np.ndarray] | None = None,
         centre: np.ndarray | None = None,
     ):
+        from photomodel.exchange.uv import check_mesh
         from photomodel.render import vertex_normals
 
-        V = np.asarray(vertices, dtype=float)
-        F = np.asarray(faces)
-        if V.ndim != 2 or V.shape[1] != 3 or len(V) == 0:
-            raise ValueError(f"vertices must be (N, 3) mm, got shape {V.shape}")
-        if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or not np.issubdtype(F.dtype, np.integer):
-            raise ValueError(f"faces must be (M, 3) integers, got shape {F.shape}")
+        V, F = check_mesh(vertices, faces)
         self.photos = check_photos(cameras, photos)
         self.cameras = list(cameras)
         self.vertices, self.faces = V, F
