@@ -46,6 +46,8 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         f"expression {expr_name!r}: reprojection RMS {report['rms_px']:.3f} px "
         f"(pose features {report['pose']['rms_px']:.3f} px, {report['pose']['sweeps']} sweeps)"
     ]
+    if report.get("cameras_from"):
+        lines.append(f"  cameras of expression {report['cameras_from']!r} (same rig), kept fixed")
     if report.get("bundle"):
         b = report["bundle"]
         lines.append(f"  cameras re-estimated with all {b['points']} triangulated points: {b['rms_px']:.3f} px")
@@ -64,12 +66,15 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
 
 
 def cmd_fit(args) -> int:
-    from photomodel.fit import FitOptions, fit_expression, store_fit_result
+    from photomodel.fit import FitOptions, fit_expression, fit_order, store_fit_result
     from photomodel.generic_mesh import load_generic_mesh
-    from photomodel.project import load_project, save_project
+    from photomodel.project import ExpressionResult, load_project, save_project
 
     project = load_project(args.project)
-    names = [e.name for e in project.expressions] if args.expression is None else [args.expression]
+    if args.expression is not None:
+        project.expression(args.expression)  # an unknown name is an error before any work
+    # an expression that reuses another's cameras (cameras_from) is fitted after it
+    names = fit_order(project, None if args.expression is None else [args.expression])
     mesh = load_generic_mesh()
     project.check_vertices(len(mesh.vertices))
     try:
@@ -84,6 +89,12 @@ def cmd_fit(args) -> int:
             options = FitOptions(refine=not args.no_refine)
             result = fit_expression(project, name, mesh, options, progress=progress)
             results.append((name, result))
+            # in memory at once: an expression fitted next may take its cameras from this one
+            project.expression(name).result = ExpressionResult(
+                cameras=dict(zip(result.photo_ids, result.cameras, strict=True)),
+                points_3d=dict(zip(result.feature_names, result.points_3d, strict=True)),
+                report=result.report,
+            )
     finally:
         if bar is not None:
             bar.close()
@@ -213,7 +224,9 @@ def cmd_track(args) -> int:
     out_dir = args.out
     previous = signal.signal(signal.SIGINT, on_sigint)
     try:
-        result = track_video(args.project, args.video, args.out, first_pose=args.first_pose, focal_px=args.focal_px,
+        names = None if args.expressions is None else [n.strip() for n in args.expressions.split(",") if n.strip()]
+        result = track_video(args.project, args.video, args.out, expressions=names,
+                             first_pose=args.first_pose, focal_px=args.focal_px,
                              max_frames=args.frames, restart=args.restart, overlay=not args.no_overlay,
                              progress=progress, cancel=lambda: bool(stop))  # fmt: skip
     except KeyboardInterrupt:
@@ -274,7 +287,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     f = sub.add_parser("fit", help="recover cameras and fit the face mesh to the clicked photos")
     f.add_argument("project", help="project file (*.facestudio.json)")
-    f.add_argument("--expression", help="fit only this expression (default: all)")
+    f.add_argument("--expression", help="fit only this expression (default: all; one that reuses another's "
+                                        "cameras, cameras_from, is fitted after it)")
     f.add_argument("--no-refine", action="store_true", help="stop after pose recovery + RBF (no refinement)")
     f.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     f.add_argument("--dry-run", action="store_true", help="report only; do not write into the project")
@@ -298,6 +312,8 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--focal-px", type=float, help="the video camera's focal length in pixels (overrides the "
                                                   "first-pose file's)")
     k.add_argument("--frames", type=int, help="track only the first N frames (a later run may raise N)")
+    k.add_argument("--expressions", help="comma-separated expressions of the face model, neutral first "
+                                         "(default: every expression of the project)")
     k.add_argument("--restart", action="store_true", help="discard earlier results in the output folder")
     k.add_argument("--no-overlay", action="store_true", help="do not write the overlay video")
     k.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")

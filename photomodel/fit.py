@@ -20,7 +20,16 @@ recovered cameras, the 3D feature points and the fitted mesh:
    from the generic mesh with every constraint. Curves are re-parameterised on the
    refined mesh and the step repeated ``curve_passes`` times.
 
-No file I/O happens here; :func:`write_result` stores a result in a project.
+**Several expressions** (§5.1 photographs every expression with the same cameras). An
+expression whose ``cameras_from`` names another, already fitted, expression (or
+``FitOptions.cameras_from``) skips steps 1–2: it takes that expression's fitted cameras photo
+by photo id, triangulates its pose features with them (:func:`photomodel.refine.triangulate`)
+and keeps their frame — no gauge onto the generic mesh — so its mesh lies in the source
+expression's head frame, vertex for vertex comparable with it (what a blend-shape model,
+§6.1.1, needs). Steps 3–4 are as usual; the cameras stay fixed (no ``bundle_all``).
+:func:`fit_order` sorts expressions so that sources are fitted first.
+
+No file I/O happens here; :func:`store_fit_result` stores a result in a project.
 """
 
 from __future__ import annotations
@@ -59,6 +68,11 @@ class FitOptions:
     #: be less precise; on the sample project the extra ~150 clicks cut the worst camera
     #: rotation error from 1.6° to 0.4° and the focal error from ≤ 14 % to ≤ 4 %.
     bundle_all: bool = True
+    #: Fit with the cameras of this (fitted) expression instead of the project's
+    #: ``Expression.cameras_from`` setting; None: use the project's setting.
+    cameras_from: str | None = None
+    #: Recover this expression's own cameras even if the project gives it ``cameras_from``.
+    independent_cameras: bool = False
 
 
 @dataclass
@@ -73,8 +87,11 @@ class FitResult:
     points_3d : (n, 3) float mm, recovered/triangulated feature positions.
     initial_vertices : (N, 3) float mm, the generic mesh deformed by the pose features only.
     vertices : (N, 3) float mm, the fitted mesh after refinement.
-    pose : PoseResult of the pose-recovery stage (in the fixed gauge).
-    report : dict, reprojection report (JSON-serialisable).
+    pose : PoseResult of the pose-recovery stage (in the fixed gauge); with ``cameras_from``,
+        the triangulation of the pose features with the fixed cameras (0 sweeps).
+    report : dict, reprojection report (JSON-serialisable); ``report["cameras_from"]`` names
+        the expression whose cameras were reused (None when they were recovered).
+    cameras_from : str or None, the expression whose fitted cameras this fit reused.
     """
 
     photo_ids: list[str]
@@ -85,6 +102,7 @@ class FitResult:
     vertices: np.ndarray
     pose: PoseResult
     report: dict = field(default_factory=dict)
+    cameras_from: str | None = None
 
     def camera(self, photo_id: str) -> Camera:
         return self.cameras[self.photo_ids.index(photo_id)]
@@ -100,6 +118,137 @@ def initial_cameras(photos) -> list[Camera]:
         c.f = focal_mm_to_px(focal, p.width)
         cams.append(c)
     return cams
+
+
+def cameras_source(project, expression_name: str, options: FitOptions | None = None) -> str | None:
+    """The expression whose fitted cameras ``expression_name`` is fitted with, or None.
+
+    ``options.cameras_from`` wins over the project's ``Expression.cameras_from``;
+    ``options.independent_cameras`` turns both off.
+    """
+    opt = options or FitOptions()
+    if opt.independent_cameras:
+        return None
+    if opt.cameras_from is not None:
+        return opt.cameras_from
+    return project.expression(expression_name).cameras_from
+
+
+def fit_order(project, names=None) -> list[str]:
+    """``names`` (default: every expression) ordered so that an expression comes after the
+    expression it takes its cameras from (``cameras_from``) when both are to be fitted;
+    otherwise the project's order is kept (a stable topological sort).
+
+    Raises
+    ------
+    FitError
+        if ``cameras_from`` goes round in a cycle (a loaded project cannot have one).
+    """
+    names = [e.name for e in project.expressions] if names is None else list(names)
+    wanted = set(names)
+    order: list[str] = []
+    state: dict[str, int] = {}  # 1 = being placed, 2 = placed
+
+    def place(name: str, path: list[str]) -> None:
+        if state.get(name) == 2:
+            return
+        if state.get(name) == 1:
+            raise FitError("cameras_from goes round in a cycle: " + " → ".join(path + [name]))
+        state[name] = 1
+        src = project.expression(name).cameras_from
+        if src is not None and src in wanted:
+            place(src, path + [name])
+        state[name] = 2
+        order.append(name)
+
+    for n in names:
+        place(n, [])
+    return order
+
+
+def source_cameras(project, expression_name: str, source: str) -> list[Camera]:
+    """The fitted cameras of expression ``source`` for the photos of ``expression_name``,
+    matched by photo id, else by the view (``preset``) when each expression has one photo of it.
+
+    Raises
+    ------
+    FitError
+        naming the problem: ``source`` is the expression itself, does not exist, is not
+        fitted yet, or lacks a camera for one of the photos (or has one of another image size).
+    """
+    from .errors import ProjectError
+
+    if source == expression_name:
+        raise FitError(f"expression {expression_name!r} cannot take its cameras from itself")
+    try:
+        src = project.expression(source)
+    except ProjectError as exc:
+        raise FitError(f"expression {expression_name!r} takes its cameras from {source!r}: {exc}") from None
+    if src.result is None or not src.result.cameras:
+        raise FitError(
+            f"expression {expression_name!r} takes its cameras from expression {source!r}, which is not "
+            f"fitted yet: fit {source!r} first"
+        )
+    # a rig position is a photo id, or else the view the artist gave both photos (its preset)
+    # when that view is unique in both expressions: photos added from files named after their
+    # expression ("smile_front.jpg") get their own ids
+    photos = project.expression(expression_name).photos
+    by_preset = {}
+    for view in {q.preset for q in src.photos}:
+        theirs = [q.id for q in src.photos if q.preset == view and q.id in src.result.cameras]
+        if len(theirs) == 1 and sum(q.preset == view for q in photos) == 1:
+            by_preset[view] = theirs[0]
+    cams, missing = [], []
+    for p in photos:
+        cam = src.result.cameras.get(p.id)
+        if cam is None and p.preset in by_preset:
+            cam = src.result.cameras[by_preset[p.preset]]
+        if cam is None:
+            missing.append(p.id)
+            continue
+        if (cam.width, cam.height) != (p.width, p.height):
+            raise FitError(
+                f"expression {expression_name!r}, photo {p.id!r} is {p.width}x{p.height} but the camera of "
+                f"photo {p.id!r} of expression {source!r} is {cam.width}x{cam.height}: not the same camera"
+            )
+        cams.append(Camera(np.array(cam.R, float), np.array(cam.t, float), float(cam.f), cam.width, cam.height))
+    if missing:
+        raise FitError(
+            f"expression {expression_name!r} takes its cameras from expression {source!r}, which has no "
+            f"fitted camera for photo(s) {', '.join(repr(m) for m in missing)} (photos are matched by id, or by "
+            f"view when each expression has one photo of that view; "
+            f"{source!r} has {', '.join(repr(k) for k in src.result.cameras)})"
+        )
+    return cams
+
+
+def _fixed_camera_pose(cameras, obs_pose, pose_names, photo_ids):
+    """Pose stage with known cameras: triangulate the pose features (§5.1.3 with the cameras
+    fixed). Returns ``(PoseResult, kept (n,) bool, dropped messages)``."""
+    from .pose import reprojection_residuals
+
+    tri = triangulate(cameras, obs_pose)
+    kept = tri.ok
+    problems = tri.problems(pose_names)
+    dropped = [f"pose feature {why}" for why in problems.values()]
+    if kept.sum() < 4:
+        raise FitError(
+            f"only {int(kept.sum())} pose feature(s) could be triangulated with the fixed cameras (need 4): "
+            + "; ".join(problems.values())
+        )
+    res = reprojection_residuals(cameras, tri.points[kept], obs_pose[:, kept])
+    per_view, per_point, rms = _rms(res, axis=1), _rms(res, axis=0), _rms(res)
+    pose = PoseResult(
+        cameras=list(cameras),
+        points=tri.points[kept],
+        iterations=0,
+        converged=True,
+        rms_px=float(rms),
+        per_view_rms_px=per_view,
+        per_point_rms_px=per_point,
+        residuals_px=res,
+    )
+    return pose, kept, dropped
 
 
 def _rms(res: np.ndarray, axis=None) -> np.ndarray:
@@ -144,13 +293,19 @@ def fit_expression(
         refit passes the previous fit's vertices, already close to the answer, with
         ``options.curve_passes = 1`` (see :mod:`photomodel.refit`).
 
+    With ``cameras_from`` (the expression's, or ``options.cameras_from``) the cameras are the
+    source expression's fitted ones and stay fixed; the result is in that expression's frame
+    (see the module docstring).
+
     Raises
     ------
     FitError
-        when the clicks cannot support a fit (the message names the feature/photo).
+        when the clicks cannot support a fit (the message names the feature/photo), or the
+        expression whose cameras are reused is not fitted or lacks a photo's camera.
     """
     opt = options or FitOptions()
     expr = project.expression(expression_name)
+    source = cameras_source(project, expression_name, opt)
     photos = expr.photos
     if len(photos) < 2:
         raise FitError(
@@ -182,32 +337,42 @@ def fit_expression(
         raise FitError("no feature is marked for pose recovery (features[].pose = true)")
     obs_pose = project.observations(expression_name, pose_names)
     photo_ids = [p.id for p in photos]
-    pose_idx = np.array([feat_vertex[n] for n in pose_names])
-    pose = recover_poses(
-        obs_pose,
-        initial_cameras(photos),
-        mesh.vertices[pose_idx],
-        fixed_focal=opt.fixed_focal,
-        max_sweeps=opt.max_sweeps,
-        names=pose_names,
-        view_names=photo_ids,
-    )
-    check_cancel()
+    pose_dropped: list[str] = []
+    if source is not None:
+        # 1'. cameras of another expression (same rig): triangulate, keep its frame -------
+        cameras = source_cameras(project, expression_name, source)
+        pose, kept, pose_dropped = _fixed_camera_pose(cameras, obs_pose, pose_names, photo_ids)
+        pose_names = [n for n, k in zip(pose_names, kept, strict=True) if k]
+        pose_idx = np.array([feat_vertex[n] for n in pose_names])
+        pose_points = pose.points
+        check_cancel()
+    else:
+        pose_idx = np.array([feat_vertex[n] for n in pose_names])
+        pose = recover_poses(
+            obs_pose,
+            initial_cameras(photos),
+            mesh.vertices[pose_idx],
+            fixed_focal=opt.fixed_focal,
+            max_sweeps=opt.max_sweeps,
+            names=pose_names,
+            view_names=photo_ids,
+        )
+        check_cancel()
 
-    # 2. gauge: similarity onto the generic feature vertices ---------------------------
-    s, R, t = similarity_transform(pose.points, mesh.vertices[pose_idx])
-    cameras = transform_cameras(pose.cameras, s, R, t)
-    pose_points = pose.points @ (s * R).T + t
-    pose = PoseResult(
-        cameras=cameras,
-        points=pose_points,
-        iterations=pose.iterations,
-        converged=pose.converged,
-        rms_px=pose.rms_px,
-        per_view_rms_px=pose.per_view_rms_px,
-        per_point_rms_px=pose.per_point_rms_px,
-        residuals_px=pose.residuals_px,
-    )
+        # 2. gauge: similarity onto the generic feature vertices -----------------------
+        s, R, t = similarity_transform(pose.points, mesh.vertices[pose_idx])
+        cameras = transform_cameras(pose.cameras, s, R, t)
+        pose_points = pose.points @ (s * R).T + t
+        pose = PoseResult(
+            cameras=cameras,
+            points=pose_points,
+            iterations=pose.iterations,
+            converged=pose.converged,
+            rms_px=pose.rms_px,
+            per_view_rms_px=pose.per_view_rms_px,
+            per_point_rms_px=pose.per_point_rms_px,
+            residuals_px=pose.residuals_px,
+        )
 
     # 3. scattered-data interpolation from the pose features ----------------------------
     report_progress("deforming the generic mesh", 0.4)
@@ -265,7 +430,7 @@ def fit_expression(
             pts = np.concatenate([pose_points, targets.targets[[i for _, i in got]].reshape(-1, 3)])
             return vertices, targets, [n for n, _ in got], pts
 
-        if opt.bundle_all and extra:
+        if opt.bundle_all and extra and source is None:  # reused cameras stay fixed
             # 5. (beyond the paper) re-estimate the cameras with every triangulated point ----
             report_progress("re-estimating cameras with all points", 0.5)
             tri = triangulate(cameras, obs_extra)
@@ -296,9 +461,10 @@ def fit_expression(
 
     all_names = names
     report = build_report(photo_ids, cameras, pose, project, expression_name, all_names, points_3d)
-    report["dropped"] = dropped
+    report["dropped"] = pose_dropped + list(dropped)
     report["bundle"] = bundle_report
     report["curves"] = curve_report
+    report["cameras_from"] = source
     report_progress("done", 1.0)
     return FitResult(
         photo_ids=photo_ids,
@@ -309,6 +475,7 @@ def fit_expression(
         vertices=vertices,
         pose=pose,
         report=report,
+        cameras_from=source,
     )
 
 

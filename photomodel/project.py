@@ -20,7 +20,8 @@ finite numbers, got [12.0]``. The checks run in this order:
    package) — the single most relevant schema error is reported;
 4. cross-references the schema cannot express: unique names and photo ids, points / hidden
    features / curves that name defined features and curves, known camera presets, points
-   within reach of the photo, result cameras that are rotations of the right image size.
+   within reach of the photo, result cameras that are rotations of the right image size, and
+   ``cameras_from`` naming another expression without a cycle.
 
 Structure is validated with the :mod:`jsonschema` library rather than by hand: it is a kept,
 widely used validator whose errors carry JSON-pointer paths to the offending value (which is
@@ -251,11 +252,25 @@ class ExpressionResult:
 
 @dataclass
 class Expression:
-    """One facial expression: its photographs and, once fitted, its result."""
+    """One facial expression: its photographs and, once fitted, its result.
+
+    Attributes
+    ----------
+    name : str
+    photos : list[Photo]
+    result : ExpressionResult or None
+    cameras_from : str or None
+        Name of another expression of the project whose photos were taken with the same
+        cameras (the same rig, photo for photo by photo id, the head in the same place). The fit
+        then reuses that expression's fitted cameras instead of recovering its own
+        (:func:`photomodel.fit.fit_expression`), and its mesh lands in that expression's head
+        frame. None (default): the cameras are recovered from this expression's own clicks.
+    """
 
     name: str
     photos: list[Photo] = field(default_factory=list)
     result: ExpressionResult | None = None
+    cameras_from: str | None = None
 
     def photo(self, photo_id: str) -> Photo:
         """The photo with id ``photo_id``; :class:`ProjectError` listing the ids if absent."""
@@ -488,7 +503,10 @@ class Project:
                                for k in ordered(p.curves, curve_order)},
                 }
                 photos.append(pd)
-            ed: dict[str, Any] = {"name": expr.name, "photos": photos, "result": None}
+            ed: dict[str, Any] = {"name": expr.name}
+            if expr.cameras_from is not None:  # optional: files without it omit the key
+                ed["cameras_from"] = expr.cameras_from
+            ed["photos"], ed["result"] = photos, None
             if expr.result is not None:
                 r = expr.result
                 photo_order = {p.id: i for i, p in enumerate(expr.photos)}
@@ -919,6 +937,7 @@ def _cross_reference_problems(d: dict) -> list[tuple[str, str]]:
     problems += _duplicates(features, "features", "feature name")
     problems += _duplicates(curves, "curves", "curve name")
     problems += _duplicates([e["name"] for e in d["expressions"]], "expressions", "expression name")
+    problems += _cameras_from_problems(d["expressions"])
     fset, cset = set(features), set(curves)
     presets = sorted(PRESET_AZIMUTH_DEG)
 
@@ -985,6 +1004,35 @@ def _cross_reference_problems(d: dict) -> list[tuple[str, str]]:
     return problems
 
 
+def _cameras_from_problems(expressions: list[dict]) -> list[tuple[str, str]]:
+    """``cameras_from`` must name another expression of the project, without a cycle."""
+    problems: list[tuple[str, str]] = []
+    names = [e["name"] for e in expressions]
+    source = {e["name"]: e.get("cameras_from") for e in expressions}
+    for ei, e in enumerate(expressions):
+        src = e.get("cameras_from")
+        if src is None:
+            continue
+        at = f"expressions[{ei}].cameras_from"
+        if src == e["name"]:
+            problems.append((at, f"expression {src!r} cannot take its cameras from itself"))
+        elif src not in source:
+            problems.append((at, f"no expression named {src!r} to take the cameras from"
+                                 f"{_did_you_mean(src, [n for n in names if n != e['name']])}; "
+                                 f"expressions: {_listing(names)}"))
+        else:
+            chain, seen = [e["name"]], {e["name"]}
+            while src is not None and src in source and src not in seen:
+                chain.append(src)
+                seen.add(src)
+                src = source[src]
+            if src == e["name"]:
+                problems.append((at, "cameras_from goes round in a cycle ("
+                                     + " → ".join(chain + [src]) + "); one expression must recover its own "
+                                     "cameras"))
+    return problems
+
+
 def _duplicates(names: list[str], list_path: str, what: str, field_name: str = "name"):
     seen: dict[str, int] = {}
     out = []
@@ -1036,7 +1084,7 @@ def _expression_from_dict(e: dict) -> Expression:
         if t is not None:
             result.texture = TextureResult(size=t["size"], image=t["image"], weight_maps=t["weight_maps"],
                                            exports=t.get("exports", {}), report=_plain(t.get("report", {})))
-    return Expression(name=e["name"], photos=photos, result=result)
+    return Expression(name=e["name"], photos=photos, result=result, cameras_from=e.get("cameras_from"))
 
 
 # ---------------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ import hashlib
 import json
 import weakref
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -210,6 +210,32 @@ def scan_surface(scan: Scan) -> ScanSurface:
         _SURFACES[key] = ScanSurface(np.asarray(welded.vertices), np.asarray(welded.faces))
         weakref.finalize(scan, _SURFACES.pop, key, None)
     return _SURFACES[key]
+
+
+def deformed_scan(scan: Scan, vertices: np.ndarray, landmarks: np.ndarray | None = None) -> Scan:
+    """A copy of ``scan`` whose surface is moved to ``vertices`` (same triangles, texture
+    coordinates and texture): e.g. the scan in another facial expression.
+
+    The copy is a new :class:`~photomodel.sample_data.Scan` object, so its welded surface
+    (:func:`scan_surface`, used by :func:`surface_distance`, :func:`visible` and
+    :func:`dense_true_curve`) is built from the new vertices, not shared with ``scan``.
+
+    Parameters
+    ----------
+    scan : Scan
+    vertices : (n, 3) float mm, one per vertex of ``scan`` (vertices at the same OBJ position
+        must move together, as any displacement field of space does).
+    landmarks : (68, 3) float mm, optional; the moved landmarks (default: ``scan``'s).
+    """
+    from dataclasses import replace
+
+    V = _points3(vertices, "vertices")
+    if V.shape != np.shape(scan.vertices):
+        raise ValueError(f"vertices must be {np.shape(scan.vertices)} like the scan's, got {V.shape}")
+    L = np.asarray(scan.landmarks if landmarks is None else landmarks, float)
+    if L.shape != np.shape(scan.landmarks):
+        raise ValueError(f"landmarks must be {np.shape(scan.landmarks)}, got {L.shape}")
+    return replace(scan, vertices=V.copy(), landmarks=L.copy())
 
 
 def surface_distance(points: np.ndarray, scan: Scan) -> np.ndarray:
@@ -659,21 +685,41 @@ class GroundTruth:
     Attributes
     ----------
     cameras : dict expression → dict photo id → Camera, the true cameras.
-    clean_points : dict expression → dict photo id → dict feature → (2,) px, noise-free clicks.
-    features_3d : dict feature → (3,) mm, true positions on the scan (head frame).
+    clean_points : dict expression → dict photo id → dict feature → (2,) px, noise-free
+        projections of every feature (visible or not).
+    features_3d : dict feature → (3,) mm, true positions on the neutral scan (head frame).
+    noise_px : float, σ of the click noise.
+    expression_features_3d : dict expression → dict feature → (3,) mm, true positions in each
+        expression (the neutral's are :attr:`features_3d`), same head frame.
+    visible : dict expression → dict photo id → set of the features clicked there.
     """
 
     cameras: dict
     clean_points: dict
     features_3d: dict
     noise_px: float
+    expression_features_3d: dict = field(default_factory=dict)
+    visible: dict = field(default_factory=dict)
 
-    def true_points(self, names: Sequence[str]) -> np.ndarray:
-        """(n, 3) mm true positions of the named features."""
-        return np.array([self.features_3d[n] for n in names], dtype=float)
+    @property
+    def expressions(self) -> list[str]:
+        """The expressions of the project, in file order."""
+        return list(self.cameras)
+
+    def true_points(self, names: Sequence[str], expression: str | None = None) -> np.ndarray:
+        """(n, 3) mm true positions of the named features (in ``expression``; default neutral)."""
+        feats = self.features_3d if expression is None else self._expression_features(expression)
+        return np.array([feats[n] for n in names], dtype=float)
+
+    def _expression_features(self, expression: str) -> dict:
+        if expression in self.expression_features_3d:
+            return self.expression_features_3d[expression]
+        if expression in self.cameras and len(self.cameras) == 1:  # a file from before expressions
+            return self.features_3d
+        raise KeyError(f"no ground truth for expression {expression!r}; have {self.expressions}")
 
     def clean_observations(self, expression: str, photo_ids: Sequence[str], names: Sequence[str]):
-        """(k, n, 2) noise-free clicks, NaN where the feature is not visible."""
+        """(k, n, 2) noise-free projections of the features, NaN where the file has none."""
         out = np.full((len(photo_ids), len(names), 2), np.nan)
         for k, pid in enumerate(photo_ids):
             pts = self.clean_points[expression][pid]
@@ -686,11 +732,14 @@ class GroundTruth:
 def load_ground_truth(path) -> GroundTruth:
     """Read a ``ground_truth.json`` written by ``sample_projects/make_james.py``."""
     d = json.loads(Path(path).read_text())
-    cameras, clean = {}, {}
+    cameras, clean, per_expr, visible = {}, {}, {}, {}
     for expr, e in d["expressions"].items():
         cameras[expr] = {pid: Camera.from_dict(p["camera"]) for pid, p in e["photos"].items()}
         clean[expr] = {
             pid: {n: np.asarray(uv, float) for n, uv in p["points"].items()} for pid, p in e["photos"].items()
         }
+        visible[expr] = {pid: set(p.get("visible", ())) for pid, p in e["photos"].items()}
+        if "features_3d" in e:
+            per_expr[expr] = {n: np.asarray(x, float) for n, x in e["features_3d"].items()}
     feats = {n: np.asarray(x, float) for n, x in d["features_3d"].items()}
-    return GroundTruth(cameras, clean, feats, float(d["noise_px"]))
+    return GroundTruth(cameras, clean, feats, float(d["noise_px"]), per_expr, visible)

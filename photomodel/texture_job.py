@@ -194,8 +194,12 @@ def extract_texture(inputs: TextureInputs, size: int = 1024, *, face_mask: np.nd
                               progress=progress, cancel=cancel)
     seconds = time.perf_counter() - t0
     surface = int(tex.surface.sum())
+    c = tex.cylinder
     report = {"coverage": float(tex.coverage.sum() / max(surface, 1)), "extract_s": round(seconds, 3),
-              "photos": list(inputs.photo_ids), "single_view_fallback": single is not None}
+              "photos": list(inputs.photo_ids), "single_view_fallback": single is not None,
+              # the texture's parameterisation: the tracking model maps its vertices with it
+              "cylinder": {"centre": list(c.centre), "theta_cut": c.theta_cut, "phi_range": list(c.phi_range),
+                           "y_range": list(c.y_range)}}
     return TextureJob(inputs, int(size), tex, single, report)
 
 

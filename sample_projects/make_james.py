@@ -1,6 +1,6 @@
-"""Build the ``james`` sample project: synthetic photographs of a real head scan with
-an artist's clicks and curves, plus the ground truth that tests and benchmarks compare
-the fit against.
+"""Build the ``james`` sample project: synthetic photographs of a real head scan in five
+expressions with an artist's clicks and curves, plus the ground truth that tests and benchmarks
+compare the fit against.
 
 Run from the repository root::
 
@@ -11,16 +11,29 @@ It writes, into ``--out``:
 * ``photos/neutral_<id>.png`` — the textured james scan (:mod:`photomodel.sample_data`)
   rendered by :mod:`photomodel.render` from the 5-camera rig of
   :func:`photomodel.synthetic.rig` at 1000×1000 on a light grey background;
+* ``photos/<expression>_<id>.jpg`` for ``smile``, ``open_mouth``, ``brows_raised`` and
+  ``frown`` — the scan deformed by that expression's smooth field (:mod:`tracking.expressions`;
+  ``frown`` is the extra expression the sample video never uses) and photographed by the same
+  rig, the same cameras photo for photo. JPEG (quality :data:`JPEG_QUALITY`), as real cameras
+  write, to keep the repository small (2.7 MB for the 20; the neutral's PNGs predate them and
+  are kept byte for byte);
 * ``james.facestudio.json`` — the project (:mod:`photomodel.project`): the 13 initial
   features (``pose: true``), the other 55 iBUG landmarks and 100 extra correspondences
-  (``pose: false``), the generic mesh's curves, and one expression ``neutral`` whose
-  photos carry the nearest preset as the artist's rough guess, no focal guess, noisy
-  clicks (σ = 1 px) where visible and hand-drawn curves where (nearly) entirely visible;
-* ``ground_truth.json`` — true cameras, noise-free projections, visibility, true 3D
-  feature positions, the seed and the scan alignment. The fit never reads it.
+  (``pose: false``), the generic mesh's curves, and five expressions whose photos carry the
+  nearest preset as the artist's rough guess, no focal guess, noisy clicks (σ = 1 px) where
+  visible and hand-drawn curves where (nearly) entirely visible. The four non-neutral
+  expressions have ``cameras_from: "neutral"`` (one rig: the fit reuses the neutral's cameras);
+* ``ground_truth.json`` — per expression: true cameras (the same rig), noise-free projections,
+  visibility and true 3D feature positions (``features_3d``: the generic vertices' true positions
+  on the neutral scan plus the expression's displacement, the rows of
+  :func:`tracking.expressions.true_expression_geometry`); the top-level ``features_3d`` is the
+  neutral's; the seed and the scan alignment. The fit never reads it.
 
-Everything is deterministic (fixed seeds). With ``--overlays DIR`` the clicks and curves
-are also drawn over each photo to ``DIR/sample_overlay_<id>.png`` for a visual check.
+Everything is deterministic. The neutral's clicks and curves come from ``default_rng(SEED)``,
+each other expression's from its own ``default_rng([SEED, i])`` (``i`` its index in
+:data:`EXPRESSIONS`), so adding an expression changes no other. With ``--overlays DIR`` the
+clicks and curves are also drawn over each photo to ``DIR/sample_overlay_<expression>_<id>.png``
+for a visual check. :func:`expression_scan` gives the true surface of an expression.
 """
 
 from __future__ import annotations
@@ -38,10 +51,16 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 from photomodel import synthetic  # noqa: E402
+from photomodel.exchange.files import atomic_write_bytes  # noqa: E402
 from photomodel.generic_mesh import IBUG68_NAMES, load_generic_mesh  # noqa: E402
 from photomodel.project import CurveDef, Expression, Feature, Photo, new_project, save_project  # noqa: E402
 from photomodel.render import write_png  # noqa: E402
 from photomodel.sample_data import load_james_scan  # noqa: E402
+from tracking.expressions import (  # noqa: E402
+    deformed_scan_vertices,
+    expression_displacement,
+    true_expression_geometry,
+)
 
 SEED = 20020601  # clicks, curves and extra correspondences all derive from it
 NOISE_PX = 1.0  # σ of the click noise and RMS of the curve wobble (a careful artist)
@@ -58,7 +77,12 @@ CLICK_TOL_MM = synthetic.CLICK_TOL_MM
 #: Curves are traced along silhouettes too (the jaw line in a front view), so their
 #: visibility accepts surfaces seen edge-on (n·view > 0 rather than the clicks' 0.1).
 CURVE_MIN_COS = 0.0
-EXPRESSION = "neutral"
+#: The expressions photographed, neutral first; the others are the smooth deformations of the
+#: scan of :mod:`tracking.expressions` (its basic expressions and its extra one).
+NEUTRAL = "neutral"
+EXPRESSIONS = (NEUTRAL, "smile", "open_mouth", "brows_raised", "frown")
+#: JPEG quality of the expression photos (the neutral's are PNG, kept as first published).
+JPEG_QUALITY = 92
 PROJECT_FILE = "james.facestudio.json"
 GROUND_TRUTH_FILE = "ground_truth.json"
 
@@ -76,34 +100,45 @@ def feature_list(mesh, extras: dict[str, int]) -> list:
     return features
 
 
-def build(out: Path, overlays: Path | None = None) -> dict:
-    """Write the sample project into ``out``; returns a small summary dict."""
-    out = Path(out)
-    (out / "photos").mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(SEED)
-    scan = load_james_scan()
-    mesh = load_generic_mesh()
-    truth = synthetic.true_correspondence(mesh, scan)
+def expression_scan(scan, name: str):
+    """The james scan in expression ``name`` (:mod:`tracking.expressions`): a new
+    :class:`~photomodel.sample_data.Scan` with the deformed vertices and landmarks (its own
+    welded surface for visibility and surface distances); the scan itself for ``neutral``."""
+    if name == NEUTRAL:
+        return scan
+    vertices = deformed_scan_vertices(scan, [1.0], [name])
+    landmarks = scan.landmarks + expression_displacement(name, scan.landmarks, scan.landmarks)
+    return synthetic.deformed_scan(scan, vertices, landmarks)
 
-    extras = synthetic.extra_correspondences(mesh, N_EXTRAS, seed=SEED)
-    features = feature_list(mesh, extras)
-    names = [f.name for f in features]
-    points3d = truth[[f.vertex for f in features]]
 
-    cameras = synthetic.rig("sample", IMAGE_SIZE, IMAGE_SIZE)
-    ids = [synthetic.preset_for(c) for c in cameras]
-    if len(set(ids)) != len(ids):
-        raise RuntimeError(f"rig cameras map to repeated presets {ids}")
+def shoot(out: Path, expression: str, scan, cameras, ids, names, points3d, curve_points, rng, image_format: str):
+    """Photograph one expression with the rig and play the artist on the photos.
 
-    curve_names = list(mesh.curves)
-    dense_curves = {name: synthetic.dense_true_curve(truth[mesh.curves[name]], scan) for name in curve_names}
+    Parameters
+    ----------
+    scan : Scan, the head in this expression.
+    cameras, ids : the rig's true cameras and photo ids.
+    names, points3d : feature names and their true 3D positions (n, 3) mm in this expression.
+    curve_points : dict curve name → (m, 3) mm, the curve's generic vertices' true positions.
+    rng : the generator of this expression's clicks and curves.
+    image_format : ``"png"`` (lossless) or ``"jpg"`` (quality :data:`JPEG_QUALITY`).
+
+    Returns
+    -------
+    photos : list[Photo]; gt_photos : dict photo id → ground truth; vis : (k, n) bool.
+    """
+    dense_curves = {name: synthetic.dense_true_curve(pts, scan) for name, pts in curve_points.items()}
     depths, vis = [], []
-    gt_photos = {}
-    photos = []
+    paths = []
     for cam, pid in zip(cameras, ids, strict=True):
         # supersampled: anti-aliased silhouettes, like a photograph
         result = synthetic.render_scan(cam, scan, background=BACKGROUND_RGB, supersample=3)
-        write_png(out / "photos" / f"{EXPRESSION}_{pid}.png", result.color)
+        rel = f"photos/{expression}_{pid}.{image_format}"
+        if image_format == "png":
+            write_png(out / rel, result.color)
+        else:
+            atomic_write_bytes(out / rel, encode_jpeg(result.color, JPEG_QUALITY))
+        paths.append(rel)
         depth = np.asarray(result.depth, float)
         depths.append(depth)
         vis.append(
@@ -112,11 +147,11 @@ def build(out: Path, overlays: Path | None = None) -> dict:
     vis = np.array(vis)
     clicks = synthetic.synthesize_clicks(cameras, points3d, vis, NOISE_PX, rng)
 
+    photos, gt_photos = [], {}
     for i, (cam, pid) in enumerate(zip(cameras, ids, strict=True)):
         drawn = {}
         curve_visible = {}
-        for name in curve_names:
-            dense = dense_curves[name]
+        for name, dense in dense_curves.items():
             v = synthetic.visible(cam, dense, scan, depth=depths[i], min_cos=CURVE_MIN_COS)
             curve_visible[name] = round(float(v.mean()), 4)
             if v.mean() < MIN_CURVE_VISIBLE:
@@ -128,7 +163,7 @@ def build(out: Path, overlays: Path | None = None) -> dict:
         photos.append(
             Photo(
                 id=pid,
-                path=f"photos/{EXPRESSION}_{pid}.png",
+                path=paths[i],
                 width=IMAGE_SIZE,
                 height=IMAGE_SIZE,
                 preset=pid,
@@ -148,15 +183,75 @@ def build(out: Path, overlays: Path | None = None) -> dict:
             "curve_visible_fraction": curve_visible,
             "curves_drawn": sorted(drawn),
         }
-        if overlays is not None:
-            _overlay(out / photos[-1].path, photos[-1], features, overlays / f"sample_overlay_{pid}.png")
+    return photos, gt_photos, vis
 
+
+def encode_jpeg(image: np.ndarray, quality: int) -> bytes:
+    """JPEG bytes of an RGB float image in [0, 1] (rounded to 8 bits like the PNGs)."""
+    img = np.round(np.clip(np.asarray(image, float), 0.0, 1.0) * 255.0).astype(np.uint8)
+    ok, buf = cv2.imencode(".jpg", cv2.cvtColor(img, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise RuntimeError("OpenCV could not encode a JPEG")
+    return buf.tobytes()
+
+
+def build(out: Path, overlays: Path | None = None, expressions=EXPRESSIONS) -> dict:
+    """Write the sample project into ``out``; returns a small summary dict.
+
+    ``expressions`` (neutral first) picks which to shoot; each gets its own generator
+    (``default_rng(SEED)`` for the neutral, ``default_rng([SEED, i])`` for the ``i``-th of
+    :data:`EXPRESSIONS`), so adding one never changes another's clicks.
+    """
+    out = Path(out)
+    if tuple(expressions[:1]) != (NEUTRAL,):
+        raise ValueError(f"the neutral comes first (the others reuse its cameras), got {expressions}")
+    (out / "photos").mkdir(parents=True, exist_ok=True)
+    scan = load_james_scan()
+    mesh = load_generic_mesh()
+
+    extras = synthetic.extra_correspondences(mesh, N_EXTRAS, seed=SEED)
+    features = feature_list(mesh, extras)
+    names = [f.name for f in features]
+    vertex_ids = [f.vertex for f in features]
+
+    cameras = synthetic.rig("sample", IMAGE_SIZE, IMAGE_SIZE)
+    ids = [synthetic.preset_for(c) for c in cameras]
+    if len(set(ids)) != len(ids):
+        raise RuntimeError(f"rig cameras map to repeated presets {ids}")
+
+    curve_names = list(mesh.curves)
+    # every expression's true geometry on the generic mesh: neutral = the scan correspondence
+    geometry = true_expression_geometry(mesh, scan, tuple(expressions))
     project = new_project(
         "james",
         features=features,
         curves=[CurveDef(name, mesh.curves[name]) for name in curve_names],
     )
-    project.expressions.append(Expression(EXPRESSION, photos))
+    gt_expressions = {}
+    summary_clicks = {}
+    for k, expression in enumerate(expressions):
+        index = EXPRESSIONS.index(expression)
+        rng = np.random.default_rng(SEED if index == 0 else [SEED, index])
+        truth = geometry[k]
+        points3d = truth[vertex_ids]
+        photos, gt_photos, vis = shoot(
+            out, expression, expression_scan(scan, expression), cameras, ids, names, points3d,
+            {name: truth[mesh.curves[name]] for name in curve_names}, rng,
+            "png" if expression == NEUTRAL else "jpg",
+        )  # fmt: skip
+        if overlays is not None:
+            for photo in photos:
+                _overlay(out / photo.path, photo, features, overlays / f"sample_overlay_{expression}_{photo.id}.png")
+        project.expressions.append(
+            Expression(expression, photos, cameras_from=None if expression == NEUTRAL else NEUTRAL)
+        )
+        gt_expressions[expression] = {
+            "deformation": "none" if expression == NEUTRAL else f"tracking.expressions, {expression!r}",
+            "features_3d": {n: np.round(points3d[j], 5).tolist() for j, n in enumerate(names)},
+            "photos": gt_photos,
+        }
+        summary_clicks[expression] = {pid: int(vis[i].sum()) for i, pid in enumerate(ids)}
+
     project_path = out / PROJECT_FILE
     project_path.unlink(missing_ok=True)  # a fresh build: no .bak of an older one
     save_project(project, project_path)
@@ -178,17 +273,21 @@ def build(out: Path, overlays: Path | None = None) -> dict:
             "translation_mm": np.asarray(t).tolist(),
         },
         "correspondence_version": synthetic.CORRESPONDENCE_VERSION,
-        "features_3d": {n: np.round(points3d[j], 5).tolist() for j, n in enumerate(names)},
-        "expressions": {EXPRESSION: {"photos": gt_photos}},
+        "features_3d": gt_expressions[NEUTRAL]["features_3d"],
+        "expressions": gt_expressions,
     }
     (out / GROUND_TRUTH_FILE).write_text(json.dumps(ground_truth, indent=1) + "\n")
 
     size = sum(p.stat().st_size for p in out.rglob("*") if p.is_file())
+    photo_bytes = {
+        e: sum((out / p.path).stat().st_size for p in project.expression(e).photos) for e in expressions
+    }
     return {
         "photos": ids,
         "features": len(features),
-        "clicks_per_photo": {pid: int(vis[i].sum()) for i, pid in enumerate(ids)},
-        "curves_per_photo": {p.id: sorted(p.curves) for p in photos},
+        "clicks_per_photo": summary_clicks,
+        "curves_per_photo": {e.name: {p.id: len(p.curves) for p in e.photos} for e in project.expressions},
+        "photo_bytes": photo_bytes,
         "folder_bytes": size,
     }
 

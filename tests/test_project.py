@@ -606,3 +606,62 @@ def test_texture_validation_names_the_field(tmp_path, mutate, expected):
     with pytest.raises(ProjectError) as exc:
         _load_dict(tmp_path, d)
     assert expected in str(exc.value)
+
+
+# ---------------------------------------------------------------------------------------
+# cameras_from: an expression photographed by another expression's cameras
+# ---------------------------------------------------------------------------------------
+def test_cameras_from_round_trip_and_absent_when_none(tmp_path, saved):
+    _, d = saved
+    assert all("cameras_from" not in e for e in d["expressions"])  # files without it are unchanged
+    p = _project(tmp_path)
+    p.expression("smile").cameras_from = "neutral"
+    save_project(p)
+    d = json.loads(p.path.read_text())
+    assert d["expressions"][1]["cameras_from"] == "neutral"
+    assert list(d["expressions"][1])[:2] == ["name", "cameras_from"]  # readable: next to the name
+    q = load_project(p.path)
+    assert q == p and q.expression("smile").cameras_from == "neutral"
+    assert q.expression("neutral").cameras_from is None
+    d["expressions"][1]["cameras_from"] = None  # an explicit null is the default
+    assert _load_dict(tmp_path, d).expression("smile").cameras_from is None
+
+
+@pytest.mark.parametrize("mutate, expected", [
+    (lambda d: d["expressions"][1].__setitem__("cameras_from", "neutal"),
+     ["expressions[1].cameras_from: no expression named 'neutal' to take the cameras from",
+      "did you mean 'neutral'"]),
+    (lambda d: d["expressions"][1].__setitem__("cameras_from", "smile"),
+     ["expressions[1].cameras_from: expression 'smile' cannot take its cameras from itself"]),
+    (lambda d: (d["expressions"][0].__setitem__("cameras_from", "smile"),
+                d["expressions"][1].__setitem__("cameras_from", "neutral")),
+     ["expressions[0].cameras_from: cameras_from goes round in a cycle (neutral → smile → neutral)",
+      "expressions[1].cameras_from: cameras_from goes round in a cycle (smile → neutral → smile)"]),
+    (lambda d: d["expressions"][1].__setitem__("cameras_from", 3),
+     ["expressions[1].cameras_from: expected null or the name of another expression"]),
+    (lambda d: d["expressions"][1].__setitem__("cameras_from", ""),
+     ["expressions[1].cameras_from: expected a non-empty name"]),
+])
+def test_malformed_cameras_from_names_the_field(tmp_path, saved, mutate, expected):
+    _, d = saved
+    mutate(d)
+    with pytest.raises(ProjectError) as ei:
+        _load_dict(tmp_path, d)
+    for s in expected:
+        assert s in str(ei.value), f"{s!r} not in {str(ei.value)!r}"
+
+
+def test_cameras_from_chain_without_cycle_is_valid(tmp_path, saved):
+    _, d = saved
+    d["expressions"].append({"name": "frown", "cameras_from": "smile", "photos": []})
+    d["expressions"][1]["cameras_from"] = "neutral"
+    p = _load_dict(tmp_path, d)
+    assert [e.cameras_from for e in p.expressions] == [None, "neutral", "smile"]
+
+
+def test_invalid_cameras_from_is_not_saved(tmp_path):
+    p = _project(tmp_path)
+    p.expression("smile").cameras_from = "grin"
+    with pytest.raises(ProjectError, match="no expression named 'grin'"):
+        save_project(p)
+    assert not p.path.exists()

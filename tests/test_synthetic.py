@@ -13,7 +13,9 @@ from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, orbit_camera
 from photomodel.generic_mesh import load_generic_mesh
 from photomodel.project import load_project
 from photomodel.sample_data import load_james_scan
+from tracking.expressions import deformed_scan_vertices, expression_displacement, true_expression_geometry
 
+EXPRESSIONS = ("smile", "open_mouth", "brows_raised", "frown")
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
 
@@ -238,21 +240,33 @@ def test_sample_project_loads(sample, mesh):
     assert all(p.focal_mm_guess is None and p.preset == p.id for p in expr.photos)
     assert {c.name for c in project.curves} == set(mesh.curves)
     assert "chin" in expr.photo("front").curves
+    # the other expressions: same rig (photo ids), JPEG photos, the neutral's cameras reused
+    assert [e.name for e in project.expressions] == ["neutral", *EXPRESSIONS]
+    for e in project.expressions[1:]:
+        assert [p.id for p in e.photos] == ids and e.cameras_from == "neutral"
+        assert all(p.path == f"photos/{e.name}_{p.id}.jpg" for p in e.photos)
     size = sum(p.stat().st_size for p in SAMPLE.rglob("*") if p.is_file())
-    assert size < 6e6, "the sample project must stay small"
+    # measured: 4.2 MB of neutral PNGs, 2.7 MB for the 20 expression JPEGs (quality 92), 0.7 MB
+    # of JSON, 0.15 MB of video
+    jpeg = sum(project.photo_path(p).stat().st_size for e in project.expressions[1:] for p in e.photos)
+    assert jpeg < 4e6 and size < 9e6, "the sample project must stay small"
 
 
 def test_sample_clicks_agree_with_ground_truth(sample):
-    project, gt = sample
+    for expression in ["neutral", *EXPRESSIONS]:
+        _clicks_agree_with_ground_truth(*sample, expression)
+
+
+def _clicks_agree_with_ground_truth(project, gt, expression):
     names = project.feature_names()
-    obs = project.observations("neutral")
+    obs = project.observations(expression)
     errors = []
-    for i, photo in enumerate(project.expression("neutral").photos):
-        g = gt["expressions"]["neutral"]["photos"][photo.id]
+    for i, photo in enumerate(project.expression(expression).photos):
+        g = gt["expressions"][expression]["photos"][photo.id]
         clicked = [n for n in names if n in photo.points]
         assert clicked == [n for n in names if n in g["visible"]]
         cam = Camera.from_dict(g["camera"])
-        true3d = np.array([gt["features_3d"][n] for n in names])
+        true3d = np.array([gt["expressions"][expression]["features_3d"][n] for n in names])
         exact = np.array([g["points"][n] for n in names])
         np.testing.assert_allclose(cam.project(true3d), exact, atol=1e-3)  # file rounding
         seen = ~np.isnan(obs[i, :, 0])
@@ -274,13 +288,64 @@ def test_sample_ground_truth_is_current(sample, mesh, scan, truth):
         np.testing.assert_allclose(ref.t, cam.t, atol=1e-9)
     for f in project.features:
         np.testing.assert_allclose(gt["features_3d"][f.name], truth[f.vertex], atol=1e-4)
+    # every expression: the same rig, and the features where the expression field moves them
+    geometry = true_expression_geometry(mesh, scan, ("neutral", *EXPRESSIONS))
+    for k, expression in enumerate(("neutral", *EXPRESSIONS)):
+        g = gt["expressions"][expression]
+        for cam, (pid, p) in zip(synthetic.rig("sample"), g["photos"].items(), strict=True):
+            assert synthetic.preset_for(cam) == pid
+            np.testing.assert_allclose(Camera.from_dict(p["camera"]).R, cam.R, atol=1e-12)
+        for f in project.features:
+            np.testing.assert_allclose(g["features_3d"][f.name], geometry[k, f.vertex], atol=1e-4)
 
 
-def test_sample_curves_follow_the_true_curves(sample, mesh, scan, truth):
+@pytest.mark.parametrize("expression", ["neutral", "open_mouth"])
+def test_sample_curves_follow_the_true_curves(expression, sample, mesh, scan):
     project, gt = sample
-    for photo in project.expression("neutral").photos:
-        cam = Camera.from_dict(gt["expressions"]["neutral"]["photos"][photo.id]["camera"])
+    k = 0 if expression == "neutral" else 1
+    truth = true_expression_geometry(mesh, scan, ("neutral", expression))[k]
+    surface = _expression_scan(scan, expression)
+    for photo in project.expression(expression).photos:
+        cam = Camera.from_dict(gt["expressions"][expression]["photos"][photo.id]["camera"])
         for name, stroke in photo.curves.items():
-            proj = cam.project(synthetic.dense_true_curve(truth[mesh.curves[name]], scan))
+            proj = cam.project(synthetic.dense_true_curve(truth[mesh.curves[name]], surface))
             gap = np.linalg.norm(stroke[:, None] - proj[None], axis=2).min(axis=1)
             assert gap.max() < 4.5, f"{photo.id}/{name}"  # wobble RMS 1 px per axis
+
+
+def _expression_scan(scan, name):
+    if name == "neutral":
+        return scan
+    landmarks = scan.landmarks + expression_displacement(name, scan.landmarks, scan.landmarks)
+    return synthetic.deformed_scan(scan, deformed_scan_vertices(scan, [1.0], [name]), landmarks)
+
+
+def test_deformed_scan_has_its_own_surface(scan):
+    """A scan in another expression: new vertices, its own welded surface, the original intact."""
+    before = scan.vertices.copy()
+    assert synthetic.surface_distance(scan.vertices[:50], scan).max() < 1e-9  # builds the neutral's surface
+    moved = _expression_scan(scan, "open_mouth")
+    assert moved is not scan
+    np.testing.assert_array_equal(moved.faces, scan.faces)
+    np.testing.assert_array_equal(scan.vertices, before)
+    chin = np.argmin(np.linalg.norm(scan.vertices - scan.landmarks[8], axis=1))  # iBUG 8: the chin
+    assert np.linalg.norm(moved.vertices[chin] - scan.vertices[chin]) > 5.0  # the jaw dropped
+    # distances are measured to the moved surface, not to the cached neutral one
+    assert synthetic.surface_distance(moved.vertices, moved).max() < 1e-9
+    assert synthetic.surface_distance(moved.vertices[[chin]], scan)[0] > 3.0
+    with pytest.raises(ValueError, match="vertices must be"):
+        synthetic.deformed_scan(scan, scan.vertices[:10])
+
+
+def test_ground_truth_per_expression():
+    gt = synthetic.load_ground_truth(SAMPLE / "ground_truth.json")
+    assert gt.expressions == ["neutral", *EXPRESSIONS]
+    names = ["chin", "nose_tip", "brow_r_mid"]
+    np.testing.assert_array_equal(gt.true_points(names), gt.true_points(names, "neutral"))  # old API: neutral
+    drop = gt.true_points(["chin"], "open_mouth") - gt.true_points(["chin"])
+    assert drop[0, 1] < -10.0  # the chin moves ~17 mm down (tracking.expressions.JAW_ANGLE_DEG)
+    # the smile's Gaussian falloff (σ 11 mm about the mouth corners) leaves the nose tip in place
+    np.testing.assert_allclose(gt.true_points(["nose_tip"], "smile"), gt.true_points(["nose_tip"]), atol=1e-3)
+    assert gt.visible["smile"]["front"] and gt.cameras["frown"].keys() == gt.cameras["neutral"].keys()
+    with pytest.raises(KeyError, match="no ground truth for expression 'grin'"):
+        gt.true_points(["chin"], "grin")
