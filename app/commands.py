@@ -167,13 +167,14 @@ class SetPresetCommand(QUndoCommand):
 
 
 class AddExpressionCommand(QUndoCommand):
-    """Add an (empty) expression and make it current."""
+    """Add an (empty) expression and make it current; ``cameras_from``: the expression whose
+    fitted cameras it reuses (photographed by the same rig), or None."""
 
-    def __init__(self, model: StudioModel, name: str):
+    def __init__(self, model: StudioModel, name: str, cameras_from: str | None = None):
         super().__init__(f"Add expression {name}")
         self.model, self.name = model, name
         self.previous = model.expression_name
-        self.expression = Expression(name=name)
+        self.expression = Expression(name=name, cameras_from=cameras_from)
 
     def redo(self):
         self.model.add_expression(self.name, expression=self.expression)

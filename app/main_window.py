@@ -573,11 +573,22 @@ class MainWindow(QMainWindow):
 
     def new_expression_dialog(self):
         name, ok = QInputDialog.getText(self, "New expression", "Name of the expression (e.g. smile):")
-        if ok and name.strip():
-            try:
-                self.undo_stack.push(AddExpressionCommand(self.model, name.strip()))
-            except FaceStudioError as exc:
-                self.show_error("Cannot add the expression", str(exc))
+        if not (ok and name.strip()):
+            return
+        # the paper photographs every expression with the same cameras: offer to reuse theirs
+        cameras_from = None
+        others = [e.name for e in self.model.project.expressions]
+        if others:
+            own = "its own cameras (recovered from its clicks)"
+            choices = [f"the cameras of {o!r} (the same rig)" for o in others] + [own]
+            choice, ok = QInputDialog.getItem(self, "New expression", "Photographed with:", choices, 0, False)
+            if not ok:
+                return
+            cameras_from = None if choice == own else others[choices.index(choice)]
+        try:
+            self.undo_stack.push(AddExpressionCommand(self.model, name.strip(), cameras_from=cameras_from))
+        except FaceStudioError as exc:
+            self.show_error("Cannot add the expression", str(exc))
 
     def _on_expr_combo(self, index: int):
         name = self.expr_combo.itemData(index)
@@ -884,6 +895,14 @@ class MainWindow(QMainWindow):
         if self.model.path is None:
             self.show_error("Cannot track", "save the project first: tracking reads the project file")
             return False
+        if self.model.modified:  # the face model is built from the saved fits and textures
+            answer = QMessageBox.question(
+                self, "Save before tracking",
+                "Tracking builds the face model from the saved project (its fitted meshes and textures). "
+                "Save the changes now?",
+                QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Cancel, QMessageBox.StandardButton.Save)
+            if answer != QMessageBox.StandardButton.Save or not self.save():
+                return False
         start = str(Path(self.model.path).parent / "video")
         path, _ = QFileDialog.getOpenFileName(self, "Track video", start,
                                               "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)")

@@ -51,7 +51,14 @@ from photomodel.camera import rotation_angle_deg  # noqa: E402
 from tracking.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS  # noqa: E402
 from tracking.facemodel import render_model  # noqa: E402
 from tracking.fit import FrameFitter, FrameState, TrackOptions, pose_from_clicks, track_frames  # noqa: E402
-from tracking.samples import BACKGROUND_RGB, render_video_frame, sample_face_model, video_truth  # noqa: E402
+from tracking.samples import (  # noqa: E402
+    BACKGROUND_RGB,
+    fitted_sample_model,
+    model_gauge,
+    render_video_frame,
+    sample_face_model,
+    video_truth,
+)
 
 
 def _device() -> str:
@@ -89,14 +96,14 @@ def frames_for(name: str, truth, model) -> list[np.ndarray]:
 GEOM_SUBSAMPLE = 4
 
 
-def true_surface(name: str, truth, true_model, i: int):
+def true_surface(name: str, truth, model, i: int):
     """ScanSurface of frame ``i``'s true geometry (head frame): the model's own mesh for (a), the
     deformed scan that the video shows for (b)–(e)."""
     from photomodel.synthetic import ScanSurface
     from tracking.samples import true_scan_vertices
 
     if name == "a":
-        return ScanSurface(true_model.blend_geometry(true_model.vertex_weights(truth.weights[i])), true_model.faces)
+        return ScanSurface(model.blend_geometry(model.vertex_weights(truth.weights[i])), model.faces)
     return ScanSurface(*true_scan_vertices(truth, i))
 
 
@@ -113,37 +120,37 @@ def first_pose(model, true_model, truth):
 
 def run_sequence(name: str, frames: int, options: TrackOptions | None = None) -> dict:
     truth = video_truth(frames)
-    true_model = sample_face_model(EXPRESSION_NAMES)
-    model = sample_face_model(EXPRESSION_NAMES + EXTRA_EXPRESSIONS) if name == "e" else true_model
-    imgs = frames_for(name, truth, true_model)
+    fitted = fitted_sample_model(EXPRESSION_NAMES)
+    model = fitted_sample_model(EXPRESSION_NAMES + EXTRA_EXPRESSIONS) if name == "e" else fitted
+    # the truth: (a) the fitted model itself (its frame is the true one); (b)–(e) the james scan
+    true_model = fitted if name == "a" else sample_face_model(EXPRESSION_NAMES)
+    s_g, R_g, t_g = (1.0, np.eye(3), np.zeros(3)) if name == "a" else model_gauge(model)
+    imgs = frames_for(name, truth, fitted)
     first = first_pose(model, true_model, truth)
     fitter = FrameFitter(model, truth.focal_px, truth.width, truth.height, options)
     t0 = time.perf_counter()
     results = track_frames(fitter, imgs, first)
     elapsed = time.perf_counter() - t0
-    c = true_model.centre
-    face = np.flatnonzero(true_model.face_mask)
+    c = model.centre
+    c_true = s_g * R_g @ c + t_g  # the model's centre in the true head frame
+    face = np.flatnonzero(model.face_mask)
     rot, trans, geom, v2v, rms, diverged = [], [], [], [], [], 0
     for i, res in enumerate(results):
-        R, t = truth.R[i], truth.t[i] + truth.R[i] @ c
-        rot.append(rotation_angle_deg(res.state.R, R))
-        trans.append(float(np.linalg.norm(res.state.t - t)))
+        R = truth.R[i]
+        rot.append(rotation_angle_deg(res.state.R, R @ R_g))
+        trans.append(float(np.linalg.norm(s_g * res.state.t - (R @ c_true + truth.t[i]))))
+        Pe = s_g * ((model.geometry_at(res.state.alpha) - c) @ res.state.R.T + res.state.t)  # tracked, camera mm
+        head = (Pe - truth.t[i]) @ R  # ... in the true head frame
         Xt = true_model.blend_geometry(true_model.vertex_weights(truth.weights[i]))
-        Xe = model.geometry_at(res.state.alpha)
-        Pt = (Xt - c) @ R.T + t
-        Pe = (Xe - model.centre) @ res.state.R.T + res.state.t  # tracked mesh, camera mm
-        v2v.append(float(np.linalg.norm(Pt - Pe, axis=1)[face].mean()))
-        # surface distance: the tracked face vertices, taken to the true head frame, to the true
-        # surface of the frame
-        P = Pe[face[::GEOM_SUBSAMPLE]]
-        geom.append(float(true_surface(name, truth, true_model, i).closest((P - truth.t[i]) @ R)[1].mean()))
+        v2v.append(float(np.linalg.norm(head - Xt, axis=1)[face].mean()))
+        geom.append(float(true_surface(name, truth, true_model, i).closest(head[face[::GEOM_SUBSAMPLE]])[1].mean()))
         rms.append(res.rms)
         diverged += int(res.diverged or rot[-1] > 5.0 or trans[-1] > 20.0)
     return {
         "name": name, "frames": len(results), "fps": len(results) / elapsed,
         "rot_err_deg": float(np.mean(rot)), "trans_err_mm": float(np.mean(trans)),
         "geom_err_mm": float(np.mean(geom)), "image_rms": float(np.mean(rms)), "diverged_frames": diverged,
-        "geom_vertex_err_mm": float(np.mean(v2v)),
+        "geom_vertex_err_mm": float(np.mean(v2v)), "model_scale": float(s_g),
         "evaluations_per_frame": float(np.mean([r.evaluations for r in results])),
     }  # fmt: skip
 
@@ -156,7 +163,7 @@ def jacobian_accuracy(frames: int = 4) -> list[dict]:
     import cv2
 
     truth = video_truth(max(frames, 2))
-    model = sample_face_model(EXPRESSION_NAMES)
+    model = sample_face_model(EXPRESSION_NAMES)  # at the true parameters: the true model
     fitter = FrameFitter(model, truth.focal_px, truth.width, truth.height)
     rows = []
     for phase, filtered in (("pose", False), ("expression", True)):
@@ -192,6 +199,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=20)
     ap.add_argument("--sequences", default="abcde")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--outside-weight", type=float, default=None,
+                    help="TrackOptions.outside_weight (default: the tracker's; 1.0 = the paper's ε)")
     ap.add_argument("--jacobians", action="store_true",
                     help="compare analytic and finite-difference Jacobians per phase on sequence b")  # fmt: skip
     args = ap.parse_args(argv)
@@ -206,7 +215,8 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(r)
         extra["jacobians"] = jacobian_accuracy()
     else:
-        rows = [run_sequence(s, args.frames) for s in args.sequences]
+        options = None if args.outside_weight is None else TrackOptions(outside_weight=args.outside_weight)
+        rows = [run_sequence(s, args.frames, options) for s in args.sequences]
     if args.json:
         print(json.dumps({"device": _device(), "sequences": rows, **extra}))
         return 0

@@ -13,7 +13,7 @@ import pytest
 
 from app.cli import main
 from photomodel.camera import rotation_angle_deg
-from photomodel.errors import FitError
+from photomodel.errors import FitError, ProjectError
 from photomodel.exchange.files import decode_png
 from photomodel.project import load_project, new_project
 from tracking.batch import (
@@ -25,7 +25,7 @@ from tracking.batch import (
     project_face_model,
     track_video,
 )
-from tracking.samples import VideoTruth, sample_face_model
+from tracking.samples import VideoTruth, fitted_sample_model, model_gauge, sample_face_model
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 PROJECT = SAMPLE / "james.facestudio.json"
@@ -39,10 +39,10 @@ def truth():
 
 
 @pytest.fixture(scope="module")
-def straight(tmp_path_factory):
+def straight(tmp_path_factory, fitted_sample):
     """One uninterrupted run over the first FRAMES frames, with plots and the overlay video."""
     out = tmp_path_factory.mktemp("straight")
-    return track_video(PROJECT, VIDEO, out, max_frames=FRAMES)
+    return track_video(fitted_sample, VIDEO, out, max_frames=FRAMES)
 
 
 def test_results_are_valid_and_follow_the_true_motion(straight, truth):
@@ -52,10 +52,11 @@ def test_results_are_valid_and_follow_the_true_motion(straight, truth):
     assert [f["frame"] for f in doc["frames"]] == list(range(FRAMES))
     assert doc["video"]["width"] == doc["video"]["height"] == 300 and doc["video"]["frames"] == 40
     assert doc["camera"]["focal_px"] == truth.focal_px
-    assert doc["model"]["source"].startswith("sample:")
-    assert doc["model"]["expressions"] == list(truth.names)
+    assert doc["model"]["source"].startswith("project:")
+    assert doc["model"]["expressions"][0] == "neutral" and set(truth.names) <= set(doc["model"]["expressions"])
     assert "clicked features" in doc["first_pose"]["source"]
-    model = sample_face_model()
+    model = fitted_sample_model(tuple(doc["model"]["expressions"]))
+    s, Rg, tg = model_gauge(model)  # the fitted model's frame and scale → the truth's
     for f in doc["frames"]:
         i = f["frame"]
         R = np.array(f["R"])
@@ -64,12 +65,18 @@ def test_results_are_valid_and_follow_the_true_motion(straight, truth):
         np.testing.assert_allclose(np.array(f["centre_mm"]), R @ model.centre + f["t_mm"], atol=1e-9)
         for r, ws in f["weights"].items():
             assert abs(sum(ws.values()) - 1.0) < 1e-9, r
-        assert not f["diverged"] and 0 < f["rms"] < 0.05
+        # the model from photos reproduces a frame to ~0.065 RMS at the true parameters
+        # (tests/test_project_model.py); divergence is flagged above 0.12
+        assert not f["diverged"] and 0 < f["rms"] < 0.08
         # the tracker on the real pipeline's video (not a test of fit accuracy, which test_track_fit
-        # pins): the sample video starts from 13 clicks with 0.5 px noise; the first frames were
-        # measured within 0.3° and 1 mm; 1° and 3 mm say the batch feeds the fitter correctly
-        assert rotation_angle_deg(R, truth.R[i]) < 1.0
-        assert np.linalg.norm(np.array(f["centre_mm"]) - (truth.t[i] + truth.R[i] @ model.centre)) < 3.0
+        # pins): the sample video starts from 13 clicks with 0.5 px noise. The model from photos
+        # is 1/s the scan's size (the generic mesh fixes its scale; s ≈ 1.13) and so seen 1/s as
+        # far: its centre, scaled by s, lands within ~4 mm (0.6 %) of the truth at ~600 mm, mostly
+        # in depth, where the gauge's scale is known to ~0.5 %; 1° and 8 mm say the batch feeds
+        # the fitter correctly
+        assert rotation_angle_deg(R, truth.R[i] @ Rg) < 1.0
+        centre = truth.t[i] + truth.R[i] @ (s * Rg @ model.centre + tg)
+        assert np.linalg.norm(s * np.array(f["centre_mm"]) - centre) < 8.0
         smile = f["weights"]["mouth"]["smile"]
         assert abs(smile - truth.weights[i, 1, 1]) < 0.1  # smile rises 0.04 → 0.29 over these frames
 
@@ -113,7 +120,7 @@ def test_plots_and_overlay_are_written(straight, tmp_path):
     assert ((g[..., 1] > 150) & (g[..., 0] < 120) & (g[..., 2] < 120)).sum() > 200
 
 
-def test_ctrl_c_and_cancel_save_valid_results_and_a_rerun_continues(straight, tmp_path, capsys):
+def test_ctrl_c_and_cancel_save_valid_results_and_a_rerun_continues(straight, tmp_path, capsys, fitted_sample):
     out = tmp_path / "run"
     seen = []
 
@@ -123,17 +130,17 @@ def test_ctrl_c_and_cancel_save_valid_results_and_a_rerun_continues(straight, tm
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        track_video(PROJECT, VIDEO, out, max_frames=FRAMES, progress=interrupt_after_two, overlay=False)
+        track_video(fitted_sample, VIDEO, out, max_frames=FRAMES, progress=interrupt_after_two, overlay=False)
     doc = load_track_results(out)
     assert [f["frame"] for f in doc["frames"]] == [0, 1] and not doc["complete"]
     assert len((out / "track.csv").read_text().splitlines()) == 1 + 2
     # a rerun continues; cancel() after its first frame (the third) stops it with three saved
-    res = track_video(PROJECT, VIDEO, out, max_frames=FRAMES, cancel=lambda: True, overlay=False)
+    res = track_video(fitted_sample, VIDEO, out, max_frames=FRAMES, cancel=lambda: True, overlay=False)
     assert res.cancelled and res.resumed_from == 2 and res.tracked == 1 and not res.complete
     assert len(load_track_results(out)["frames"]) == 3
     assert (out / "weights.png").is_file()  # plots of what is there, even when cancelled
     # the command continues to the end: frames 3..5, prediction restored from the saved frames 1, 2
-    assert main(["track", str(PROJECT), "--video", str(VIDEO), "--out", str(out), "--frames", str(FRAMES),
+    assert main(["track", str(fitted_sample), "--video", str(VIDEO), "--out", str(out), "--frames", str(FRAMES),
                  "--no-overlay", "--json"]) == 0  # fmt: skip
     summary = json.loads(capsys.readouterr().out)
     assert summary["resumed_from"] == 3 and summary["tracked"] == 3 and summary["frames"] == FRAMES
@@ -148,7 +155,7 @@ def test_ctrl_c_and_cancel_save_valid_results_and_a_rerun_continues(straight, tm
         assert abs(a["rms"] - b["rms"]) < 1e-6
 
 
-def test_a_frame_folder_tracks_like_the_video(straight, tmp_path):
+def test_a_frame_folder_tracks_like_the_video(straight, tmp_path, fitted_sample):
     folder = tmp_path / "frames"
     folder.mkdir()
     for i, frame in VideoFrames(VIDEO).frames(0, 2):  # lossless copies of the decoded frames
@@ -156,7 +163,7 @@ def test_a_frame_folder_tracks_like_the_video(straight, tmp_path):
                                                                  cv2.COLOR_RGB2BGR))  # fmt: skip
     # f8 before f9 in natural order (and f10 would come after f9)
     shutil.copy(VIDEO.with_name("james_track.first_pose.json"), folder / "first_pose.json")
-    res = track_video(PROJECT, folder, tmp_path / "out", overlay=False, plots=False)
+    res = track_video(fitted_sample, folder, tmp_path / "out", overlay=False, plots=False)
     doc = load_track_results(res.out_dir)
     assert doc["complete"] and doc["video"]["kind"] == "frames" and len(doc["frames"]) == 2
     for a, b in zip(doc["frames"], straight.frames, strict=False):
@@ -164,7 +171,7 @@ def test_a_frame_folder_tracks_like_the_video(straight, tmp_path):
 
 
 @pytest.mark.parametrize("kind", ["missing", "corrupt", "empty_folder", "bad_frame"])
-def test_unreadable_video_is_named(tmp_path, kind):
+def test_unreadable_video_is_named(tmp_path, kind, fitted_sample):
     if kind == "missing":
         path, words = tmp_path / "nope.mp4", "does not exist"
     elif kind == "corrupt":
@@ -178,22 +185,22 @@ def test_unreadable_video_is_named(tmp_path, kind):
         path.mkdir()
         (path / "0001.png").write_bytes(b"garbage")
     with pytest.raises(VideoError, match=words) as err:
-        track_video(PROJECT, path, tmp_path / "out")
+        track_video(fitted_sample, path, tmp_path / "out")
     assert str(path.name) in str(err.value)
 
 
-def test_cli_reports_a_bad_video_with_exit_code_2(tmp_path, capsys):
-    assert main(["track", str(PROJECT), "--video", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o")]) == 2
+def test_cli_reports_a_bad_video_with_exit_code_2(tmp_path, capsys, fitted_sample):
+    assert main(["track", str(fitted_sample), "--video", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o")]) == 2
     assert "none.mp4 does not exist" in capsys.readouterr().err
 
 
-def test_other_settings_in_the_folder_are_refused(straight):
+def test_other_settings_in_the_folder_are_refused(straight, fitted_sample):
     with pytest.raises(Exception, match="other settings .*camera"):
-        track_video(PROJECT, VIDEO, straight.out_dir, max_frames=FRAMES, focal_px=500.0)
+        track_video(fitted_sample, VIDEO, straight.out_dir, max_frames=FRAMES, focal_px=500.0)
 
 
-def test_first_pose_files(truth, tmp_path):
-    project = load_project(PROJECT)
+def test_first_pose_files(truth, tmp_path, fitted_sample):
+    project = load_project(fitted_sample)
     model = sample_face_model()
     R, t = truth.R[0], truth.t[0]
     fp = load_first_pose({"focal_px": 560.0, "R": R.tolist(), "t_mm": t.tolist(),
@@ -221,8 +228,11 @@ def test_first_pose_files(truth, tmp_path):
         load_first_pose(tmp_path / "missing.json", project, model, 300, 300)
 
 
-def test_only_the_sample_project_has_a_model_for_now():
-    with pytest.raises(FitError, match="not implemented yet"):
+def test_the_model_is_built_from_the_projects_fitted_expressions(fitted_sample, project_copy):
+    with pytest.raises(ProjectError, match="at least two expressions"):
         project_face_model(new_project("someone"))
-    model, source = project_face_model(load_project(PROJECT))
-    assert model.names[0] == "neutral" and "later work" in source
+    with pytest.raises(FitError, match=r"not fitted: neutral, smile.*facestudio fit"):
+        project_face_model(load_project(project_copy))  # the sample as shipped: photos and clicks only
+    model, source = project_face_model(load_project(fitted_sample))
+    assert model.names[0] == "neutral" and source.startswith("project:")
+    assert set(model.names) == {e.name for e in load_project(fitted_sample).expressions}

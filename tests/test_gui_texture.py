@@ -154,8 +154,16 @@ def test_add_expression_fit_it_and_see_expressions_side_by_side(qtbot, window, p
 
     # Expression → New expression…, then its photos, then its clicks (here: the neutral ones)
     monkeypatch.setattr(QInputDialog, "getText", lambda *a, **k: ("again", True))
+    asked = []
+
+    def same_rig(parent, title, label, items, *a, **k):  # "Photographed with:" → the neutral's cameras
+        asked.append(items)
+        return items[0], True
+
+    monkeypatch.setattr(QInputDialog, "getItem", same_rig)
     window.new_expression_dialog()
     assert model.expression_name == "again" and window.views == {}
+    assert "'neutral'" in asked[0][0] and model.project.expression("again").cameras_from == "neutral"
     files = [str(project_copy.parent / "photos" / f"neutral_{p}.png") for p in neutral]
     assert window.add_photos(files) == 5
     for photo in model.photos:
@@ -166,21 +174,26 @@ def test_add_expression_fit_it_and_see_expressions_side_by_side(qtbot, window, p
             model.set_curve("again", photo.id, name, line)
     fit_now(qtbot, window)
     assert model.fit("again").report["rms_px"] < 2.0
+    assert model.fit("again").report["cameras_from"] == "neutral"  # fitted with the rig's cameras
 
     window.act_side_by_side.trigger()
     view = window.expressions_view
     qtbot.waitUntil(lambda: view.isVisible())
-    assert [t.name for t in view.tiles] == ["neutral", "again"]
-    for tile in view.tiles:
+    # one tile per expression: the sample's five (only the neutral fitted here) and the new one
+    names = ["neutral", "smile", "open_mouth", "brows_raised", "frown", "again"]
+    assert [t.name for t in view.tiles] == names
+    fitted = [view.tiles[0], view.tiles[-1]]
+    for tile in fitted:
         assert "RMS" in tile.label.text() and tile.image.pixmap() is not None
         assert not tile.image.pixmap().isNull()
+    assert "not fitted" in view.tiles[1].label.text()
     # same clicks, same photos: the two meshes render alike from the shared camera
-    a, b = (qimage_rgb(t.image.pixmap().toImage()).astype(float) for t in view.tiles)
+    a, b = (qimage_rgb(t.image.pixmap().toImage()).astype(float) for t in fitted)
     assert a.shape == b.shape and np.abs(a - b).mean() < 3.0  # (of 255; the fits differ by click noise only)
     # a click on a tile makes its expression current
     view.tiles[0].clicked.emit("neutral")
     assert model.expression_name == "neutral"
-    assert [t.name for t in view.tiles] == ["neutral", "again"]
+    assert [t.name for t in view.tiles] == names
     assert not shown, shown
 
 

@@ -33,14 +33,14 @@ def errors(monkeypatch):
 
 
 @pytest.fixture
-def window(qtbot, tmp_path, errors, project_copy):
+def window(qtbot, tmp_path, errors, fitted_project_copy):
     w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
                    autosave_interval_ms=0, recovery_file=tmp_path / "untitled.recovery.facestudio.json")
     qtbot.addWidget(w)
     w.resize(1300, 850)
     w.show()
     qtbot.waitExposed(w)
-    assert w.open_project(project_copy, ask_to_save=False)
+    assert w.open_project(fitted_project_copy, ask_to_save=False)
     yield w
     w.tracking_view.jobs.shutdown()
     w.fits.shutdown()
@@ -52,8 +52,8 @@ def video_of(project: Path) -> Path:
     return project.parent / "video" / "james_track.mp4"
 
 
-def test_track_through_menu_and_scrub(qtbot, window, errors, project_copy, monkeypatch):
-    video = video_of(project_copy)
+def test_track_through_menu_and_scrub(qtbot, window, errors, fitted_project_copy, monkeypatch):
+    video = video_of(fitted_project_copy)
     monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (str(video), ""))
     view = window.tracking_view
     view.limit_box.setValue(4)
@@ -62,7 +62,7 @@ def test_track_through_menu_and_scrub(qtbot, window, errors, project_copy, monke
     qtbot.waitUntil(lambda: not view.jobs.busy, timeout=60_000)
     qtbot.waitUntil(lambda: view.frame_count == 4, timeout=5_000)
     assert not errors, errors
-    out = default_out_dir(project_copy, video)
+    out = default_out_dir(fitted_project_copy, video)
     assert view.out_dir == out and (out / "track.json").is_file()
     assert len(load_track_results(out)["frames"]) == 4
     assert "tracked 4 frames" in view.last_message
@@ -96,9 +96,9 @@ def test_track_through_menu_and_scrub(qtbot, window, errors, project_copy, monke
     assert view.frame_count == 4 and view.current_frame == 0 and not errors
 
 
-def test_cancel_keeps_frames_tracked(qtbot, window, errors, project_copy):
+def test_cancel_keeps_frames_tracked(qtbot, window, errors, fitted_project_copy):
     view = window.tracking_view
-    assert view.start_tracking(video_of(project_copy), max_frames=40)
+    assert view.start_tracking(video_of(fitted_project_copy), max_frames=40)
     view.jobs.cancel()  # checked after the first frame: that frame is saved
     qtbot.waitUntil(lambda: not view.jobs.busy, timeout=60_000)
     assert not errors, errors
@@ -130,13 +130,13 @@ def test_plot_marker_at_frame():
         plot_with_marker(plot[..., 0], frames, 0)
 
 
-def test_first_pose_dialog_click_solve_save(qtbot, window, errors, project_copy, tmp_path):
+def test_first_pose_dialog_click_solve_save(qtbot, window, errors, fitted_project_copy, tmp_path):
     import json
 
     from PySide6.QtCore import QPoint
 
     view = window.tracking_view
-    video = video_of(project_copy)
+    video = video_of(fitted_project_copy)
     dlg = view.first_pose_dialog(video, modal=False)
     qtbot.addWidget(dlg)
     dlg.resize(760, 560)

@@ -23,10 +23,10 @@ Where the pieces come from
 --------------------------
 * **Video**: a file OpenCV's :class:`cv2.VideoCapture` reads (a kept decoder), or a folder of
   PNG/JPG frames in natural name order (``f2.png`` before ``f10.png``). Frames are RGB in [0, 1].
-* **Face model**: modeling several expressions from the project's photos is later work; for now
-  the sample project (``james``) is tracked with :func:`tracking.samples.sample_face_model` (the
-  james expressions built from the scan's true geometry), recorded as the model's ``source``. A
-  caller may pass its own :class:`tracking.facemodel.FaceModel` with a ``model_source``.
+* **Face model**: the blend-shape model of the project's fitted and textured expressions
+  (:func:`project_face_model`; ``facestudio fit`` then ``facestudio texture`` make them), recorded
+  with its source in ``track.json``. A caller may pass its own :class:`tracking.facemodel.FaceModel`
+  with a ``model_source``.
 * **First frame's pose** (the user's part, §6.2): a JSON file (:func:`load_first_pose`) with the
   video camera's focal length and either a pose or the image positions of at least six of the
   project's features in frame 0 (solved by :func:`tracking.fit.pose_from_clicks`). By default it is
@@ -189,30 +189,23 @@ def _to_rgb(bgr: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------- model, first pose
 
 
-def is_sample_project(project) -> bool:
-    """True for the sample project (``sample_projects/james``) on the built-in generic mesh."""
-    from photomodel.project import BUILTIN_MESH
+def project_face_model(project, names=None) -> tuple[FaceModel, str]:
+    """The face model to track ``project`` with, and a sentence saying where it comes from: the
+    blend-shape model of its fitted and textured expressions
+    (:func:`tracking.project_model.face_model_from_project`; ``names`` picks them, E_1 first).
 
-    return project.name == "james" and project.generic_mesh == BUILTIN_MESH
-
-
-def project_face_model(project) -> tuple[FaceModel, str]:
-    """The face model to track ``project`` with, and a sentence saying where it comes from.
-
-    Building the blend-shape model from the project's own fitted expressions (§6.1.1 on meshes and
-    textures modeled from photos) is later work; until then only the sample project has a model:
-    the james expression set built from the scan's true geometry.
+    Raises
+    ------
+    FitError, ProjectError
+        fewer than two expressions, or one not fitted or textured (the message says which and the
+        command that does it), or a missing or damaged mesh or texture file.
     """
-    if not is_sample_project(project):
-        raise FitError(f"project {project.name!r}: tracking needs a face model of several expressions, and "
-                       f"building one from a project's fitted expressions is not implemented yet; for now "
-                       f"only the sample project (james) can be tracked")  # fmt: skip
-    from tracking.samples import sample_face_model
+    from tracking.project_model import face_model_from_project
 
-    model = sample_face_model()
-    return model, (f"sample: tracking.samples.sample_face_model() — the james expressions "
-                   f"({', '.join(model.names)}) built from the scan's true geometry; modeling expressions "
-                   f"from the project's photos is later work")  # fmt: skip
+    model, report = face_model_from_project(project, names)
+    reg = "; ".join(f"{n} {r['rms_mm']:.2f} mm" for n, r in report["registration"].items())
+    return model, (f"project: the expressions {', '.join(model.names)} fitted and textured from the project's "
+                   f"photos (§6.1.1), registered onto {model.names[0]} by their rest of the face (RMS: {reg})")
 
 
 @dataclass
@@ -535,6 +528,7 @@ def track_video(
     *,
     model: FaceModel | None = None,
     model_source: str | None = None,
+    expressions=None,
     first_pose: dict | str | os.PathLike | None = None,
     focal_px: float | None = None,
     max_frames: int | None = None,
@@ -554,7 +548,7 @@ def track_video(
     video : a video file or a folder of PNG/JPG frames (:class:`VideoFrames`).
     out_dir : output folder (default ``<project folder>/results/track_<video stem>``); created.
     model, model_source : the face model and a sentence on its origin (default
-        :func:`project_face_model`).
+        :func:`project_face_model` of the project's ``expressions``, default all, neutral first).
     first_pose : first-pose JSON path or dict (:func:`load_first_pose`); default
         :func:`default_first_pose_path`.
     focal_px : the video camera's focal length in pixels, overriding the first-pose file's.
@@ -581,7 +575,7 @@ def track_video(
     project = load_project(project_path)
     frames_in = VideoFrames(video)
     if model is None:
-        model, model_source = project_face_model(project)
+        model, model_source = project_face_model(project, expressions)
     model_source = model_source or "given by the caller"
     if first_pose is None:
         first_pose = default_first_pose_path(frames_in.path)

@@ -2,7 +2,7 @@
 
 A :class:`FaceModel` holds ``m`` basic expressions ``E_1..E_m`` of one person on one mesh
 (``E_1`` neutral): their geometries (m, n, 3) mm in the head frame and their textures (one
-image per expression, one shared uv layout). The face is split into *control regions*
+image per expression, their texture coordinates). The face is split into *control regions*
 (:data:`CONTROL_REGIONS`: the generic mesh's mouth, eyes and forehead; the rest is constant,
 §6.1.1 "the rest of the face … is constant"). Each region ``r`` has its own expression
 parameters ``α_r`` and blending weights (Eq. 4)
@@ -82,8 +82,10 @@ class FaceModel:
     geometry : (m, n, 3) float
         vertex positions of each basic expression, mm, head frame.
     faces : (f, 3) int64
-    uv : (n, 2) float
-        texture coordinates (v up, OBJ convention) shared by all textures.
+    uv : (m, n, 2) float
+        texture coordinates (v up, OBJ convention) of each expression's texture: a model built
+        from photos has one cylindrical texture per expression, each in its own expression's
+        cylinder (§5.2.2); expressions sharing a texture share its coordinates.
     textures : list of m (Ht, Wt, 3) float32
         each expression's texture in [0, 1]; identical entries may be the same array.
     regions : (n,) int
@@ -164,18 +166,23 @@ class FaceModel:
         return self.blend_geometry(self.vertex_weights(self.region_weights(alpha)))
 
     def texture_groups(self) -> list[tuple[np.ndarray, list[int]]]:
-        """Distinct textures and the expressions that use each (shared textures are sampled once)."""
+        """Distinct (texture, uv) pairs and the expressions that use each: a texture shared by
+        several expressions with the same coordinates is sampled once per rendering."""
         if not self._texture_groups:
             groups: list[tuple[np.ndarray, list[int]]] = []
             for k, T in enumerate(self.textures):
                 for G, ks in groups:
-                    if G is T:
+                    if G is T and np.array_equal(self.uv[ks[0]], self.uv[k]):
                         ks.append(k)
                         break
                 else:
                     groups.append((T, [k]))
             self._texture_groups = groups
         return self._texture_groups
+
+    def group_uv(self) -> np.ndarray:
+        """(n, 2G) the texture coordinates of each :meth:`texture_groups` entry, side by side."""
+        return np.concatenate([self.uv[ks[0]] for _, ks in self.texture_groups()], axis=1)
 
 
 def control_regions(mesh_regions: np.ndarray, vertices: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
@@ -211,7 +218,8 @@ def smooth_membership(regions: np.ndarray, faces: np.ndarray, passes: int = MEMB
     return mu / mu.sum(1, keepdims=True)
 
 
-def expression_basis(geometry: np.ndarray, weight: np.ndarray, basis: str = "gram_schmidt") -> np.ndarray:
+def expression_basis(geometry: np.ndarray, weight: np.ndarray, basis: str = "gram_schmidt",
+                     use: np.ndarray | None = None) -> np.ndarray:
     """``Q`` (m, a) of one region: directions in weight space spanning ``Σ_k w_k = 0``.
 
     Parameters
@@ -222,6 +230,10 @@ def expression_basis(geometry: np.ndarray, weight: np.ndarray, basis: str = "gra
         Gram–Schmidt of ``E_k − E_1`` in the region's geometric inner product
         ``⟨a, b⟩ = Σ_i μ_i (G a)_i·(G b)_i / Σ_i μ_i`` (``G`` maps weights to geometry), or the
         principal directions of the region's ``E_k − E_1`` in that inner product.
+    use : (m,) bool, optional
+        the expressions that take part in this region (default all); the others keep weight 0
+        here (an expression that does not move the region: in a model from photos its
+        ``E_k − E_1`` there is only the fits' noise, which the tracker could not estimate).
 
     Returns
     -------
@@ -232,9 +244,12 @@ def expression_basis(geometry: np.ndarray, weight: np.ndarray, basis: str = "gra
     m = geometry.shape[0]
     sw = np.sqrt(np.asarray(weight, float) / max(float(np.sum(weight)), 1e-12))
     G = (geometry * sw[None, :, None]).reshape(m, -1).T  # (3n, m): weights → weighted geometry
+    use = np.ones(m, bool) if use is None else np.asarray(use, bool)
     if basis == "gram_schmidt":
         cols = []
         for k in range(1, m):
+            if not use[k]:
+                continue
             d = np.zeros(m)
             d[k], d[0] = 1.0, -1.0
             for q in cols:
@@ -246,7 +261,7 @@ def expression_basis(geometry: np.ndarray, weight: np.ndarray, basis: str = "gra
     if basis == "pca":
         # principal directions of the differences from the neutral E_k − E_1 (the reachable set
         # then contains the neutral, as with Gram–Schmidt)
-        C = np.vstack([-np.ones((1, m - 1)), np.eye(m - 1)])  # (m, m−1): coefficients → weights
+        C = np.vstack([-np.ones((1, m - 1)), np.eye(m - 1)])[:, use[1:]]  # (m, a): coefficients → weights
         U, S, Vt = np.linalg.svd(G @ C, full_matrices=False)
         keep = S > MIN_DIRECTION_MM
         return (C @ Vt[keep].T) / S[keep]
@@ -264,6 +279,7 @@ def build_face_model(
     face_mask: np.ndarray | None = None,
     basis: str = "gram_schmidt",
     smoothing: int = MEMBERSHIP_SMOOTHING,
+    region_expressions: np.ndarray | None = None,
 ) -> FaceModel:
     """Assemble a :class:`FaceModel` from basic expressions.
 
@@ -272,13 +288,15 @@ def build_face_model(
     names : sequence of m str, neutral first.
     geometry : (m, n, 3) float mm.
     faces : (f, 3) int.
-    uv : (n, 2) float, v up.
+    uv : (n, 2) float shared by every texture, or (m, n, 2) one per expression; v up.
     textures : sequence of m images (Ht, Wt, 3), uint8 or float in [0, 1]; pass the same array
-        for expressions sharing a texture (it is then sampled once per frame).
+        (and uv) for expressions sharing a texture (it is then sampled once per frame).
     regions : (n,) int, control regions (:func:`control_regions`).
     face_mask : (n,) bool, optional, vertices of the face for metrics (default all).
     basis : ``"gram_schmidt"`` or ``"pca"`` (:func:`expression_basis`).
     smoothing : int, membership smoothing passes.
+    region_expressions : (R, m) bool, optional, which expressions take part in each region
+        (:func:`expression_basis` ``use``; default all).
     """
     names = tuple(names)
     E = np.asarray(geometry, float)
@@ -288,8 +306,11 @@ def build_face_model(
     n = E.shape[1]
     F = np.asarray(faces, np.int64)
     uv = np.asarray(uv, float)
-    if uv.shape != (n, 2):
-        raise ValueError(f"uv must be ({n}, 2), got {uv.shape}")
+    if uv.shape == (n, 2):
+        uv = np.broadcast_to(uv, (m, n, 2))
+    if uv.shape != (m, n, 2):
+        raise ValueError(f"uv must be ({n}, 2) or ({m}, {n}, 2), got {uv.shape}")
+    uv = np.ascontiguousarray(uv)
     if len(textures) != m:
         raise ValueError(f"need one texture per expression ({m}), got {len(textures)}")
     converted: dict[int, np.ndarray] = {}
@@ -304,7 +325,11 @@ def build_face_model(
         tex.append(converted[id(T)])
     regions = np.asarray(regions, np.int64)
     mu = smooth_membership(regions, F, smoothing)
-    bases = [np.zeros((m, 0))] + [expression_basis(E, mu[:, r], basis) for r in range(1, len(CONTROL_REGIONS))]
+    R = len(CONTROL_REGIONS)
+    use = np.ones((R, m), bool) if region_expressions is None else np.asarray(region_expressions, bool)
+    if use.shape != (R, m):
+        raise ValueError(f"region_expressions must be ({R}, {m}) bool, got {use.shape}")
+    bases = [np.zeros((m, 0))] + [expression_basis(E, mu[:, r], basis, use[r]) for r in range(1, R)]
     mask = np.ones(n, bool) if face_mask is None else np.asarray(face_mask, bool)
     centre = E[0][mask].mean(axis=0)
     return FaceModel(names, E, F, uv, tex, regions, mu, bases, centre, mask)
@@ -345,9 +370,8 @@ class ModelRender:
     def interpolate(self, values: np.ndarray) -> np.ndarray:
         """(N, ...) per-pixel interpolation of per-vertex ``values`` (n, ...)."""
         values = np.asarray(values)
-        b = self.bary.reshape(self.bary.shape + (1,) * (values.ndim - 1))
-        c = self.corners
-        return b[:, 0] * values[c[:, 0]] + b[:, 1] * values[c[:, 1]] + b[:, 2] * values[c[:, 2]]
+        flat = _interpolate(values.reshape(len(values), -1), self.corners, self.bary)
+        return flat.reshape((len(self.bary),) + values.shape[1:])
 
 
 def render_model(
@@ -380,36 +404,60 @@ def render_model(
     H, W = camera.height, camera.width
     Xc = V @ camera.R.T + camera.t  # (n, 3) camera mm, float64 on the CPU
     box, raw = _rasterizer(renderer).draw(camera, Xc, F)
-    y0, y1, x0, x1 = box
-    w = x1 - x0
-    flat = raw.reshape(-1, 4)
-    local = np.flatnonzero(flat[:, 2] > 0.5)  # face id + 1; 0 is the cleared background
-    py, px = np.divmod(local, max(w, 1))
-    pixels = (py + y0) * W + (px + x0)
-    b = flat[local]
-    fid = b[:, 2].astype(np.int64) - 1
-    bary = np.empty((len(local), 3), np.float32)
-    bary[:, 1:] = b[:, :2]
-    bary[:, 0] = 1.0 - b[:, 0] - b[:, 1]
-    corners = F[fid]
+    pixels, corners, bary = _unpack(raw, box, W, F)
     groups = model.texture_groups()
+    G = len(groups)
     Wg = np.column_stack([np.asarray(vertex_weights)[:, ks].sum(1) for _, ks in groups])
-    # (n, 5 + G) per-vertex attributes, float32 (camera mm to ~1e-4 mm), interpolated at once
-    table = np.concatenate([Xc, model.uv, Wg], axis=1).astype(np.float32)
-    at = bary[:, 0, None] * table[corners[:, 0]] + bary[:, 1, None] * table[corners[:, 1]]
-    at += bary[:, 2, None] * table[corners[:, 2]]
-    X_cam, uv, Wpix = at[:, :3], at[:, 3:5], at[:, 5:].astype(np.float32)
-    colors = []
-    out = np.zeros((len(pixels), 3), np.float32)
-    for g, (T, _) in enumerate(groups):
-        c = sample_texture(T, uv)
-        colors.append(c)
-        out += Wpix[:, g : g + 1] * c
+    # (n, 3 + 2G + G) per-vertex attributes, float32 (camera mm to ~1e-4 mm), interpolated at once
+    table = np.concatenate([Xc, model.group_uv(), Wg], axis=1).astype(np.float32)
+    at = _interpolate(table, corners, bary)
+    X_cam, uv, Wpix = at[:, :3], at[:, 3 : 3 + 2 * G], at[:, 3 + 2 * G :]
+    colors = [sample_texture(T, uv[:, 2 * g : 2 * g + 2]) for g, (T, _) in enumerate(groups)]
+    out = Wpix[:, 0:1] * colors[0]
+    for g in range(1, G):
+        out += Wpix[:, g : g + 1] * colors[g]
     image = np.zeros((H, W, 3), np.float32) if background is None else np.array(background, np.float32, copy=True)
     image.reshape(-1, 3)[pixels] = out
     mask = np.zeros((H, W), bool)
     mask.reshape(-1)[pixels] = True
     return ModelRender(image, mask, pixels, corners, bary, X_cam, colors, box)
+
+
+def _unpack(raw: np.ndarray, box: tuple, width: int, faces: np.ndarray):
+    """Covered pixels of a barycentric render ``raw`` (h, w, 4) of the image rows/columns ``box``:
+    their flat indices in the (H, ``width``) image (N,), the corner vertices (N, 3) and the
+    barycentric coordinates (N, 3) float32. Both (N, 3) arrays are transposes of (3, N) ones, so
+    that each corner's column is contiguous for :func:`_interpolate`."""
+    y0, _, x0, x1 = box
+    ids = raw[..., 2].reshape(-1)  # face id + 1 (exact in float32); 0 is the cleared background
+    local = np.flatnonzero(ids > 0.5)
+    py, px = np.divmod(local, max(x1 - x0, 1))
+    pixels = (py + y0) * width + (px + x0)
+    fid = ids[local].astype(np.intp) - 1
+    B = np.empty((3, len(local)), np.float32)
+    B[1] = raw[..., 0].reshape(-1)[local]
+    B[2] = raw[..., 1].reshape(-1)[local]
+    np.subtract(1.0, B[1], out=B[0])
+    B[0] -= B[2]
+    corners = np.take(np.ascontiguousarray(faces.T), fid, axis=1)  # (3, N)
+    return pixels, corners.T, B.T
+
+
+def _interpolate(values: np.ndarray, corners: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """(N, C) barycentric interpolation of per-vertex ``values`` (n, C) at pixels with ``corners``
+    (N, 3) and ``bary`` (N, 3): three row gathers (``np.take``) accumulated in place."""
+    dtype = np.result_type(values.dtype, np.float32)
+    values = np.asarray(values, dtype)
+    c, b = corners.T, bary.T  # (3, N), contiguous rows when made by _unpack
+    at = np.take(values, c[0], axis=0)
+    at *= b[0][:, None]
+    t = np.take(values, c[1], axis=0)
+    t *= b[1][:, None]
+    at += t
+    np.take(values, c[2], axis=0, out=t)
+    t *= b[2][:, None]
+    at += t
+    return at
 
 
 # The barycentric pass: welded vertices (camera coordinates) and the triangle list stay in GL
@@ -535,6 +583,8 @@ def _rasterizer(renderer) -> _BaryRasterizer:
 def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """(N, 3) float32 bilinear samples of ``texture`` (Ht, Wt, 3) at ``uv`` (N, 2) (v up, clamp to edge)."""
     Ht, Wt = texture.shape[:2]
+    if len(uv) == 0:  # the model covers no pixel (cv2.remap refuses an empty map)
+        return np.zeros((0, 3), np.float32)
     x = (uv[:, 0] * Wt - 0.5).astype(np.float32)
     y = ((1.0 - uv[:, 1]) * Ht - 0.5).astype(np.float32)
     out = cv2.remap(texture, x[None], y[None], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

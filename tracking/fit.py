@@ -29,16 +29,28 @@ and expression are coupled (opening the jaw moves the chin like a change of dept
 alternating them converges slowly — measured on the benchmark's sequence (a), the video rendered
 from the model itself, one pose-then-expression round per frame left a steady ~1 mm depth error
 (0.4 mm after 2 rounds, 0.2 mm after 3 rounds of 20 iterations), while one joint LM gets 0.06–0.1 mm at
-a third of the cost. Each LM phase stops early when the quadratic model predicts a decrease of ε
-below :attr:`TrackOptions.decrease_tolerance` (no rendering spent) or a step moves the image by less
-than :attr:`TrackOptions.step_tolerance_px`.
+a third of the cost.
 
-Cost (one rendering per LM iteration, plus one per rejected step): the model is rasterised once
-into barycentric coordinates and triangle ids, only over its bounding box
-(:func:`tracking.facemodel.render_model`); the unfiltered analytic Jacobian has rows only at the
-covered pixels (it vanishes elsewhere), the filtered one is bandpassed for all its columns in one
-call; everything is float32 and laid out so that products run along the pixels; BLAS is kept to
-one thread during a fit (its spinning second thread took a core from the software rasteriser).
+Stopping (measured with ``benchmarks/bench_track.py``): each LM phase runs until a step would move,
+or has just moved, the surface by less than a tolerance in mm (:meth:`FrameFitter._step_size`:
+depth counts like the other translations although the image sees it least), or the quadratic model
+predicts a negligible decrease of ε — :attr:`TrackOptions.pose_tolerance_mm` (1 mm: the pose phase
+only has to bring the expression phase close) and :attr:`TrackOptions.step_tolerance_mm` (0.1 mm) —
+with caps of :attr:`TrackOptions.pose_iterations` / :attr:`TrackOptions.expression_iterations`
+that only a fast movement reaches. The former fixed budget (one pose step, three expression steps)
+left a frame ~9° from its prediction at 1.8°, and the error then grew from frame to frame (a
+10-frame version of the sample motion diverged); a tight image-space tolerance (0.02 px) spent
+renderings on frames already converged. A tracked frame usually costs three renderings (the
+prediction, one pose step, one joint step) and one bandpassed Jacobian: after an accepted step the
+next one is solved with the previous Jacobian first, and the phase ends there when it is under the
+tolerance (:meth:`FrameFitter._lm`).
+
+Cost: the model is rasterised once into barycentric coordinates and triangle ids, only over its
+bounding box (:func:`tracking.facemodel.render_model`, ~7 ms of GL on llvmpipe plus ~4 ms of numpy
+at 300×300); the unfiltered analytic Jacobian has rows only at the covered pixels (it vanishes
+elsewhere), the filtered one is bandpassed for all its columns in one call (~8 of its ~18 ms);
+everything is float32 and laid out so that products run along the pixels; BLAS is kept to one
+thread during a fit (its spinning second thread took a core from the software rasteriser).
 
 Jacobians (§6.1.3): ``"analytic"`` — Eq. (7): the image gradient (Sobel) times the image motion of
 the surface point under each pixel, ``∂x/∂p = ∂P/∂m' · ∂m'/∂p`` with ``∂P/∂m'`` of App. B.1 and
@@ -62,9 +74,9 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from photomodel.camera import Camera, rodrigues
+from photomodel.camera import Camera, rodrigues, rotation_vector
 from photomodel.errors import FitError
-from tracking.facemodel import WEIGHT_RANGE, FaceModel, ModelRender, render_model
+from tracking.facemodel import WEIGHT_RANGE, FaceModel, ModelRender, render_model, smooth_membership
 
 __all__ = [
     "DEFAULT_JACOBIANS",
@@ -73,6 +85,7 @@ __all__ = [
     "FrameResult",
     "FrameFitter",
     "predict",
+    "nearest_rotation",
     "track_frames",
     "pose_from_clicks",
     "bandpass",
@@ -101,8 +114,10 @@ HEAD_RADIUS_MM = 100.0
 class TrackOptions:
     """Settings of :class:`FrameFitter` (defaults measured by ``benchmarks/bench_track.py``)."""
 
-    pose_iterations: int = 1
-    expression_iterations: int = 3
+    #: most LM iterations of the pose phase and of the expression phase; both usually end earlier,
+    #: on the tolerances below (a fast head movement takes more).
+    pose_iterations: int = 6
+    expression_iterations: int = 8
     pose_jacobian: str = DEFAULT_JACOBIANS["pose"]
     expression_jacobian: str = DEFAULT_JACOBIANS["expression"]
     #: (σ_fine, σ_coarse) px of the difference of Gaussians for the expression phase; None: off.
@@ -118,10 +133,23 @@ class TrackOptions:
     rounds: int = 1
     #: extra tries with larger λ after a rejected step.
     max_rejections: int = 2
-    #: an LM phase stops early after an accepted step moving the image by less than this (px),
-    #: or when the step's predicted decrease of ε is below this fraction of ε (no rendering).
-    step_tolerance_px: float = 0.02
+    #: the expression (last) phase ends when a step would move, or has just moved, the surface by
+    #: less than this (mm: rotation over :data:`HEAD_RADIUS_MM`, translation including depth, α);
+    #: or when the step's predicted decrease of ε is below ``decrease_tolerance`` × ε.
+    step_tolerance_mm: float = 0.1
+    #: the same for the pose phase, which only has to bring the expression phase close.
+    pose_tolerance_mm: float = 1.0
     decrease_tolerance: float = 1e-3
+    #: weight in ε of the pixels where the model is not face — outside the generic mesh's face
+    #: mask and the control regions (hair, ears, neck, the back of the head), with a smooth
+    #: transition — and of the silhouette's surroundings
+    #: that the bandpass reaches. Beyond the paper, which weighs every pixel of the model alike:
+    #: a model modeled from photos is reliable on the face only (the clicks and curves constrain
+    #: it; ears and hair are textured from one photo, their shape is the generic mesh's), and those
+    #: pixels pulled its pose and expression (the sample video, seq. b: 4.1 → 1.8 mm geometry
+    #: error with 1.0 → 0.0). 1.0: the paper's ε. A frame fitted in several ``rounds`` (the first)
+    #: uses the paper's ε in all rounds but the last: the silhouette pulls a far start in.
+    outside_weight: float = 0.0
 
     def __post_init__(self):
         for name in ("pose_jacobian", "expression_jacobian"):
@@ -176,18 +204,37 @@ def bandpass(image: np.ndarray, sigmas: tuple) -> np.ndarray:
     k1, k2 = 2 * int(np.ceil(3 * s1)) + 1, 2 * int(np.ceil(3 * s2)) + 1
     a = cv2.GaussianBlur(image, (k1, k1), s1, borderType=cv2.BORDER_REPLICATE)
     b = cv2.GaussianBlur(image, (k2, k2), s2, borderType=cv2.BORDER_REPLICATE)
-    return a - b
+    return np.subtract(a, b, out=a)
+
+
+def nearest_rotation(R: np.ndarray) -> np.ndarray:
+    """The rotation closest to a (3, 3) matrix in the Frobenius norm (polar factor, via SVD)."""
+    U, _, Vt = np.linalg.svd(np.asarray(R, float))
+    if np.linalg.det(U @ Vt) < 0:
+        U[:, -1] = -U[:, -1]
+    return U @ Vt
 
 
 def predict(previous: list[FrameState]) -> FrameState:
     """Initial parameters of the next frame: linear extrapolation of the last two (§6.2);
-    the last one alone if there is only one. Rotation extrapolates as ``(R₁ R₀ᵀ) R₁``."""
+    the last one alone if there is only one.
+
+    Rotation extrapolates as ``R̂(ω) R₁`` with ``ω`` the rotation vector of ``R₁ R₀ᵀ``, both
+    projected onto rotations first. The plain product ``(R₁ R₀ᵀ) R₁`` does not stay a rotation:
+    a small symmetric error ``R = Q (I + S)`` propagates as ``S₂ ≈ 2 S₁ + S₀`` (``R₀ᵀ`` is not
+    ``R₀⁻¹`` when ``R₀`` is off), growing by ``1 + √2`` per frame from round-off — after ~35 frames
+    the model shrank by percents and the tracker compensated in depth (the sample video's frames
+    36–39 drifted by 5 → 87 mm before this)."""
     if not previous:
         raise ValueError("predict needs at least one previous frame")
     if len(previous) == 1:
-        return previous[-1].copy()
+        st = previous[-1].copy()
+        st.R = nearest_rotation(st.R)
+        return st
     a, b = previous[-2], previous[-1]
-    return FrameState((b.R @ a.R.T) @ b.R, 2 * b.t - a.t, 2 * b.alpha - a.alpha)
+    Ra, Rb = nearest_rotation(a.R), nearest_rotation(b.R)
+    R = rodrigues(rotation_vector(Rb @ Ra.T)) @ Rb
+    return FrameState(R, 2 * b.t - a.t, 2 * b.alpha - a.alpha)
 
 
 def pose_from_clicks(
@@ -234,6 +281,7 @@ class _Eval:
     box: tuple  # (y0, y1, x0, x1) of the crop
     rms: float  # unfiltered image RMS over the covered pixels
     local: np.ndarray  # (N,) flat indices of the covered pixels in the crop
+    sw: np.ndarray | None = None  # (h·w,) float32 √ of the pixels' weights in ε (None: all 1)
 
 
 class FrameFitter:
@@ -273,6 +321,16 @@ class FrameFitter:
         self.n_alpha = len(cols)
         self._dX_dalpha32 = self._dX_dalpha.astype(np.float32)
         self._membership32 = model.membership.astype(np.float32)
+        # per-vertex weight of the pixels in ε (TrackOptions.outside_weight): 1 on the face,
+        # ``outside_weight`` elsewhere, across a transition as wide as the regions' (smoothed)
+        o = float(self.options.outside_weight)
+        if not 0.0 <= o <= 1.0:
+            raise ValueError(f"outside_weight must be within [0, 1], got {o}")
+        self._face_weight, self._weighted = None, True
+        if o < 1.0:
+            face = smooth_membership(np.asarray(model.face_mask, np.int64), model.faces)[:, 1]
+            face = np.maximum(face, 1.0 - model.membership[:, 0])  # and the control regions (the jaw)
+            self._face_weight = (o + (1.0 - o) * np.clip(face, 0.0, 1.0)).astype(np.float32)
 
     # -- model at parameters -----------------------------------------------------------
     def camera(self, state: FrameState) -> Camera:
@@ -296,8 +354,13 @@ class FrameFitter:
         rms = float(np.sqrt((diff * diff).sum() / max(3 * len(render.pixels), 1)))
         if filtered:
             diff = bandpass(diff, self.options.bandpass)
+        sw = None
+        if self._face_weight is not None and self._weighted:
+            sw = np.full((y1 - y0) * (x1 - x0), np.sqrt(self.options.outside_weight), np.float32)
+            sw[local] = np.sqrt(np.maximum(render.interpolate(self._face_weight), 0.0))
+            diff = diff * sw.reshape(y1 - y0, x1 - x0, 1)
         eps = 0.5 * float((diff * diff).sum()) + self._penalty(weights, render)[0]
-        return _Eval(state, render, weights, diff, eps, box, rms, local)
+        return _Eval(state, render, weights, diff, eps, box, rms, local, sw)
 
     def _box(self, box: tuple, filtered: bool) -> tuple:
         """The crop of the residual: the model's box plus a margin (2 px; the bandpass's reach
@@ -308,20 +371,31 @@ class FrameFitter:
         m = 2 + (int(np.ceil(3 * self.options.bandpass[1])) if filtered and self.options.bandpass else 0)
         return (max(y0 - m, 0), min(y1 + m, self.H), max(x0 - m, 0), min(x1 + m, self.W))
 
-    def _penalty(self, weights: np.ndarray, render: ModelRender):
-        """D, its gradient and Hessian with respect to the concatenated α."""
+    @staticmethod
+    def _sides(weights: np.ndarray) -> np.ndarray:
+        """(R − 1, m) int: −1 where a control region's weight is below 0, +1 above 1, else 0."""
+        return (weights[1:] > 1.0).astype(int) - (weights[1:] < 0.0).astype(int)
+
+    def _penalty(self, weights: np.ndarray, render: ModelRender, sides: np.ndarray | None = None):
+        """D, its gradient and Hessian with respect to the concatenated α.
+
+        ``sides`` (:meth:`_sides`) chooses the quadratic piece of D each weight is on (default:
+        where it is). D itself is always evaluated where the weights are; the gradient and Hessian
+        are those of the chosen pieces, ``c (w − bound)²`` — :meth:`_lm_step` uses pieces a step
+        would enter."""
         c = self.options.penalty * max(len(render.pixels), 1)
         lo, hi = np.minimum(weights[1:], 0.0), np.maximum(weights[1:] - 1.0, 0.0)
         D = c * float((lo**2).sum() + (hi**2).sum())
+        if sides is None:
+            sides = self._sides(weights)
+        resid = np.where(sides < 0, weights[1:], np.where(sides > 0, weights[1:] - 1.0, 0.0))
         grad = np.zeros(self.n_alpha)
         hess = np.zeros((self.n_alpha, self.n_alpha))
         for r, (Q, s) in enumerate(zip(self.model.bases, self.model.alpha_slices, strict=True)):
             if r == 0 or Q.shape[1] == 0:
                 continue
-            g = 2 * c * (lo[r - 1] + hi[r - 1])
-            active = ((weights[r] < 0) | (weights[r] > 1)).astype(float)
-            grad[s] = Q.T @ g
-            hess[s, s] = 2 * c * (Q.T * active) @ Q
+            grad[s] = Q.T @ (2 * c * resid[r - 1])
+            hess[s, s] = 2 * c * (Q.T * (sides[r - 1] != 0)) @ Q
         return D, grad, hess
 
     # -- Jacobians --------------------------------------------------------------------
@@ -333,60 +407,71 @@ class FrameFitter:
             return self._jacobian_fd(frame, ev, params, filtered)
         return self._jacobian_analytic(ev, params, filtered)
 
-    def _pixel_jacobian(self, ev: _Eval, params: np.ndarray) -> np.ndarray:
-        """(k, 3, N) float32 analytic derivatives of Î (RGB) at the covered pixels (Eq. 7, App. B).
+    def _pixel_jacobian(self, ev: _Eval, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Analytic derivatives of Î (RGB) at the covered pixels (Eq. 7, App. B): ``(J, rows)``,
+        J (k, 3, N) float32 laid out parameter × channel × pixel (every product runs along the
+        pixels), ``rows`` (N,) the pixels' flat indices in ``ev``'s crop box.
 
-        Laid out parameter × channel × pixel so that every product runs along the pixels."""
+        Only the covered pixels: tried (measured on sequence a), extending the rows to the ring
+        just outside the silhouette — where the Sobel gradient of Î (the frame outside the model)
+        sees the other half of the edge — made LM converge more slowly, not faster."""
         r = ev.render
         N = len(r.pixels)
         # image gradient (Sobel, scaled to a unit slope) at the covered pixels; the crop keeps
         # one pixel around the model so the 3×3 kernel sees the background as in the full image
         y0, y1, x0, x1 = r.box
         y0, x0, y1, x1 = max(y0 - 1, 0), max(x0 - 1, 0), min(y1 + 1, self.H), min(x1 + 1, self.W)
-        img = np.ascontiguousarray(r.image[y0:y1, x0:x1])
+        img = r.image[y0:y1, x0:x1]
         py, px = np.divmod(r.pixels, self.W)
         li = (py - y0) * (x1 - x0) + (px - x0)
-        gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125).reshape(-1, 3)[li].T
-        gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125).reshape(-1, 3)[li].T
-        X, Y, Z = r.X_cam.T.astype(np.float32)
-        fz = np.float32(self.f) / Z
+        gx = np.take(cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125).reshape(-1, 3), li, axis=0).T
+        gy = np.take(cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125).reshape(-1, 3), li, axis=0).T
+        X, Y, Z = np.asarray(r.X_cam, np.float32).T
+        iz = 1.0 / Z
         # G (3 axes, 3 channels, N): −∇Î · ∂x/∂m' (App. B.1: u = f X/Z + c_x, v = f Y/Z + c_y);
         # the minus sign: a surface moving by δx changes the image at a fixed pixel by −∇Î·δx
-        Gx, Gy = -gx * fz, -gy * fz
-        Gz = -(Gx * (X / Z) + Gy * (Y / Z))
+        fz = np.float32(-self.f) * iz
+        Gx, Gy = gx * fz, gy * fz
+        Gz = Gx * (X * iz)
+        Gz += Gy * (Y * iz)
+        np.negative(Gz, out=Gz)
         J = np.empty((len(params), 3, N), np.float32)
         t = ev.state.t.astype(np.float32)
-        qx, qy, qz = X - t[0], Y - t[1], Z - t[2]  # R (m − c)
-        alpha = [j for j, p in enumerate(params) if p >= 6]
+        q = (X - t[0], Y - t[1], Z - t[2])  # R (m − c)
+        G = (Gx, Gy, Gz)
         for j, p in enumerate(params):
-            if p == 0:  # ∂m'/∂ω_l = e_l × R(m − c)
-                J[j] = qy * Gz - qz * Gy
-            elif p == 1:
-                J[j] = qz * Gx - qx * Gz
-            elif p == 2:
-                J[j] = qx * Gy - qy * Gx
+            if p < 3:  # ∂m'/∂ω_l = e_l × R(m − c): (e_l × q) · G
+                a, b = (p + 1) % 3, (p + 2) % 3
+                np.multiply(q[a], G[b], out=J[j])
+                J[j] -= q[b] * G[a]
             elif p < 6:  # ∂m'/∂t_l = e_l
-                J[j] = (Gx, Gy, Gz)[p - 3]
-        if alpha:  # ∂m'/∂α = R Σ_k ∂W_k/∂α E_k, plus the blending term Σ_k ∂W_k/∂α Î_k (App. B.3)
+                J[j] = G[p - 3]
+        alpha = np.flatnonzero(params >= 6)
+        if len(alpha):  # ∂m'/∂α = R Σ_k ∂W_k/∂α E_k, plus the blending term Σ_k ∂W_k/∂α Î_k (App. B.3)
             a = params[alpha] - 6
             A = len(a)
-            dX = (self._dX_dalpha32[:, a] @ ev.state.R.T.astype(np.float32)).reshape(-1, 3 * A)
+            n = self._dX_dalpha32.shape[0]
+            dX = (self._dX_dalpha32[:, a].reshape(-1, 3) @ ev.state.R.T.astype(np.float32)).reshape(n, 3 * A)
             table = np.concatenate([dX, self._membership32[:, self._alpha_region[a]]], axis=1)
-            at = r.interpolate(table).T  # (4A, N)
-            colors = [c.T for c in r.texture_colors]  # (3, N) each
+            at = np.ascontiguousarray(r.interpolate(table).T)  # (4A, N)
+            colors = [np.ascontiguousarray(c.T) for c in r.texture_colors]  # (3, N) each
             for i, j in enumerate(alpha):
-                J[j] = Gx * at[3 * i] + Gy * at[3 * i + 1] + Gz * at[3 * i + 2]
+                Jj = J[j]
+                np.multiply(Gx, at[3 * i], out=Jj)
+                Jj += Gy * at[3 * i + 1]
+                Jj += Gz * at[3 * i + 2]
                 for g, c in enumerate(colors):
-                    J[j] += (np.float32(self._blend[a[i], g]) * at[3 * A + i]) * c
-        return J
+                    if self._blend[a[i], g]:
+                        Jj += c * (np.float32(self._blend[a[i], g]) * at[3 * A + i])
+        return J, ev.local
 
     def _jacobian_analytic(self, ev: _Eval, params: np.ndarray, filtered: bool) -> np.ndarray:
-        col = self._pixel_jacobian(ev, params)  # (k, 3, N)
+        col, at_px = self._pixel_jacobian(ev, params)  # (k, 3, N + M)
         k = len(params)
         y0, y1, x0, x1 = ev.box
         h, w = y1 - y0, x1 - x0
-        J = np.zeros((h * w, 3, k), np.float32)
-        J[ev.local] = col.transpose(2, 1, 0)
+        J = np.zeros((h * w, 3, k), np.float32)  # rows (pixel, channel), as ev.diff
+        J[at_px] = col.transpose(2, 1, 0)
         if filtered:  # all columns' images filtered in one call (3·k channels)
             J = bandpass(J.reshape(h, w, 3 * k), self.options.bandpass)
         return J.reshape(h * w * 3, k)
@@ -435,58 +520,165 @@ class FrameFitter:
         s = min(s, float(up.min(initial=np.inf)), float(down.min(initial=np.inf)))
         return max(s, 0.0)
 
-    def _step_motion(self, state: FrameState, params: np.ndarray, delta: np.ndarray) -> float:
-        """Largest image motion (px) a step causes, roughly: rotations over the head's radius
-        (:data:`HEAD_RADIUS_MM`), translations, depth as a scale change, α in mm (its unit)."""
-        d = np.zeros(6 + self.n_alpha)
-        d[params] = delta
-        z = max(float(state.t[2]), 1e-6)
-        rot, lateral, depth = np.abs(d[:3]).max() * HEAD_RADIUS_MM, np.abs(d[3:5]).max(), abs(d[5]) * HEAD_RADIUS_MM / z
-        return float(self.f / z * max(rot, lateral, depth, np.abs(d[6:]).max(initial=0.0)))
+    @staticmethod
+    def _step_size(params: np.ndarray, delta: np.ndarray) -> float:
+        """Largest surface motion (mm) a step causes, roughly: rotations over the head's radius
+        (:data:`HEAD_RADIUS_MM`), translations (depth included: it is what the image sees least,
+        about 0.16 px per mm at 600 mm, yet it moves the surface as much as the others), α in mm
+        (its unit)."""
+        rot = np.abs(delta[params < 3]).max(initial=0.0) * HEAD_RADIUS_MM
+        return float(max(rot, np.abs(delta[params >= 3]).max(initial=0.0)))
 
-    def _lm(self, frame, state, params, iterations, method, filtered, history, render=None):
-        ev = self._evaluate(frame, state, filtered, render)
-        lam = self.options.damping
+    def _system(self, frame, ev: _Eval, params: np.ndarray, method: str, filtered: bool) -> tuple:
+        """``(Jᵀ, JᵀJ, rows)`` at ``ev``: the transposed Jacobian (k, P) float32, its Gram matrix
+        (float64) and how the residual is laid out along P — ``ev`` itself for the unfiltered
+        analytic Jacobian (rows at ``ev``'s covered pixels, channel-major: it vanishes elsewhere),
+        else the crop box (y0, y1, x0, x1) whose pixels × channels the rows cover."""
+        if method == "analytic" and not filtered:
+            col, at_px = self._pixel_jacobian(ev, params)
+            if ev.sw is not None:  # the rows of ε's weighted residual
+                col *= ev.sw[at_px]
+            Jt, rows = col.reshape(len(params), -1), (ev, at_px)
+        else:
+            Jt = self.jacobian(frame, ev, params, method, filtered).T
+            if ev.sw is not None:
+                Jt = Jt * np.repeat(ev.sw, 3)
+            rows = ev.box
+        return Jt, (Jt @ Jt.T).astype(float), rows
+
+    @staticmethod
+    def _residual(ev: _Eval, rows) -> np.ndarray | None:
+        """The residual ``I_t − Î`` of ``ev`` laid out as a Jacobian's rows (see :meth:`_system`);
+        None when it cannot be: covered-pixel rows of another evaluation, or a box that does not
+        hold all of ``ev``'s residual (the model moved out of it)."""
+        if isinstance(rows[0], _Eval):
+            return np.take(ev.diff.reshape(-1, 3), rows[1], axis=0).T.reshape(-1) if rows[0] is ev else None
+        if rows == ev.box:
+            return ev.diff.reshape(-1)
+        (y0, y1, x0, x1), (b0, b1, c0, c1) = rows, ev.box
+        if b0 < y0 or b1 > y1 or c0 < x0 or c1 > x1:
+            return None
+        # ev's residual vanishes outside its own box (the model's box and the filter's reach)
+        r = np.zeros((y1 - y0, x1 - x0, 3), np.float32)
+        r[b0 - y0 : b1 - y0, c0 - x0 : c1 - x0] = ev.diff
+        return r.reshape(-1)
+
+    def _normal_equations(self, system: tuple, ev: _Eval, params: np.ndarray):
+        """``(A, g)`` of Eq. (6) at ``ev`` with ``system``'s Jacobian: ``JᵀJ + H_D`` and
+        ``Jᵀ(I_t − Î) − ∇D``; ``(None, None)`` when ``ev``'s residual does not fit its rows."""
+        Jt, A, rows = system
+        r = self._residual(ev, rows)
+        if r is None:
+            return None, None
+        g = (Jt @ r).astype(float)
         expr = params >= 6
+        if np.any(expr):  # the penalty D is part of ε
+            sel, ia = np.flatnonzero(expr), params[expr] - 6
+            _, gD, hD = self._penalty(ev.weights, ev.render)
+            A = A.copy()
+            g[sel] -= gD[ia]
+            A[np.ix_(sel, sel)] += hD[np.ix_(ia, ia)]
+        return A, g
+
+    def _lm(self, frame, state, params, iterations, method, filtered, history, render=None, tolerance_mm=None,
+            reuse=True):  # fmt: skip
+        """Levenberg–Marquardt on ``params`` from ``state`` (or the evaluation of ``render``).
+
+        Ends when a step would move the surface by less than the tolerance (checked before
+        rendering it) or has just done so; when the predicted decrease of ε is negligible; after a
+        rejected step under 5× the tolerance (at that scale ε's rasterisation noise — pixels
+        flipping at occlusion edges — rejects steps, and smaller ones do no better); or after
+        ``iterations``. Jacobian reuse: after an accepted step, the next one is first solved with
+        the previous Jacobian (only the residual is new; the Jacobian barely changed over the step);
+        if that step is under the tolerance the phase ends without a new Jacobian — the usual end of
+        a tracked frame. Otherwise the step is solved again with the Jacobian of the new point.
+        ``reuse=False`` turns this off (see :meth:`fit`)."""
+        o = self.options
+        tol = o.step_tolerance_mm if tolerance_mm is None else tolerance_mm
+        ev = self._evaluate(frame, state, filtered, render)
+        lam = o.damping
+        system = None
         for _ in range(iterations):
-            if method == "analytic" and not filtered:
-                # the analytic Jacobian vanishes off the model: only the covered pixels' rows
-                Jt = self._pixel_jacobian(ev, params).reshape(len(params), -1)  # (k, 3N)
-                r = ev.diff.reshape(-1, 3)[ev.local].T.reshape(-1)  # channel-major, as Jt
-            else:
-                Jt = self.jacobian(frame, ev, params, method, filtered).T
-                r = ev.diff.reshape(-1)
-            A = (Jt @ Jt.T).astype(float)
-            g = (Jt @ r).astype(float)
-            if np.any(expr):
-                _, gD, hD = self._penalty(ev.weights, ev.render)
-                ia = params[expr] - 6
-                sel = np.flatnonzero(expr)
-                g[sel] -= gD[ia]
-                A[np.ix_(sel, sel)] += hD[np.ix_(ia, ia)]
+            reused = system is not None and reuse
+            A, g = self._normal_equations(system, ev, params) if reused else (None, None)
+            if A is None:
+                reused = False
+                system = self._system(frame, ev, params, method, filtered)
+                A, g = self._normal_equations(system, ev, params)
+            delta, size = self._lm_step(A, g, lam, ev, params)
+            if size < tol or delta @ g - 0.5 * delta @ (A @ delta) < o.decrease_tolerance * ev.eps:
+                break  # converged, no rendering spent
+            if reused:
+                system = self._system(frame, ev, params, method, filtered)
+                A, g = self._normal_equations(system, ev, params)
+                delta, size = self._lm_step(A, g, lam, ev, params)
             improved = False
-            for _ in range(1 + self.options.max_rejections):
-                M = A + lam * np.diag(np.maximum(np.diag(A), 1e-9))
-                try:
-                    delta = np.linalg.solve(M, g)
-                except np.linalg.LinAlgError:
-                    delta = np.linalg.lstsq(M, g, rcond=None)[0]
-                delta *= self._feasible_fraction(ev.state, params, delta)
-                # the quadratic model's decrease of ε: (nearly) none left means converged
-                if delta @ g - 0.5 * delta @ (A @ delta) < self.options.decrease_tolerance * ev.eps:
-                    break
+            for _ in range(1 + o.max_rejections):
                 trial = self._evaluate(frame, self._step(ev.state, params, delta), filtered)
                 if trial.eps < ev.eps and len(trial.render.pixels) >= MIN_PIXELS:
                     ev, lam, improved = trial, max(lam / 10.0, 1e-7), True
                     history.append(ev.eps)
                     break
                 lam *= 10.0
-            if not improved or self._step_motion(ev.state, params, delta) < self.options.step_tolerance_px:
+                if size < 5 * o.step_tolerance_mm:
+                    break
+                delta, size = self._lm_step(A, g, lam, ev, params)
+            if not improved or size < tol:
                 break
         return ev
 
+    def _lm_step(self, A, g, lam, ev: _Eval, params):
+        """The damped step ``[A + λ diag(A)] δ = g``, shortened to keep the weights in range, and
+        its size (mm, :meth:`_step_size`).
+
+        The penalty D is piecewise quadratic and ``A, g`` hold the pieces the weights are on now;
+        a weight at a bound (the neutral face: 1 and 0s) sees D as flat there and any step across
+        it as free. So the step is re-solved with the pieces it would enter (an active-set
+        iteration, ≤ 3 passes): a weight about to leave [0, 1] is held near its bound by D's
+        curvature instead of the step being rejected after a rendering."""
+        state = ev.state
+
+        def solve(A, g):
+            M = A + lam * np.diag(np.maximum(np.diag(A), 1e-9))
+            try:
+                return np.linalg.solve(M, g)
+            except np.linalg.LinAlgError:
+                return np.linalg.lstsq(M, g, rcond=None)[0]
+
+        delta = solve(A, g)
+        expr = params >= 6
+        if np.any(expr):
+            sel, ia = np.flatnonzero(expr), params[expr] - 6
+            now = self._sides(ev.weights)
+            _, g0, h0 = self._penalty(ev.weights, ev.render, now)
+            sides = now
+            for _ in range(3):
+                d = np.zeros(self.n_alpha)
+                d[ia] = delta[sel]
+                entered = self._sides(self.model.region_weights(state.alpha + d))
+                merged = np.where(sides != 0, sides, entered)
+                if np.array_equal(merged, sides):
+                    break
+                sides = merged
+                _, g1, h1 = self._penalty(ev.weights, ev.render, sides)
+                A2, g2 = A.copy(), g.copy()
+                A2[np.ix_(sel, sel)] += (h1 - h0)[np.ix_(ia, ia)]
+                g2[sel] -= (g1 - g0)[ia]
+                delta = solve(A2, g2)
+        delta *= self._feasible_fraction(state, params, delta)
+        return delta, self._step_size(params, delta)
+
     def fit(self, frame: np.ndarray, initial: FrameState) -> FrameResult:
-        """Fit one frame (H, W, 3) float in [0, 1] from ``initial``: pose, then expression."""
+        """Fit one frame (H, W, 3) float in [0, 1] from ``initial``: pose, then expression.
+
+        A tracked frame (``options.rounds == 1``, starting from :func:`predict`) uses two economies:
+        the pose phase ends at :attr:`TrackOptions.pose_tolerance_mm` (it only has to bring the
+        expression phase close), and Jacobian reuse ends a phase without a new Jacobian
+        (:meth:`_lm`). A frame fitted in several rounds (the first one, from the user's pose and a
+        neutral face) uses neither: far from the optimum of a strong expression, the filtered ε
+        has a long shallow valley where steps stay small (0.3–0.5 mm) for many iterations before
+        they grow; measured from 2°/9 mm and a neutral face, either economy ended the fit there at
+        2.8 mm geometry error, instead of 0.01 mm."""
         with _single_threaded_blas():
             return self._fit(frame, initial)
 
@@ -498,9 +690,19 @@ class FrameFitter:
         start = self.evaluations
         history: list[float] = []
         ev = None
-        for _ in range(max(1, o.rounds)):
+        # a frame fitted in several rounds starts far from its optimum (the first frame, from the
+        # user's pose and a neutral face): no tracking economies there (see fit())
+        far = o.rounds > 1
+        pose_tol = o.step_tolerance_mm if far else o.pose_tolerance_mm
+        rounds = max(1, o.rounds)
+        for k in range(rounds):
+            # a frame far from its optimum is first brought close by every pixel of the model (its
+            # silhouette against the background pulls it in from afar); the last round weighs the
+            # face alone (TrackOptions.outside_weight)
+            self._weighted = k == rounds - 1
             ev = self._lm(frame, initial.copy() if ev is None else ev.state, np.arange(6), o.pose_iterations,
-                          o.pose_jacobian, False, history, None if ev is None else ev.render)  # fmt: skip
+                          o.pose_jacobian, False, history, None if ev is None else ev.render, pose_tol,
+                          not far)  # fmt: skip
             if not self.n_alpha:
                 continue
             filtered = o.bandpass is not None
@@ -513,7 +715,7 @@ class FrameFitter:
                 if o.joint:
                     params = np.concatenate([np.arange(6), params])
                 ev = self._lm(frame, ev.state, params, o.expression_iterations, o.expression_jacobian, filtered,
-                              history, ev.render)  # fmt: skip
+                              history, ev.render, None, not far)  # fmt: skip
         npx, rms = len(ev.render.pixels), ev.rms  # the last rendering's unfiltered RMS
         return FrameResult(
             state=ev.state, weights=ev.weights, rms=rms, pixels=npx,

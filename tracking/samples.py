@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -31,11 +32,15 @@ from tracking.expressions import EXPRESSION_NAMES, expression_displacements
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions
 
 __all__ = [
+    "FITTED_SAMPLE_VERSION",
     "TEXTURE_DOWNSAMPLE",
     "VIDEO_SIZE",
     "VIDEO_FOCAL_PX",
     "VideoTruth",
     "sample_face_model",
+    "fitted_sample_project",
+    "fitted_sample_model",
+    "model_gauge",
     "scan_uv_of_points",
     "video_truth",
     "video_camera",
@@ -45,6 +50,8 @@ __all__ = [
 ]
 
 TEXTURE_DOWNSAMPLE = 4
+#: Bump when the modeling pipeline changes what a fit or texture of the sample gives (cache key).
+FITTED_SAMPLE_VERSION = 1
 VIDEO_SIZE = 300
 #: Focal length of the sample video (px at 300×300): a 50 mm lens on a 36 mm sensor would be
 #: 417 px; 560 px frames the head (~250 mm) at ~650 mm in about 200 px.
@@ -52,6 +59,8 @@ VIDEO_FOCAL_PX = 560.0
 #: Distance (mm) of the head centre from the camera in the sample video.
 VIDEO_DISTANCE_MM = 650.0
 BACKGROUND_RGB = (0.55, 0.6, 0.65)
+#: The sample project file (its photos are next to it).
+SAMPLE_PROJECT = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 
 
 def scan_uv_of_points(scan, points: np.ndarray) -> np.ndarray:
@@ -263,3 +272,104 @@ def _scan_texture_handle():
     if id(r) not in _TEX_HANDLES:
         _TEX_HANDLES[id(r)] = r.upload_texture(load_james_scan().texture)
     return _TEX_HANDLES[id(r)]
+
+
+def fitted_sample_project(progress=None) -> Path:
+    """A copy of the sample project with every expression fitted and textured, as a user gets with
+    ``facestudio fit`` then ``facestudio texture``: the path of its project file.
+
+    Made once in the cache (:func:`photomodel.sample_data.cache_dir`, folder ``fitted_james/<key>``,
+    the key a hash of the project file, its photos and :data:`FITTED_SAMPLE_VERSION`; about half a
+    minute on two cores) and reused; ``progress(stage, fraction)`` is told how far it got. Tests and
+    benchmarks track with the face model of this project (:func:`fitted_sample_model`).
+    """
+    import hashlib
+    import os
+    import shutil
+    import tempfile
+
+    from photomodel.fit import FitOptions, fit_expression, fit_order, store_fit_result
+    from photomodel.generic_mesh import load_generic_mesh
+    from photomodel.project import load_project, save_project
+    from photomodel.sample_data import cache_dir
+    from photomodel.texture_job import commit_texture, encode_texture_outputs, texture_expression
+
+    src = SAMPLE_PROJECT
+    project = load_project(src)
+    h = hashlib.sha256(f"v{FITTED_SAMPLE_VERSION}".encode())
+    h.update(src.read_bytes())
+    for e in project.expressions:
+        for p in e.photos:
+            h.update(project.photo_path(p).read_bytes())
+    target = cache_dir() / "fitted_james" / h.hexdigest()[:16]
+    done = target / src.name
+    if done.is_file():
+        return done
+    report = progress or (lambda stage, frac: None)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staged = Path(tempfile.mkdtemp(prefix=".staging-", dir=target.parent))
+    try:
+        shutil.copy2(src, staged / src.name)
+        shutil.copytree(src.parent / "photos", staged / "photos")
+        project = load_project(staged / src.name)
+        mesh = load_generic_mesh()
+        order = fit_order(project)
+        steps = 2 * len(order)
+        for i, name in enumerate(order):
+            report(f"fitting {name}", i / steps)
+            result = fit_expression(project, name, mesh, FitOptions())
+            store_fit_result(project, name, result, mesh.faces)
+        for i, name in enumerate(order):
+            report(f"texturing {name}", (len(order) + i) / steps)
+            job = texture_expression(project, name, face_mask=mesh.face_mask)
+            files, rel = encode_texture_outputs(project, job)
+            commit_texture(project, job, files, rel)
+        save_project(project)
+        try:
+            os.replace(staged, target)
+        except OSError:  # another process finished first: use its copy
+            shutil.rmtree(staged, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(staged, ignore_errors=True)
+        raise
+    report("done", 1.0)
+    return done
+
+
+@lru_cache(maxsize=4)
+def fitted_sample_model(names: tuple = EXPRESSION_NAMES) -> FaceModel:
+    """The face model of the fitted sample project (:func:`fitted_sample_project`) on ``names``,
+    E_1 = neutral — the model a user of the sample gets, built by
+    :func:`tracking.project_model.face_model_from_project`. Cached per arguments."""
+    from photomodel.project import load_project
+    from tracking.project_model import face_model_from_project
+
+    return face_model_from_project(load_project(fitted_sample_project()), names)[0]
+
+
+def model_gauge(model: FaceModel, iterations: int = 15) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(s, R, t)``: the similarity taking a james model's head frame to the true one
+    (``X_true ≈ s R X + t``): its neutral face vertices registered onto the scan's surface
+    (similarity ICP: closest points on the scan, :func:`photomodel.alignment.similarity_transform`,
+    repeated; started from the vertices' true positions).
+
+    A model modeled from photos has its own frame and scale (structure from motion fixes neither):
+    tests and benchmarks compare a tracked pose with the truth through this one fixed map, and
+    multiply camera-space results by ``s`` (a model ``s`` times too small is seen at ``1/s`` the
+    distance). Surface registration, not vertex to vertex: a fitted vertex may slide along the skin
+    by millimetres without changing the surface, and the image — what the tracker matches — only
+    sees the surface.
+    """
+    from photomodel.alignment import similarity_transform
+    from photomodel.sample_data import load_james_scan
+    from photomodel.synthetic import scan_surface
+
+    truth = sample_face_model()
+    face = model.face_mask
+    P = model.geometry[0][face]
+    s, R, t = similarity_transform(P, truth.geometry[0][face])
+    surface = scan_surface(load_james_scan())
+    for _ in range(iterations):
+        closest = surface.closest(P @ (s * R).T + t)[0]
+        s, R, t = similarity_transform(P, closest)
+    return s, R, t
