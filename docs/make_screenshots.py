@@ -15,11 +15,10 @@ so the sample project itself is not modified, and grabs widgets with ``QWidget.g
 * ``view3d_textured.png`` — after *Texture → Extract texture*: the cylindrical texture (left) and
   the view-dependent rendering (right) of the same view;
 * ``studio_textured.png`` — the window with the textured model and the weight-map panel;
-* ``expressions.png`` — *Expression → Side by side* with a second expression, ``open_mouth``:
-  five photos of the scan deformed by :mod:`tracking.expressions`' jaw opening (rendered here
-  from the sample rig's cameras), clicked as the sample's neutral photos are (projections of the
-  true points plus 1 px hand noise, no curves), fitted in the studio;
-* ``tracking.png`` — *Tracking → Track video…* on the sample video (its first
+* ``expressions.png`` — *Expression → Side by side*: the sample's five expressions, each fitted
+  (the four others with the neutral's cameras) and textured in the studio;
+* ``tracking.png`` — *Tracking → Track video…* on the sample video with the face model of those
+  five expressions (its first
   :data:`TRACK_FRAMES` frames): the footage with the model overlaid, the frame scrubber and the
   expression-weight curves with the current-frame marker (``--only tracking`` makes just this one).
 """
@@ -32,49 +31,11 @@ import shutil
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
-
-import numpy as np
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-
-
-def make_expression_photos(folder: Path, project, name: str = "open_mouth", seed: int = 5):
-    """Render photos of the scan in expression ``name`` from the sample rig; return (files, clicks).
-
-    ``clicks[photo file stem][feature] = (u, v)``: the true points of the expression on the
-    generic mesh projected where visible, with 1 px of noise (as ``sample_projects/make_james.py``).
-    """
-    from photomodel import synthetic
-    from photomodel.generic_mesh import load_generic_mesh
-    from photomodel.render import write_png
-    from photomodel.sample_data import load_james_scan
-    from tracking.expressions import EXPRESSION_NAMES, deformed_scan_vertices, true_expression_geometry
-
-    scan = load_james_scan()
-    mesh = load_generic_mesh()
-    k = EXPRESSION_NAMES.index(name)
-    weights = np.eye(len(EXPRESSION_NAMES))[k]
-    moved = replace(scan, vertices=deformed_scan_vertices(scan, weights))
-    truth = true_expression_geometry(mesh, scan)[k]
-    names = [f.name for f in project.features]
-    points3d = truth[[f.vertex for f in project.features]]
-    rng = np.random.default_rng(seed)
-    files, clicks = [], {}
-    for cam in synthetic.rig("sample", 1000, 1000):
-        pid = synthetic.preset_for(cam)
-        result = synthetic.render_scan(cam, moved, background=(0.86, 0.86, 0.85), supersample=3)
-        f = folder / f"{name}_{pid}.png"
-        write_png(f, result.color)
-        vis = synthetic.visible(cam, points3d, moved, depth=np.asarray(result.depth, float),
-                                tol_mm=synthetic.CLICK_TOL_MM, min_cos=synthetic.CLICK_MIN_COS)
-        uv = synthetic.synthesize_clicks([cam], points3d, vis[None], 1.0, rng)[0]
-        files.append(f)
-        clicks[f.stem] = {n: uv[j] for j, n in enumerate(names) if vis[j]}
-    return files, clicks
 
 
 #: Frames of the sample video tracked for ``tracking.png`` (a few seconds).
@@ -115,7 +76,6 @@ def main(argv=None) -> int:
     from PySide6.QtGui import QColor, QImage, QPainter
     from PySide6.QtWidgets import QApplication
 
-    from app.commands import AddExpressionCommand
     from app.main_window import MainWindow
 
     app = QApplication.instance() or QApplication([])
@@ -134,7 +94,13 @@ def main(argv=None) -> int:
         print(path)
 
     try:
-        shutil.copytree(REPO / "sample_projects" / "james", tmp / "james", ignore=shutil.ignore_patterns("results"))
+        if args.only == "tracking":  # the sample fitted and textured (cached), and its video
+            from tracking.samples import fitted_sample_project
+
+            shutil.copytree(fitted_sample_project().parent, tmp / "james")
+            shutil.copytree(REPO / "sample_projects" / "james" / "video", tmp / "james" / "video")
+        else:
+            shutil.copytree(REPO / "sample_projects" / "james", tmp / "james", ignore=shutil.ignore_patterns("results"))
         window = MainWindow(settings=QSettings(str(tmp / "settings.ini"), QSettings.Format.IniFormat),
                             autosave_interval_ms=0, recovery_file=tmp / "recovery.facestudio.json")
         window.resize(1600, 960)
@@ -202,20 +168,21 @@ def main(argv=None) -> int:
         settle(0.5)
         save(window, "studio_textured.png")
 
-        # -- a second expression, added, photographed, clicked and fitted in the studio
-        files, clicks = make_expression_photos(tmp / "james" / "photos", model.project)
-        window.undo_stack.push(AddExpressionCommand(model, "open_mouth"))
-        window.add_photos([str(f) for f in files])
-        stems = {Path(p.path).stem: p.id for p in model.photos}
-        for stem, pts in clicks.items():
-            for feature, uv in pts.items():
-                model.set_point("open_mouth", stems[stem], feature, uv)
-        window.run_fit()
-        while window.fits.busy or model.fit("open_mouth") is None:
-            settle(0.05)
+        # -- the sample's other expressions (the same rig: cameras_from neutral), fitted and
+        # textured in the studio one after the other, then side by side
+        for expr in [e.name for e in model.project.expressions][1:]:
+            model.set_expression(expr)
+            window.run_fit()
+            while window.fits.busy or model.fit(expr) is None:
+                settle(0.05)
+            window.run_texture()
+            while window.jobs.busy or model.texture(expr) is None:
+                settle(0.05)
+        if not window.save():
+            raise SystemExit("could not save the fitted sample copy")
         window.show_expressions()
         window.expressions_dock.setFloating(True)
-        window.expressions_dock.resize(2 * 260 + 40, 360)
+        window.expressions_dock.resize(5 * 240 + 40, 360)
         settle(0.5)
         save(window.expressions_view, "expressions.png")
         window.expressions_dock.setFloating(False)
