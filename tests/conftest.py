@@ -40,3 +40,95 @@ def fitted_project_copy(tmp_path, fitted_sample):
     shutil.copytree(fitted_sample.parent, dst)
     shutil.copytree(SAMPLE_PROJECT / "video", dst / "video")
     return dst / fitted_sample.name
+
+
+# ----------------------------------------------------------------------------- sample data
+# Loaded once per run. The loaders build new objects from the on-disk cache on every call, so
+# sharing one across modules is safe only while no test changes it: read them, do not change
+# them (a test that must change one takes a copy or loads its own).
+
+
+@pytest.fixture(scope="session")
+def template():
+    """The menpo3d template (:func:`photomodel.sample_data.load_template`); read it, do not change it."""
+    from photomodel.sample_data import load_template
+
+    return load_template()
+
+
+@pytest.fixture(scope="session")
+def mesh():
+    """The generic face mesh (:func:`photomodel.generic_mesh.load_generic_mesh`); read it, do not change it."""
+    from photomodel.generic_mesh import load_generic_mesh
+
+    return load_generic_mesh()
+
+
+@pytest.fixture(scope="session")
+def scan():
+    """The james scan in the head frame (:func:`photomodel.sample_data.load_james_scan`); read it,
+    do not change it."""
+    from photomodel.sample_data import load_james_scan
+
+    return load_james_scan()
+
+
+@pytest.fixture(scope="session")
+def sample_truth():
+    """The sample project's ``ground_truth.json`` as a :class:`photomodel.synthetic.GroundTruth`;
+    read it, do not change it."""
+    from photomodel.synthetic import load_ground_truth
+
+    return load_ground_truth(SAMPLE_PROJECT / "ground_truth.json")
+
+
+# ----------------------------------------------------------------------------- studio (Qt)
+# Qt is imported inside the fixtures: a GUI test file calls ``pytest.importorskip("PySide6")``
+# first, so the rest of the suite runs where PySide6 is missing.
+
+
+class MessageLog(list):
+    """The message boxes shown, as ``(kind, title, text)``; ``answers`` maps a kind to the button
+    its box returns (default ``Ok``)."""
+
+    answers: dict
+
+
+@pytest.fixture
+def messages(monkeypatch):
+    """Every message box the window shows (a :class:`MessageLog`) instead of showing it;
+    questions answer ``messages.answers["question"]``, ``No`` unless a test sets it."""
+    from PySide6.QtWidgets import QMessageBox
+
+    shown = MessageLog()
+    shown.answers = {"question": QMessageBox.StandardButton.No}
+
+    def fake(kind):
+        def box(parent, title, text, *args, **kwargs):
+            shown.append((kind, title, text))
+            return shown.answers.get(kind, QMessageBox.StandardButton.Ok)
+
+        return box
+
+    for kind in ("critical", "warning", "information", "question"):
+        monkeypatch.setattr(QMessageBox, kind, fake(kind))
+    return shown
+
+
+@pytest.fixture
+def studio_window(qtbot, tmp_path, messages):
+    """A shown studio :class:`app.main_window.MainWindow` with its own settings file and no
+    autosave timer, no project open; its message boxes go to ``messages``."""
+    from PySide6.QtCore import QSettings
+
+    from app.main_window import MainWindow
+
+    w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
+                   autosave_interval_ms=0)  # fmt: skip
+    qtbot.addWidget(w)
+    w.resize(1300, 850)
+    w.show()
+    qtbot.waitExposed(w)
+    yield w
+    w.fits.shutdown()
+    w.model.modified = False  # no unsaved-changes prompt when the test ends

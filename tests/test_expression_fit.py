@@ -18,10 +18,8 @@ import pytest
 from photomodel.alignment import similarity_transform
 from photomodel.errors import FitError
 from photomodel.fit import FitOptions, fit_expression, fit_order, source_cameras
-from photomodel.generic_mesh import load_generic_mesh
 from photomodel.project import ExpressionResult, load_project
-from photomodel.sample_data import load_james_scan
-from photomodel.synthetic import deformed_scan, load_ground_truth, surface_distance
+from photomodel.synthetic import deformed_scan, surface_distance
 from tracking.expressions import deformed_scan_vertices, expression_displacement, true_expression_geometry
 
 SAMPLE_PROJECT = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -38,21 +36,6 @@ MOVED = {
 STILL = [30, 36, 39, 42, 45]
 
 
-@pytest.fixture(scope="module")
-def mesh():
-    return load_generic_mesh()
-
-
-@pytest.fixture(scope="module")
-def scan():
-    return load_james_scan()
-
-
-@pytest.fixture(scope="module")
-def truth():
-    return load_ground_truth(SAMPLE_PROJECT / "ground_truth.json")
-
-
 def _with_result(project, name, result):
     """Put a fit into the project in memory (what the CLI and the studio do before saving)."""
     project.expression(name).result = ExpressionResult(
@@ -63,13 +46,13 @@ def _with_result(project, name, result):
 
 
 @pytest.fixture(scope="module")
-def neutral(mesh, truth):
+def neutral(mesh, sample_truth):
     """The sample project with its neutral fitted (once per module), the neutral's FitResult, and
     the similarity (s, R, t) taking the neutral fit's frame onto the true head frame."""
     project = load_project(PROJECT)
     result = fit_expression(project, "neutral", mesh)
     _with_result(project, "neutral", result)
-    sim = similarity_transform(result.points_3d, truth.true_points(result.feature_names))
+    sim = similarity_transform(result.points_3d, sample_truth.true_points(result.feature_names))
     return project, result, sim
 
 
@@ -161,27 +144,27 @@ def test_displacement_from_the_neutral_matches_the_truth(name, neutral, fits, me
     assert err_still.max() < 2.5, err_still
 
 
-def test_expression_features_match_their_true_positions(neutral, fits, truth):
+def test_expression_features_match_their_true_positions(neutral, fits, sample_truth):
     """The triangulated 3D features against ground_truth.json's per-expression positions."""
     _, _, (s, R, t) = neutral
     r = fits("open_mouth")
-    err = np.linalg.norm(r.points_3d @ (s * R).T + t - truth.true_points(r.feature_names, "open_mouth"), axis=1)
+    err = np.linalg.norm(r.points_3d @ (s * R).T + t - sample_truth.true_points(r.feature_names, "open_mouth"), axis=1)
     # triangulated from ≥ 2 photos with 1 px noise at ~0.3 mm/px: measured median 0.30 mm, mean
     # 0.34 mm (0.30–0.34 in every expression); bounds at about twice that
     assert np.median(err) < 0.75 and err.mean() < 1.0, (np.median(err), err.mean())
     # and they are not the neutral's: the chin moved 18 mm
     chin = r.feature_names.index("chin")
-    assert np.linalg.norm(truth.true_points(["chin"], "open_mouth") - truth.true_points(["chin"])) > 15.0
-    assert np.linalg.norm(r.points_3d[chin] @ (s * R).T + t - truth.true_points(["chin"], "open_mouth")) < 2.0
+    assert np.linalg.norm(sample_truth.true_points(["chin"], "open_mouth") - sample_truth.true_points(["chin"])) > 15.0
+    assert np.linalg.norm(r.points_3d[chin] @ (s * R).T + t - sample_truth.true_points(["chin"], "open_mouth")) < 2.0
 
 
-def test_independent_fit_still_works(mesh, scan, truth):
+def test_independent_fit_still_works(mesh, scan, sample_truth):
     """Without cameras_from, an expression recovers its own cameras (and gauge) like any other."""
     project = load_project(PROJECT)  # the neutral is not fitted: nothing to borrow
     r = fit_expression(project, "smile", mesh, FitOptions(independent_cameras=True))
     assert r.cameras_from is None and r.report["cameras_from"] is None
     assert r.report["bundle"] is not None and r.report["pose"]["sweeps"] > 0
-    s, R, t = similarity_transform(r.points_3d, truth.true_points(r.feature_names, "smile"))
+    s, R, t = similarity_transform(r.points_3d, sample_truth.true_points(r.feature_names, "smile"))
     d = surface_distance(r.vertices[mesh.face_mask] @ (s * R).T + t, expression_scan(scan, "smile"))
     assert d.mean() < 1.0, d.mean()  # measured 0.746 mm (0.73 mm with the neutral's cameras)
 

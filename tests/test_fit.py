@@ -15,28 +15,11 @@ import pytest
 from photomodel.alignment import align_to_truth, camera_errors
 from photomodel.errors import FitError
 from photomodel.fit import FitOptions, fit_expression
-from photomodel.generic_mesh import load_generic_mesh
 from photomodel.project import load_project
-from photomodel.sample_data import load_james_scan
-from photomodel.synthetic import load_ground_truth, surface_distance, true_correspondence
+from photomodel.synthetic import surface_distance, true_correspondence
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 PROJECT = SAMPLE / "james.facestudio.json"
-
-
-@pytest.fixture(scope="module")
-def mesh():
-    return load_generic_mesh()
-
-
-@pytest.fixture(scope="module")
-def scan():
-    return load_james_scan()
-
-
-@pytest.fixture(scope="module")
-def truth():
-    return load_ground_truth(SAMPLE / "ground_truth.json")
 
 
 @pytest.fixture(scope="module")
@@ -55,10 +38,10 @@ def _aligned(result, truth):
     return cams, pts, true_pts, (s, R, t)
 
 
-def test_cameras_match_ground_truth(fitted, truth):
+def test_cameras_match_ground_truth(fitted, sample_truth):
     project, result = fitted
-    cams, _, _, _ = _aligned(result, truth)
-    true = [truth.cameras["neutral"][pid] for pid in result.photo_ids]
+    cams, _, _, _ = _aligned(result, sample_truth)
+    true = [sample_truth.cameras["neutral"][pid] for pid in result.photo_ids]
     err = camera_errors(cams, true)
     # With the final re-estimation from all ~160 triangulated clicks (σ = 1 px, 1000 px photos)
     # measured: rotation ≤ 0.4°, focal ≤ 4 % (long lenses trade focal length against distance).
@@ -68,12 +51,12 @@ def test_cameras_match_ground_truth(fitted, truth):
     assert result.report["bundle"]["rms_px"] < 1.5
 
 
-def test_paper_cameras_from_pose_features_only(mesh, truth):
+def test_paper_cameras_from_pose_features_only(mesh, sample_truth):
     """The paper keeps the cameras of the 13 pose features (FitOptions.bundle_all=False)."""
     project = load_project(PROJECT)
     result = fit_expression(project, "neutral", mesh, FitOptions(bundle_all=False))
-    cams, _, _, _ = _aligned(result, truth)
-    err = camera_errors(cams, [truth.cameras["neutral"][pid] for pid in result.photo_ids])
+    cams, _, _, _ = _aligned(result, sample_truth)
+    err = camera_errors(cams, [sample_truth.cameras["neutral"][pid] for pid in result.photo_ids])
     # The side views see only 5–6 of the 13 pose features, so their orientation is the least
     # certain (measured 1.6° for 'right', ≤ 0.6° elsewhere); focal errors measured 0.5–14 %.
     # Clean clicks give < 0.1° and < 1 % (test below): these bounds are the noise.
@@ -83,18 +66,18 @@ def test_paper_cameras_from_pose_features_only(mesh, truth):
     assert result.report["bundle"] is None
 
 
-def test_feature_points_match_ground_truth(fitted, truth):
+def test_feature_points_match_ground_truth(fitted, sample_truth):
     _, result = fitted
-    _, pts, true_pts, _ = _aligned(result, truth)
+    _, pts, true_pts, _ = _aligned(result, sample_truth)
     err = np.linalg.norm(pts - true_pts, axis=1)
     # triangulated from ≥2 photos with 1 px noise at ~0.3 mm/px: about a millimetre
     assert np.median(err) < 1.5, np.median(err)
     assert err.mean() < 2.0
 
 
-def test_refined_mesh_is_close_to_the_scan(fitted, truth, mesh, scan):
+def test_refined_mesh_is_close_to_the_scan(fitted, sample_truth, mesh, scan):
     _, result = fitted
-    _, _, _, (s, R, t) = _aligned(result, truth)
+    _, _, _, (s, R, t) = _aligned(result, sample_truth)
     face = mesh.face_mask
     initial = surface_distance(result.initial_vertices[face] @ (s * R).T + t, scan)
     refined = surface_distance(result.vertices[face] @ (s * R).T + t, scan)
@@ -104,27 +87,27 @@ def test_refined_mesh_is_close_to_the_scan(fitted, truth, mesh, scan):
     assert refined.mean() < initial.mean() < generic.mean()
 
 
-def test_refined_mesh_vertices_match_true_correspondence(fitted, truth, mesh, scan):
+def test_refined_mesh_vertices_match_true_correspondence(fitted, sample_truth, mesh, scan):
     """Stricter than surface distance: each vertex against its own true position."""
     _, result = fitted
-    _, _, _, (s, R, t) = _aligned(result, truth)
+    _, _, _, (s, R, t) = _aligned(result, sample_truth)
     face = mesh.face_mask
     true_v = true_correspondence(mesh, scan)[face]
     err = np.linalg.norm(result.vertices[face] @ (s * R).T + t - true_v, axis=1)
     assert np.median(err) < 2.0, np.median(err)
 
 
-def test_clean_clicks_fit_better_than_noisy(mesh, truth):
+def test_clean_clicks_fit_better_than_noisy(mesh, sample_truth):
     """With noise-free clicks the same pipeline is near exact on the cameras."""
     project = load_project(PROJECT)
     expr = project.expression("neutral")
     ids = [p.id for p in expr.photos]
     for p in expr.photos:
-        clean = truth.clean_points["neutral"][p.id]
+        clean = sample_truth.clean_points["neutral"][p.id]
         p.points = {n: clean[n] for n in p.points if n in clean}
     result = fit_expression(project, "neutral", mesh, FitOptions(refine=False))
-    cams, _ = align_to_truth(result.cameras, result.points_3d, truth.true_points(result.feature_names))
-    err = camera_errors(cams, [truth.cameras["neutral"][i] for i in ids])
+    cams, _ = align_to_truth(result.cameras, result.points_3d, sample_truth.true_points(result.feature_names))
+    err = camera_errors(cams, [sample_truth.cameras["neutral"][i] for i in ids])
     assert result.report["pose"]["rms_px"] < 0.05
     assert err["rot_err_deg"].max() < 0.1
     assert err["focal_err_pct"].max() < 1.0

@@ -11,19 +11,7 @@ from photomodel.generic_mesh import (
     IBUG68_NAMES,
     REGION_NAMES,
     build_generic_mesh_arrays,
-    load_generic_mesh,
 )
-from photomodel.sample_data import load_template
-
-
-@pytest.fixture(scope="module")
-def template():
-    return load_template()
-
-
-@pytest.fixture(scope="module")
-def mesh():
-    return load_generic_mesh()
 
 
 def _edges(faces: np.ndarray) -> set[tuple[int, int]]:

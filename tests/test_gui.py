@@ -30,52 +30,17 @@ from photomodel.synthetic import load_ground_truth  # noqa: E402
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
 
-class _Shown(list):
-    answers: dict
-
-
-@pytest.fixture
-def messages(monkeypatch):
-    """Every message box the window shows, as (kind, title, text); questions answer ``answers``."""
-    shown = _Shown()
-    answers = {"question": QMessageBox.StandardButton.No}
-
-    def fake(kind):
-        def box(parent, title, text, *args, **kwargs):
-            shown.append((kind, title, text))
-            return answers.get(kind, QMessageBox.StandardButton.Ok)
-        return box
-
-    for kind in ("critical", "warning", "information", "question"):
-        monkeypatch.setattr(QMessageBox, kind, fake(kind))
-    shown.answers = answers
-    return shown
-
-
-@pytest.fixture
-def window(qtbot, tmp_path, messages):
-    w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
-                   autosave_interval_ms=0)
-    qtbot.addWidget(w)
-    w.resize(1300, 850)
-    w.show()
-    qtbot.waitExposed(w)
-    yield w
-    w.fits.shutdown()
-    w.model.modified = False  # no unsaved-changes prompt when the test ends
-
-
 def widget_pos(view, uv) -> QPoint:
     """The viewport position that shows image position ``uv``."""
     return view.mapFromScene(QPointF(float(uv[0]), float(uv[1])))
 
 
-def test_artist_session_click_drag_undo_fit_save_reopen(qtbot, window, project_copy, messages):
+def test_artist_session_click_drag_undo_fit_save_reopen(qtbot, studio_window, project_copy, messages):
     truth = load_ground_truth(project_copy.parent / "ground_truth.json")
-    assert window.open_project(project_copy)
-    model = window.model
-    window.act_auto.setChecked(False)  # the explicit fit below is the one under test
-    view = window.show_photo("front")
+    assert studio_window.open_project(project_copy)
+    model = studio_window.model
+    studio_window.act_auto.setChecked(False)  # the explicit fit below is the one under test
+    view = studio_window.show_photo("front")
     qtbot.waitUntil(lambda: view.isVisible())
     scale = view.scale_factor
     # a click lands within ~half a screen pixel of the wanted image position (integer widget
@@ -83,8 +48,8 @@ def test_artist_session_click_drag_undo_fit_save_reopen(qtbot, window, project_c
     tol = 0.75 / scale + 1e-6
 
     # -- pick a feature in the list, delete its click, click it again at its true position
-    item = window.panel.feature_item("nose_tip")
-    window.panel.features.setCurrentItem(item)
+    item = studio_window.panel.feature_item("nose_tip")
+    studio_window.panel.features.setCurrentItem(item)
     assert model.active_feature == "nose_tip"
     qtbot.keyClick(view, Qt.Key.Key_Delete)
     assert "nose_tip" not in model.photo("front").points
@@ -95,7 +60,7 @@ def test_artist_session_click_drag_undo_fit_save_reopen(qtbot, window, project_c
     # H hides it in this photo (kept, but not observed), undo shows it again
     qtbot.keyClick(view, Qt.Key.Key_H)
     assert "nose_tip" in model.photo("front").hidden and view._items["nose_tip"].hidden
-    window.undo_stack.undo()
+    studio_window.undo_stack.undo()
     assert "nose_tip" not in model.photo("front").hidden
 
     # -- drag the chin's marker 30 screen px to the right, then undo / redo
@@ -110,16 +75,16 @@ def test_artist_session_click_drag_undo_fit_save_reopen(qtbot, window, project_c
     assert model.active_feature == "chin"
     assert after[0] - before[0] == pytest.approx(30 / scale, abs=tol)
     assert after[1] == pytest.approx(before[1], abs=tol)
-    window.undo_stack.undo()
+    studio_window.undo_stack.undo()
     np.testing.assert_allclose(model.photo("front").points["chin"], before)
     assert view._items["chin"].pos().x() == pytest.approx(before[0])  # the marker went back too
-    window.undo_stack.redo()
+    studio_window.undo_stack.redo()
     np.testing.assert_allclose(model.photo("front").points["chin"], after)
-    window.undo_stack.undo()
+    studio_window.undo_stack.undo()
 
     # -- fit in the worker; the window keeps processing events meanwhile
-    assert window.run_fit()
-    qtbot.waitUntil(lambda: not window.fits.busy and model.fit() is not None, timeout=60_000)
+    assert studio_window.run_fit()
+    qtbot.waitUntil(lambda: not studio_window.fits.busy and model.fit() is not None, timeout=60_000)
     assert not messages, messages
     fit = model.fit()
     result = fit.result
@@ -127,47 +92,47 @@ def test_artist_session_click_drag_undo_fit_save_reopen(qtbot, window, project_c
     err = camera_errors(cams, [truth.cameras["neutral"][pid] for pid in result.photo_ids])
     # same bound and reason as tests/test_fit.py: σ = 1 px clicks, the profile views see 5–6 pose features
     assert err["rot_err_deg"].max() < 2.5, err
-    assert "px" in window.tabs.tabText(window.tabs.currentIndex())  # per-view RMS in the tab title
+    assert "px" in studio_window.tabs.tabText(studio_window.tabs.currentIndex())  # per-view RMS in the tab title
     assert view.overlay_item.count > 1000  # the fitted wireframe is drawn over the photo
-    assert window.panel.worst.count() > 0
+    assert studio_window.panel.worst.count() > 0
 
     # -- the worst click is one click away
-    first = window.panel.worst.item(0)
+    first = studio_window.panel.worst.item(0)
     pid, name = first.data(Qt.ItemDataRole.UserRole)
-    window.panel.worst.itemClicked.emit(first)
-    assert window.current_view().photo_id == pid and model.active_feature == name
+    studio_window.panel.worst.itemClicked.emit(first)
+    assert studio_window.current_view().photo_id == pid and model.active_feature == name
 
     # -- auto-refit: a drag after a fast fit refits by itself
-    window.act_auto.setChecked(True)
-    window.fits.last_warm_s = None
-    view = window.show_photo("front")
+    studio_window.act_auto.setChecked(True)
+    studio_window.fits.last_warm_s = None
+    view = studio_window.show_photo("front")
     model.set_active_feature("chin")
     old_fit = model.fit()
     p = widget_pos(view, model.photo("front").points["chin"])
     qtbot.mousePress(view.viewport(), Qt.MouseButton.LeftButton, pos=p)
     qtbot.mouseMove(view.viewport(), p + QPoint(0, 4))
     qtbot.mouseRelease(view.viewport(), Qt.MouseButton.LeftButton, pos=p + QPoint(0, 4))
-    qtbot.waitUntil(lambda: model.fit() is not old_fit and not window.fits.busy, timeout=60_000)
+    qtbot.waitUntil(lambda: model.fit() is not old_fit and not studio_window.fits.busy, timeout=60_000)
 
     # -- save, reopen, compare the clicks
     clicks = {p.id: {k: v.copy() for k, v in p.points.items()} for p in model.photos}
-    assert window.save()
-    assert not model.modified and not window.isWindowModified()
+    assert studio_window.save()
+    assert not model.modified and not studio_window.isWindowModified()
     saved = json.loads(project_copy.read_text())
     assert saved["expressions"][0]["result"]["mesh_obj"] == "results/neutral.obj"
     assert (project_copy.parent / "results" / "neutral.ply").is_file()
-    assert window.open_project(project_copy)
-    for p in window.model.photos:
+    assert studio_window.open_project(project_copy)
+    for p in studio_window.model.photos:
         assert p.points.keys() == clicks[p.id].keys()
         for k, uv in p.points.items():
             np.testing.assert_allclose(uv, clicks[p.id][k], atol=1e-3)  # stored to 1e-3 px
-    assert window.model.fit().vertices is not None  # the fitted mesh came back from results/
-    assert str(project_copy.absolute()) in window.recent_files()
+    assert studio_window.model.fit().vertices is not None  # the fitted mesh came back from results/
+    assert str(project_copy.absolute()) in studio_window.recent_files()
 
 
-def test_bad_files_leave_the_open_project_untouched(window, project_copy, tmp_path, messages):
-    assert window.open_project(project_copy)
-    model = window.model
+def test_bad_files_leave_the_open_project_untouched(studio_window, project_copy, tmp_path, messages):
+    assert studio_window.open_project(project_copy)
+    model = studio_window.model
     project, path = model.project, model.path
 
     # malformed: a click with one coordinate
@@ -175,51 +140,51 @@ def test_bad_files_leave_the_open_project_untouched(window, project_copy, tmp_pa
     bad["expressions"][0]["photos"][2]["points"]["nose_tip"] = [12.0]
     bad_path = project_copy.parent / "bad.facestudio.json"
     bad_path.write_text(json.dumps(bad))
-    assert not window.open_project(bad_path)
+    assert not studio_window.open_project(bad_path)
     kind, title, text = messages[-1]
     assert kind == "critical" and "expressions[0].photos[2].points.nose_tip" in text and "Traceback" not in text
     assert model.project is project and model.path == path
 
     # not JSON at all
     bad_path.write_text("{ this is not json")
-    assert not window.open_project(bad_path)
+    assert not studio_window.open_project(bad_path)
     assert "bad.facestudio.json" in messages[-1][2] and model.project is project
 
     # a missing photo: the question names it; answering No keeps the current project
     other = tmp_path / "moved"
     other.mkdir()
     shutil.copy(project_copy, other / "james.facestudio.json")
-    assert not window.open_project(other / "james.facestudio.json")
+    assert not studio_window.open_project(other / "james.facestudio.json")
     kind, title, text = messages[-1]
     assert kind == "question" and "photos/neutral_front.png" in text
     assert model.project is project and model.path == path
 
     # answering Yes opens it with placeholders
     messages.answers["question"] = QMessageBox.StandardButton.Yes
-    assert window.open_project(other / "james.facestudio.json")
-    assert window.views["front"].missing is not None
+    assert studio_window.open_project(other / "james.facestudio.json")
+    assert studio_window.views["front"].missing is not None
 
     # an unreadable photo file is named
-    assert window.open_project(project_copy)
+    assert studio_window.open_project(project_copy)
     junk = tmp_path / "notes.png"
     junk.write_text("not an image")
-    n = len(window.model.photos)
-    assert window.add_photos([str(junk)]) == 0
+    n = len(studio_window.model.photos)
+    assert studio_window.add_photos([str(junk)]) == 0
     assert messages[-1][0] == "critical" and "notes.png" in messages[-1][2]
-    assert len(window.model.photos) == n
+    assert len(studio_window.model.photos) == n
 
 
-def test_add_photos_and_draw_a_curve(qtbot, window, project_copy):
-    window.new_project()
-    assert window.model.photos == []
+def test_add_photos_and_draw_a_curve(qtbot, studio_window, project_copy):
+    studio_window.new_project()
+    assert studio_window.model.photos == []
     photos = sorted((project_copy.parent / "photos").glob("*.png"))
-    assert window.add_photos([str(p) for p in photos]) == len(photos)
-    model = window.model
+    assert studio_window.add_photos([str(p) for p in photos]) == len(photos)
+    model = studio_window.model
     assert {p.preset for p in model.photos} == {guess_preset(p.name) for p in photos}
     front = next(p for p in model.photos if p.preset == "front")
     assert (front.width, front.height) == (1000, 1000)  # read from the file
 
-    view = window.show_photo(front.id)
+    view = studio_window.show_photo(front.id)
     qtbot.waitUntil(lambda: view.isVisible())
 
     # a generic-mesh feature the project does not use yet is added by its first click
@@ -227,11 +192,11 @@ def test_add_photos_and_draw_a_curve(qtbot, window, project_copy):
     model.set_active_feature(new_name)
     qtbot.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, pos=widget_pos(view, (500.0, 300.0)))
     assert model.has_feature(new_name) and new_name in model.photo(front.id).points
-    window.undo_stack.undo()
+    studio_window.undo_stack.undo()
     assert not model.has_feature(new_name) and new_name not in model.photo(front.id).points
 
     model.set_active_curve("brow_l")
-    window.set_mode("curve")
+    studio_window.set_mode("curve")
     pts = [(560.0, 330.0), (600.0, 318.0), (650.0, 322.0), (690.0, 340.0)]
     for uv in pts:
         qtbot.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, pos=widget_pos(view, uv))
@@ -239,7 +204,7 @@ def test_add_photos_and_draw_a_curve(qtbot, window, project_copy):
     line = model.photo(front.id).curves["brow_l"]
     assert line.shape == (4, 2)
     np.testing.assert_allclose(line, pts, atol=1.0 / view.scale_factor + 1e-6)
-    window.undo_stack.undo()
+    studio_window.undo_stack.undo()
     assert "brow_l" not in model.photo(front.id).curves
 
     # Escape abandons a curve being drawn
@@ -248,7 +213,7 @@ def test_add_photos_and_draw_a_curve(qtbot, window, project_copy):
     qtbot.keyClick(view, Qt.Key.Key_Return)
     assert "brow_l" not in model.photo(front.id).curves
 
-    window.undo_stack.undo()  # the photos go again
+    studio_window.undo_stack.undo()  # the photos go again
     assert model.photos == []
 
 
@@ -275,27 +240,27 @@ def test_autosave_is_offered_for_recovery(qtbot, tmp_path, project_copy, message
     w2.model.modified = False
 
 
-def test_fit_can_be_cancelled(qtbot, window, project_copy):
-    assert window.open_project(project_copy)
-    assert window.run_fit()
-    window.fits.cancel()  # what the progress dialog's Cancel button does
-    qtbot.waitUntil(lambda: not window.fits.busy, timeout=60_000)
-    assert window.model.fit() is None and window.fit_label.text() == "fit cancelled"
-    assert window._progress is None
+def test_fit_can_be_cancelled(qtbot, studio_window, project_copy):
+    assert studio_window.open_project(project_copy)
+    assert studio_window.run_fit()
+    studio_window.fits.cancel()  # what the progress dialog's Cancel button does
+    qtbot.waitUntil(lambda: not studio_window.fits.busy, timeout=60_000)
+    assert studio_window.model.fit() is None and studio_window.fit_label.text() == "fit cancelled"
+    assert studio_window._progress is None
 
 
-def test_3d_view_picks_a_feature(qtbot, window, project_copy):
-    assert window.open_project(project_copy)
-    v3 = window.view3d
+def test_3d_view_picks_a_feature(qtbot, studio_window, project_copy):
+    assert studio_window.open_project(project_copy)
+    v3 = studio_window.view3d
     qtbot.waitUntil(lambda: v3.isVisible())
     v3.view_from(0.0, 0.0)
     v3.render_image()
     assert v3.last_render_s is not None
-    vertex = window.model.mesh.features["nose_tip"]
+    vertex = studio_window.model.mesh.features["nose_tip"]
     cam = v3.camera(v3.width(), v3.height())
-    u, v = cam.project(window.model.mesh.vertices[[vertex]])[0]
+    u, v = cam.project(studio_window.model.mesh.vertices[[vertex]])[0]
     qtbot.mouseClick(v3, Qt.MouseButton.LeftButton, pos=QPoint(int(round(u)), int(round(v))))
-    assert window.model.active_feature == "nose_tip"
+    assert studio_window.model.active_feature == "nose_tip"
 
 
 def test_studio_command_opens_the_project(qtbot, qapp, project_copy, monkeypatch, messages):

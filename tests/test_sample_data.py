@@ -18,8 +18,6 @@ from photomodel.errors import SampleDataError
 from photomodel.sample_data import (
     FILE_SHA256,
     JAMES_TO_IBUG68,
-    load_james_scan,
-    load_template,
     rigid_transform,
     sample_data_dir,
 )
@@ -27,16 +25,6 @@ from photomodel.sample_data import (
 # iBUG-68 indices on the subject's right side and their mirror images on the left
 RIGHT = np.r_[0:8, 17:22, 36:42, 31, 48, 49, 59, 60, 67]
 LEFT = np.r_[16:8:-1, 26:21:-1, 45, 44, 43, 42, 47, 46, 35, 54, 53, 55, 64, 65]
-
-
-@pytest.fixture(scope="module")
-def template():
-    return load_template()
-
-
-@pytest.fixture(scope="module")
-def scan():
-    return load_james_scan()
 
 
 # ----------------------------------------------------------------------------- fetching

@@ -10,23 +10,11 @@ import pytest
 
 from photomodel import synthetic
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, orbit_camera
-from photomodel.generic_mesh import load_generic_mesh
 from photomodel.project import load_project
-from photomodel.sample_data import load_james_scan
 from tracking.expressions import deformed_scan_vertices, expression_displacement, true_expression_geometry
 
 EXPRESSIONS = ("smile", "open_mouth", "brows_raised", "frown")
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
-
-
-@pytest.fixture(scope="module")
-def scan():
-    return load_james_scan()
-
-
-@pytest.fixture(scope="module")
-def mesh():
-    return load_generic_mesh()
 
 
 @pytest.fixture(scope="module")
