@@ -16,7 +16,10 @@ writing ``<file>.autosave`` (a never-saved project: a recovery file in the user'
 Texture (§5.2): *Texture → Extract texture* runs :mod:`photomodel.texture_job` in a worker
 (:class:`~app.workers.JobController`) behind a cancellable progress dialog; the 3D view then
 shows the model with the cylindrical texture or view-dependently (a toggle), and the
-:class:`~app.texture_views.WeightMapPanel` dock shows the weight maps. *Expression → Side by
+:class:`~app.texture_views.WeightMapPanel` dock shows the weight maps. A project saved with
+textures shows them again when it is opened (read back from its files as each expression is
+shown, :meth:`~app.model.StudioModel.load_stored_texture`; a damaged file is named in the status
+bar and that texture is simply not shown). *Expression → Side by
 side* docks the :class:`~app.texture_views.ExpressionsView`. *Tracking → Track video…* / *Open
 results…* dock the :class:`~app.tracking_view.TrackingView` (§6.2: the footage with the model
 overlaid, a frame scrubber, the parameter curves). Every failure is shown in a dialog whose text is the cause
@@ -66,6 +69,8 @@ MAX_RECENT = 8
 DEFAULT_TEXTURE_SIZE = 1024
 #: How the 3D view draws a textured model.
 TEXTURE_MODES = ("untextured", "cylindrical", "view_dependent")
+#: Appended to the message saying a stored texture cannot be shown.
+REEXTRACT_HINT = " (Texture → Extract texture makes it again)"
 #: Name of the recovery file of a never-saved project, in the user's data folder.
 RECOVERY_NAME = "untitled.recovery" + FILE_SUFFIX
 
@@ -113,6 +118,7 @@ class MainWindow(QMainWindow):
         self.recovery_file = Path(recovery_file) if recovery_file is not None else default_recovery_file()
         self.texture_mode = "cylindrical"
         self._texture_progress: QProgressDialog | None = None
+        self._show_weights_for_stored = True  # the weight-map dock opens for the first stored texture
         self.views: dict[str, PhotoView] = {}
         self.mode = POINTS
         self.show_overlay = True
@@ -194,6 +200,7 @@ class MainWindow(QMainWindow):
         m.photo_changed.connect(lambda *_: self._sync_preset())
         m.fit_changed.connect(self._on_fit_changed)
         m.texture_changed.connect(self._on_texture_changed)
+        m.texture_load_failed.connect(self._on_texture_load_failed)
         m.expression_changed.connect(lambda *_: self._on_texture_changed(self.model.expression_name))
         m.modified_changed.connect(lambda value: self.setWindowModified(bool(value)))
         m.path_changed.connect(lambda *_: self._update_title())
@@ -441,7 +448,11 @@ class MainWindow(QMainWindow):
             return False
         self.undo_stack.clear()
         self._add_recent(path)
-        self._status(f"opened {path}" + (" (recovered from the autosave)" if recover else ""))
+        text = f"opened {path}" + (" (recovered from the autosave)" if recover else "")
+        problem = self.model.texture_problems.get(self.model.expression_name)
+        if problem is not None:
+            text += f"; {problem}{REEXTRACT_HINT}"
+        self._status(text, 6000 if problem is None else 20000)
         return True
 
     def save(self) -> bool:
@@ -839,6 +850,10 @@ class MainWindow(QMainWindow):
         self._status(f"texture of {job.expression!r}: {job.report['coverage']:.1%} of the surface seen, "
                      f"{job.report['extract_s']:.2f} s; it is written with the project")
         self.weights_dock.show()
+        self._show_weights_for_stored = False
+
+    def _on_texture_load_failed(self, expression: str, message: str):
+        self._status(f"{message}{REEXTRACT_HINT}", 20000)
 
     def _on_texture_failed(self, message: str):
         self._close_texture_progress()
@@ -863,6 +878,9 @@ class MainWindow(QMainWindow):
             return
         tex = self.model.texture()
         v3 = self.view3d
+        if tex is not None and self._show_weights_for_stored:  # a project opened with its textures
+            self._show_weights_for_stored = False
+            self.weights_dock.show()
         if tex is None or self.texture_mode == "untextured":
             v3.view_dependent = None
             v3.set_texture(None, None)
@@ -926,10 +944,12 @@ class MainWindow(QMainWindow):
         self.fits.schedule_refit()
 
     def _on_project_replaced(self):
+        self._show_weights_for_stored = True
         self._rebuild_tabs()
         self._update_title()
         self.setWindowModified(self.model.modified)
         self._on_fit_changed(self.model.expression_name)
+        self._on_texture_changed(self.model.expression_name)  # a texture read with the project
 
     # ------------------------------------------------------------------ drag and drop, closing
     def dragEnterEvent(self, event):

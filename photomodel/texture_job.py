@@ -14,6 +14,10 @@ the slow one in a worker and commit on its own thread:
 4. :func:`commit_texture` — writes the files atomically and records a
    :class:`~photomodel.project.TextureResult` in the expression's result (the caller saves the
    project file).
+
+The way back, when the studio opens a textured project: :func:`load_stored_texture` rebuilds the
+:class:`TextureJob` of a stored texture from its PNGs and the fitted mesh (no photograph is read:
+:func:`load_texture_photos` reads them when view-dependent texturing needs them).
 """
 
 from __future__ import annotations
@@ -34,7 +38,10 @@ __all__ = [
     "encode_texture_outputs",
     "extract_texture",
     "fitted_expressions",
+    "load_stored_texture",
     "load_texture_inputs",
+    "load_texture_photos",
+    "stored_cylinder",
     "texture_expression",
 ]
 
@@ -53,7 +60,8 @@ class TextureInputs:
     faces : (M, 3) int.
     photo_ids : list[str], the photos that have a recovered camera, in project order.
     cameras : list[Camera], their cameras.
-    photos : list[(H, W, 3) uint8], RGB, each the size of its camera.
+    photos : list[(H, W, 3) uint8] or None, RGB, each the size of its camera; None for a texture
+        read back from its files (:func:`load_stored_texture`; see :func:`load_texture_photos`).
     """
 
     expression: str
@@ -61,7 +69,7 @@ class TextureInputs:
     faces: np.ndarray
     photo_ids: list
     cameras: list
-    photos: list
+    photos: list | None
 
 
 @dataclass
@@ -121,8 +129,6 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
     ProjectError
         naming the mesh or photo that is missing, unreadable or of the wrong size.
     """
-    import cv2
-
     expr = project.expression(name)
     result = expr.result
     if result is None:
@@ -140,13 +146,27 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
             vertices, faces = read_mesh(mesh_path)
         except Exception as exc:  # trimesh raises many kinds on a damaged file
             raise ProjectError(f"expression {name!r}: cannot read the fitted mesh {result.mesh_obj}: {exc}") from exc
+    ids, cameras, photos = _read_photos(project, name, [p.id for p in expr.photos if p.id in result.cameras])
+    if not cameras:
+        raise FitError(f"expression {name!r}: no photo has a recovered camera; run `facestudio fit` first")
+    return TextureInputs(name, np.asarray(vertices, dtype=float), np.asarray(faces), ids, cameras, photos)
+
+
+def _read_photos(project, name: str, photo_ids) -> tuple[list, list, list]:
+    """``(ids, cameras, RGB photos)`` of the expression's photos ``photo_ids`` (all with a
+    recovered camera), each checked against its camera; ProjectError naming the photo."""
+    import cv2
+
+    expr = project.expression(name)
+    result = expr.result
     ids, cameras, photos = [], [], []
-    for photo in expr.photos:
-        cam = result.cameras.get(photo.id)
+    for pid in photo_ids:
+        photo = expr.photo(pid)
+        cam = result.cameras.get(pid)
+        who = f"expression {name!r}, photo {pid!r}"
         if cam is None:
-            continue  # the fit did not use this photo (no camera was recovered for it)
+            raise ProjectError(f"{who}: it has no recovered camera; run `facestudio fit {project.path}` again")
         path = project.photo_path(photo)
-        who = f"expression {name!r}, photo {photo.id!r}"
         if not path.is_file():
             raise ProjectError(f"{who}: {photo.path} does not exist (looked for {path})")
         img = cv2.imread(str(path), cv2.IMREAD_COLOR)
@@ -155,12 +175,10 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
         if img.shape[:2] != (cam.height, cam.width):
             raise ProjectError(f"{who}: {photo.path} is {img.shape[1]}x{img.shape[0]} but its camera is "
                                f"{cam.width}x{cam.height}; the photo changed since the fit")
-        ids.append(photo.id)
+        ids.append(pid)
         cameras.append(cam)
         photos.append(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
-    if not cameras:
-        raise FitError(f"expression {name!r}: no photo has a recovered camera; run `facestudio fit` first")
-    return TextureInputs(name, np.asarray(vertices, dtype=float), np.asarray(faces), ids, cameras, photos)
+    return ids, cameras, photos
 
 
 def extract_texture(inputs: TextureInputs, size: int = 1024, *, face_mask: np.ndarray | None = None,
@@ -250,6 +268,135 @@ def commit_texture(project, job: TextureJob, files: dict, rel: dict) -> None:
     result.texture = TextureResult(size=job.size, image=rel["image"], weight_maps=rel["weight_maps"],
                                    exports={"obj": rel["obj"], "glb": rel["glb"], "ply": rel["ply"]},
                                    report=dict(job.report))
+
+
+def stored_cylinder(texture, vertices: np.ndarray, faces: np.ndarray):
+    """The :class:`~photomodel.texture.CylinderMap` of a stored texture (a
+    :class:`~photomodel.project.TextureResult`): its ``report["cylinder"]``, or for a texture
+    recorded before the cylinder was, :func:`~photomodel.texture.cylinder_map_for` the fitted mesh
+    at the texture's size (what its extraction used: the cylinder is a function of the mesh).
+    """
+    from photomodel.texture import CylinderMap, cylinder_map_for
+
+    c = texture.report.get("cylinder") if isinstance(texture.report, dict) else None
+    try:
+        cmap = CylinderMap(centre=(float(c["centre"][0]), float(c["centre"][1])), theta_cut=float(c["theta_cut"]),
+                           phi_range=(float(c["phi_range"][0]), float(c["phi_range"][1])),
+                           y_range=(float(c["y_range"][0]), float(c["y_range"][1])))
+    except (TypeError, KeyError, IndexError, ValueError):
+        return cylinder_map_for(vertices, faces, int(texture.size))
+    ok = all(np.isfinite(cmap.centre + cmap.phi_range + cmap.y_range + (cmap.theta_cut,)))
+    if not ok or cmap.phi_range[1] <= cmap.phi_range[0] or cmap.y_range[1] <= cmap.y_range[0]:
+        return cylinder_map_for(vertices, faces, int(texture.size))
+    return cmap
+
+
+def _read_stored_png(project, name: str, rel: str, what: str, shape: tuple) -> np.ndarray:
+    """One PNG of a stored texture as uint8 of ``shape``; ProjectError naming the file."""
+    import cv2
+
+    path = project.resolve(rel)
+    who = f"expression {name!r}: the {what} {rel}"
+    if not path.is_file():
+        raise ProjectError(f"{who} does not exist (looked for {path})")
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR if len(shape) == 3 else cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise ProjectError(f"{who} is not an image OpenCV can read (damaged or unknown format)")
+    if img.shape != shape:
+        raise ProjectError(f"{who} is {img.shape[1]}x{img.shape[0]}, but the texture is recorded as "
+                           f"{shape[1]}x{shape[0]}")
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB) if img.ndim == 3 else img
+
+
+def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndarray, *,
+                        face_mask: np.ndarray | None = None) -> TextureJob:
+    """The texture stored with a fitted expression (``result.texture``) as the :class:`TextureJob`
+    its extraction gave, for showing it (the studio, on opening a project) or writing it again.
+
+    Rebuilt from the files and the fitted mesh, without the photographs:
+
+    * ``image`` — the texture PNG, exactly (PNG is lossless);
+    * ``weight_maps`` — the weight-map PNGs, to 8 bits (within 0.5/255 of the extraction's);
+    * ``uv``, ``seam_*`` — from the cylinder of ``report["cylinder"]``
+      (:func:`stored_cylinder`), exactly the extraction's for the same vertices;
+    * ``surface`` — :func:`photomodel.texture.cylinder_surface`, the extraction's raster (needs
+      OpenGL; without it, ``coverage`` stands in — it only matters for statistics);
+    * ``coverage`` — the texels some weight map is non-zero at (the 8-bit maps lose weights below
+      0.5/255, a few texels at the feathered edges);
+    * ``single_view`` — :func:`~photomodel.texture.single_view_weights` again when the report says
+      the §5.2.4 fallback was used and ``face_mask`` is given;
+    * ``inputs.cameras`` — the fit's cameras of the weight maps' photos; ``inputs.photos`` is None.
+
+    Parameters
+    ----------
+    project : Project, with a file (the texture's paths are relative to its folder).
+    name : str, an expression whose result holds a texture.
+    vertices : (N, 3) float, mm, the fitted mesh the texture was made for (``result.mesh_obj``).
+    faces : (M, 3) int.
+    face_mask : (N,) bool, optional, the generic mesh's face (as for :func:`extract_texture`).
+
+    Returns
+    -------
+    TextureJob, its ``report`` the stored one.
+
+    Raises
+    ------
+    FitError
+        the expression has no fit or no stored texture.
+    ProjectError
+        naming the texture file that is missing, unreadable or of the wrong size, or a weight map
+        whose photo has no camera.
+    """
+    from photomodel.texture import (
+        CylindricalTexture,
+        cylinder_surface,
+        seam_render_mesh,
+        single_view_weights,
+    )
+
+    result = project.expression(name).result
+    if result is None or result.texture is None:
+        raise FitError(f"expression {name!r} has no stored texture")
+    stored = result.texture
+    V = np.asarray(vertices, dtype=float)
+    F = np.asarray(faces)
+    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
+        raise ValueError(f"vertices must be (N, 3) and faces (M, 3), got {V.shape} and {F.shape}")
+    S = int(stored.size)
+    image = _read_stored_png(project, name, stored.image, "texture", (S, S, 3))
+    ids = list(stored.weight_maps)
+    missing = [pid for pid in ids if pid not in result.cameras]
+    if missing:
+        raise ProjectError(f"expression {name!r}: the texture has weight maps of photos without a camera "
+                           f"({', '.join(missing)}); extract the texture again")
+    weights = np.zeros((len(ids), S, S), np.float32)
+    for i, pid in enumerate(ids):
+        png = _read_stored_png(project, name, stored.weight_maps[pid], f"weight map of photo {pid!r}", (S, S))
+        weights[i] = png.astype(np.float32) / 255.0
+    cmap = stored_cylinder(stored, V, F)
+    coverage = weights.max(axis=0, initial=0.0) > 0.0
+    try:
+        surface = cylinder_surface(cmap, V, F, S)
+    except RuntimeError:  # no OpenGL context (photomodel.render.get_renderer): statistics only, see above
+        surface = coverage.copy()
+    vidx, sfaces, seam_uv = seam_render_mesh(cmap, V, F)
+    report = dict(stored.report) if isinstance(stored.report, dict) else {}
+    single = None
+    if report.get("single_view_fallback") and face_mask is not None and len(face_mask) == len(V):
+        single = single_view_weights(V, face_mask)
+    tex = CylindricalTexture(image=image, weight_maps=weights, uv=cmap.uv(V), coverage=coverage, surface=surface,
+                             cylinder=cmap, seam_vertices=vidx, seam_faces=sfaces, seam_uv=seam_uv)
+    inputs = TextureInputs(name, V, F, ids, [result.cameras[pid] for pid in ids], None)
+    return TextureJob(inputs, S, tex, single, report)
+
+
+def load_texture_photos(project, inputs: TextureInputs) -> list:
+    """The RGB photographs of ``inputs.photo_ids`` (for a :func:`load_stored_texture` job, whose
+    ``inputs.photos`` is None), each checked against its camera; sets and returns
+    ``inputs.photos``. ProjectError names a photo that is missing, unreadable or resized."""
+    _, cameras, photos = _read_photos(project, inputs.expression, inputs.photo_ids)
+    inputs.photos = photos
+    return photos
 
 
 def texture_expression(project, name: str, size: int = 1024, *, face_mask: np.ndarray | None = None,

@@ -3,13 +3,17 @@
 Driven as an artist would: open a copy of the sample project, fit, *Texture → Extract texture*
 (a 256² texture, set through the ``texture/size`` setting, keeps this file fast), look at the
 model cylindrical / view-dependent, cancel an extraction, add an expression with its photos and
-fit it, compare the expressions side by side, and get a never-saved project back after a "crash".
+fit it, compare the expressions side by side, and get a never-saved project back after a "crash";
+reopen a textured project (a copy of the ``fitted_sample`` project, 1024² textures) and see its
+textures at once, or a message naming a damaged texture file.
 """
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -228,3 +232,82 @@ def test_never_saved_project_is_recovered_at_next_start(qtbot, tmp_path, project
     w3 = make_window(qtbot, tmp_path)
     answers["question"] = QMessageBox.StandardButton.No
     assert not w3.offer_recovery() and not w3.recovery_file.exists() and w3.model.photos == []
+
+
+@pytest.fixture
+def textured_copy(tmp_path, fitted_sample):
+    """A copy of the sample project with every expression fitted and textured (1024²)."""
+    dst = tmp_path / "textured"
+    shutil.copytree(fitted_sample.parent, dst, ignore=shutil.ignore_patterns("*.bak", "*.autosave"))
+    return dst / fitted_sample.name
+
+
+def test_opening_a_textured_project_shows_its_textures(qtbot, window, textured_copy, messages):
+    shown, _ = messages
+    assert window.open_project(textured_copy)
+    m = window.model
+    tex = m.texture()
+    assert tex is not None and tex.saved and not m.modified
+    stored = load_project(textured_copy).expression("neutral").result.texture
+    png = cv2.cvtColor(cv2.imread(str(textured_copy.parent / stored.image)), cv2.COLOR_BGR2RGB)
+    np.testing.assert_array_equal(tex.job.texture.image, png)
+    # the 3D view shows the cylindrical texture (skin: red above blue), the dock the weight maps
+    assert window.view3d.texture is not None and window.view3d.texture[1] is tex.job.texture.image
+    assert "cylindrical texture" in window.view3d.vertices()[1]
+    cyl = head_pixels(window)
+    assert (cyl[:, 0] - cyl[:, 2]).mean() > 20.0
+    assert window.weights_panel.image_count() == 5 and window.weights_dock.isVisibleTo(window)
+    assert "neutral" in window.weights_panel.caption.text()
+    assert set(m.textures) == {"neutral"}  # the others are read when shown
+
+    # another expression: its own texture, read when it becomes current
+    window.expr_combo.activated.emit(window.expr_combo.findData("smile"))
+    assert m.expression_name == "smile"
+    smile = m.texture("smile")
+    assert smile is not None and window.view3d.texture[1] is smile.job.texture.image
+    assert window.weights_panel.image_count() == 5 and "smile" in window.weights_panel.caption.text()
+    assert not np.array_equal(smile.job.texture.image, tex.job.texture.image)
+    m.set_expression("neutral")
+    assert m.texture() is tex and window.view3d.texture[1] is tex.job.texture.image  # read once
+
+    # view-dependent texturing reads the photos when first asked for
+    assert tex.job.inputs.photos is None
+    window.set_texture_mode("view_dependent")
+    assert window.view3d.view_dependent is not None and len(tex.job.inputs.photos) == 5
+    vd = head_pixels(window)
+    assert (vd[:, 0] - vd[:, 2]).mean() > 20.0
+    window.set_texture_mode("cylindrical")
+
+    # "save as" elsewhere writes the textures it holds next to the new file
+    moved = textured_copy.parent.parent / "moved" / textured_copy.name
+    moved.parent.mkdir()
+    assert window._save_to(moved)
+    again = load_project(moved).expression("neutral").result.texture
+    assert (moved.parent / again.image).is_file()
+    assert again.report["cylinder"] == stored.report["cylinder"]
+    assert not m.modified and not shown, shown
+
+
+def test_a_damaged_texture_file_is_named_and_the_project_still_opens(qtbot, window, textured_copy, messages):
+    shown, _ = messages
+    folder = textured_copy.parent
+    (folder / "results" / "neutral_texture.png").write_bytes(b"this is not a PNG")
+    (folder / "results" / "smile_weights_left.png").unlink()
+    assert window.open_project(textured_copy)
+    m = window.model
+    assert m.path == textured_copy and m.fit() is not None and not m.modified
+    assert m.texture() is None and window.view3d.texture is None and window.weights_panel.image_count() == 0
+    status = window.statusBar().currentMessage()
+    assert "results/neutral_texture.png is not an image" in status and "Extract texture" in status
+    # a missing weight map of another expression: named when that expression is shown
+    m.set_expression("smile")
+    assert m.texture() is None and "results/smile_weights_left.png does not exist" in \
+        window.statusBar().currentMessage()
+    # the others are shown as usual, and a damaged one can be extracted again
+    m.set_expression("frown")
+    assert m.texture() is not None and window.view3d.texture is not None
+    m.set_expression("neutral")
+    assert window.run_texture()
+    qtbot.waitUntil(lambda: not window.jobs.busy and window.model.texture() is not None, timeout=60_000)
+    assert window.view3d.texture is not None and window.weights_panel.image_count() == 5
+    assert not shown, shown

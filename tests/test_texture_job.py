@@ -2,7 +2,8 @@
 
 On a copy of the sample project fitted as ``facestudio fit`` does: the mesh is read from the
 project's result file, the texture extracted (64² keeps this fast: the content of the texture is
-tested in tests/test_texture.py), every file written and the record stored; cancel and progress.
+tested in tests/test_texture.py), every file written and the record stored; cancel and progress;
+and read back (:func:`load_stored_texture`) as the extraction gave it.
 """
 
 from __future__ import annotations
@@ -10,16 +11,20 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from photomodel.errors import FitError
+from photomodel.errors import FitError, ProjectError
 from photomodel.fit import Cancelled, fit_expression, store_fit_result
 from photomodel.generic_mesh import load_generic_mesh
+from photomodel.mesh_io import read_mesh
 from photomodel.project import load_project, save_project
 from photomodel.texture_job import (
     commit_texture,
     encode_texture_outputs,
     fitted_expressions,
+    load_stored_texture,
+    load_texture_photos,
     texture_expression,
 )
 
@@ -81,3 +86,77 @@ def test_errors_name_the_cause(fitted):
         texture_expression(project, "neutral", 64)
     with pytest.raises(Exception, match="between 8 and 16384"):
         texture_expression(load_project(path), "neutral", 4)
+
+
+def test_stored_texture_reads_back_as_extracted(fitted):
+    """load_stored_texture rebuilds what the extraction gave from the files and the mesh alone."""
+    path, mesh = fitted
+    project = load_project(path)
+    job = texture_expression(project, "neutral", 64, face_mask=mesh.face_mask)
+    commit_texture(project, job, *encode_texture_outputs(project, job))
+    save_project(project)
+    project = load_project(path)
+    V, F = job.inputs.vertices, job.inputs.faces
+    back = load_stored_texture(project, "neutral", V, F, face_mask=mesh.face_mask)
+    a, b = job.texture, back.texture
+    assert back.expression == "neutral" and back.size == 64 and back.inputs.photos is None
+    assert back.inputs.photo_ids == job.inputs.photo_ids
+    assert back.report["cylinder"] == job.report["cylinder"]
+    np.testing.assert_array_equal(b.image, a.image)  # PNG is lossless
+    # the cylinder goes through JSON (repr round-trips a float exactly): same uv to rounding
+    assert b.cylinder == a.cylinder
+    np.testing.assert_allclose(b.uv, a.uv, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(b.seam_vertices, a.seam_vertices)
+    np.testing.assert_array_equal(b.seam_faces, a.seam_faces)
+    np.testing.assert_allclose(b.seam_uv, a.seam_uv, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(b.surface, a.surface)  # the same raster of the same mesh
+    # weight maps are stored with 8 bits: rounding error at most half a step
+    assert b.weight_maps.shape == a.weight_maps.shape
+    assert np.abs(b.weight_maps - a.weight_maps).max() <= 0.5 / 255 + 1e-6
+    # coverage from the 8-bit maps: weights under 0.5/255 (feathered edges) read as 0
+    assert not (b.coverage & ~a.coverage).any() and (b.coverage != a.coverage).mean() < 0.01
+    np.testing.assert_array_equal(back.single_view, job.single_view)
+    for ca, cb in zip(job.inputs.cameras, back.inputs.cameras, strict=True):
+        np.testing.assert_allclose(cb.project(V[:50]), ca.project(V[:50]), atol=1e-3)  # 6-decimal JSON
+    # the photos, for view-dependent texturing, are read on demand
+    photos = load_texture_photos(project, back.inputs)
+    assert back.inputs.photos is photos and len(photos) == 5
+    for pa, pb in zip(job.inputs.photos, photos, strict=True):
+        np.testing.assert_array_equal(pb, pa)
+
+    # a texture recorded before the cylinder was: the extraction's cylinder_map_for the mesh
+    del project.expression("neutral").result.texture.report["cylinder"]
+    old = load_stored_texture(project, "neutral", V, F)
+    assert old.texture.cylinder == a.cylinder and old.single_view is None
+    np.testing.assert_allclose(old.texture.uv, a.uv, rtol=0, atol=1e-9)
+
+
+def test_stored_texture_errors_name_the_file(fitted):
+    path, mesh = fitted
+    project = load_project(path)
+    if project.expression("neutral").result.texture is None:
+        job = texture_expression(project, "neutral", 64)
+        commit_texture(project, job, *encode_texture_outputs(project, job))
+    V, F = read_mesh(project.resolve(project.expression("neutral").result.mesh_obj))
+    stored = project.expression("neutral").result.texture
+    image = project.resolve(stored.image)
+    good = image.read_bytes()
+    try:
+        image.write_bytes(b"not a PNG")
+        with pytest.raises(ProjectError, match=f"texture {stored.image} is not an image"):
+            load_stored_texture(project, "neutral", V, F)
+        image.unlink()
+        with pytest.raises(ProjectError, match=f"texture {stored.image} does not exist"):
+            load_stored_texture(project, "neutral", V, F)
+    finally:
+        image.write_bytes(good)
+    stored.size = 32  # the record disagrees with the file
+    with pytest.raises(ProjectError, match="is 64x64, but the texture is recorded as 32x32"):
+        load_stored_texture(project, "neutral", V, F)
+    stored.size = 64
+    stored.weight_maps["front"] = "results/nothing.png"
+    with pytest.raises(ProjectError, match="weight map of photo 'front' results/nothing.png does not exist"):
+        load_stored_texture(project, "neutral", V, F)
+    project.expression("neutral").result.texture = None
+    with pytest.raises(FitError, match="no stored texture"):
+        load_stored_texture(project, "neutral", V, F)

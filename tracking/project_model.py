@@ -141,16 +141,9 @@ def _read_texture(project, name: str, size: int) -> np.ndarray:
 
 def _texture_uv(project, name: str, V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n, 2) the cylindrical texture coordinates (v up) of the expression's vertices."""
-    from photomodel.texture import CylinderMap, cylinder_map_for
+    from photomodel.texture_job import stored_cylinder
 
-    tex = project.expression(name).result.texture
-    c = tex.report.get("cylinder") if isinstance(tex.report, dict) else None
-    try:
-        cmap = CylinderMap(centre=tuple(map(float, c["centre"])), theta_cut=float(c["theta_cut"]),
-                           phi_range=tuple(map(float, c["phi_range"])), y_range=tuple(map(float, c["y_range"])))
-    except (TypeError, KeyError, ValueError):  # a texture made before the cylinder was recorded
-        cmap = cylinder_map_for(V, F, int(tex.size))
-    return cmap.uv(V)
+    return stored_cylinder(project.expression(name).result.texture, V, F).uv(V)
 
 
 def register_expression(E: np.ndarray, E1: np.ndarray, weight: np.ndarray, *, scale: bool,
