@@ -13,6 +13,13 @@ save, save as, recent files (``QSettings``), an unsaved-changes prompt, and an a
 writing ``<file>.autosave`` (a never-saved project: a recovery file in the user's data folder,
 ``QStandardPaths.AppDataLocation``, offered at the next start).
 
+Recovery files: each running studio autosaves a never-saved project to its *own* file,
+``untitled-<pid>-<random>.recovery.facestudio.json``, and holds a :class:`QLockFile`
+(``<file>.lock``) on it from before the first write until the project is saved, discarded or
+the window closes. At start-up :meth:`MainWindow.offer_recovery` offers every recovery file in
+the folder whose lock no live process holds (a crashed instance's lock is stale: Qt checks its
+pid), so two studios running at once never overwrite, delete or recover each other's data.
+
 Texture (§5.2): *Texture → Extract texture* runs :mod:`photomodel.texture_job` in a worker
 (:class:`~app.workers.JobController`) behind a cancellable progress dialog; the 3D view then
 shows the model with the cylindrical texture or view-dependently (a toggle), and the
@@ -28,11 +35,13 @@ overlaid, a frame scrubber, the parameter curves). Every failure is shown in a d
 
 from __future__ import annotations
 
+import os
 import sys
 import traceback
+import uuid
 from pathlib import Path
 
-from PySide6.QtCore import QDateTime, QSettings, QStandardPaths, Qt, QTimer
+from PySide6.QtCore import QDateTime, QLockFile, QSettings, QStandardPaths, Qt, QTimer
 from PySide6.QtGui import QAction, QActionGroup, QKeySequence, QUndoStack
 from PySide6.QtWidgets import (
     QApplication,
@@ -71,14 +80,47 @@ DEFAULT_TEXTURE_SIZE = 1024
 TEXTURE_MODES = ("untextured", "cylindrical", "view_dependent")
 #: Appended to the message saying a stored texture cannot be shown.
 REEXTRACT_HINT = " (Texture → Extract texture makes it again)"
-#: Name of the recovery file of a never-saved project, in the user's data folder.
-RECOVERY_NAME = "untitled.recovery" + FILE_SUFFIX
+#: How the recovery file of a never-saved project ends; every such file in the recovery folder is
+#: offered at start-up unless a running studio holds its lock.
+RECOVERY_SUFFIX = ".recovery" + FILE_SUFFIX
+#: The single recovery file of studios before one file per instance (still offered at start-up).
+RECOVERY_NAME = "untitled" + RECOVERY_SUFFIX
 
 
-def default_recovery_file() -> Path:
-    """Where a never-saved project is autosaved: ``<AppDataLocation>/untitled.recovery.facestudio.json``."""
+def default_recovery_folder() -> Path:
+    """Where never-saved projects are autosaved: ``QStandardPaths.AppDataLocation`` (else ``~/.facestudio``)."""
     folder = QStandardPaths.writableLocation(QStandardPaths.StandardLocation.AppDataLocation)
-    return Path(folder or Path.home() / ".facestudio") / RECOVERY_NAME
+    return Path(folder or Path.home() / ".facestudio")
+
+
+def default_recovery_file(folder=None) -> Path:
+    """A new, unique recovery file for this instance: ``<folder>/untitled-<pid>-<8 hex>.recovery.facestudio.json``.
+
+    ``folder`` defaults to :func:`default_recovery_folder`. The pid says which process wrote it
+    (for a person looking at the folder); the random part keeps two windows of one process apart.
+    """
+    folder = Path(folder) if folder is not None else default_recovery_folder()
+    return folder / f"untitled-{os.getpid()}-{uuid.uuid4().hex[:8]}{RECOVERY_SUFFIX}"
+
+
+def recovery_files(folder) -> list[Path]:
+    """The recovery files in ``folder`` (``*.recovery.facestudio.json``), newest first; [] if none."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    found = [f for f in folder.glob("*" + RECOVERY_SUFFIX) if f.is_file()]
+    return sorted(found, key=lambda f: (-f.stat().st_mtime, f.name))
+
+
+def lock_recovery_file(path) -> QLockFile | None:
+    """Take the lock ``<path>.lock`` of a recovery file; None if a running process holds it.
+
+    A lock left by a process that is no longer running is stale and taken over. Locks never go
+    stale by age (``setStaleLockTime(0)``): a studio may run for days.
+    """
+    lock = QLockFile(str(path) + ".lock")
+    lock.setStaleLockTime(0)
+    return lock if lock.tryLock(0) else None
 PROJECT_FILTER = f"Face Studio projects (*{FILE_SUFFIX});;JSON files (*.json);;All files (*)"
 IMAGE_FILTER = "Images (" + " ".join(f"*{s}" for s in IMAGE_SUFFIXES) + ");;All files (*)"
 
@@ -103,11 +145,16 @@ class MainWindow(QMainWindow):
     settings : QSettings, optional (default: the user's; tests pass their own file)
     autosave_interval_ms : int, the autosave period (0 disables the timer)
     recovery_file : path, optional
-        where a never-saved project is autosaved (default :func:`default_recovery_file`).
+        where this window autosaves a never-saved project (default: a new file of its own,
+        :func:`default_recovery_file`, in ``recovery_folder``). A given file is this window's
+        even if it exists: :meth:`offer_recovery` offers it first.
+    recovery_folder : path, optional
+        the folder of recovery files scanned by :meth:`offer_recovery` (default: the parent of
+        ``recovery_file`` if given, else :func:`default_recovery_folder`).
     """
 
     def __init__(self, model: StudioModel | None = None, settings: QSettings | None = None,
-                 autosave_interval_ms: int = AUTOSAVE_INTERVAL_MS, recovery_file=None):
+                 autosave_interval_ms: int = AUTOSAVE_INTERVAL_MS, recovery_file=None, recovery_folder=None):
         check_pyside()
         super().__init__()
         self.model = model if model is not None else StudioModel()
@@ -115,7 +162,13 @@ class MainWindow(QMainWindow):
         self.undo_stack = QUndoStack(self)
         self.fits = FitController(self.model, self)
         self.jobs = JobController(self.model, self)
-        self.recovery_file = Path(recovery_file) if recovery_file is not None else default_recovery_file()
+        if recovery_file is not None:
+            self.recovery_file = Path(recovery_file)
+            self.recovery_folder = Path(recovery_folder) if recovery_folder is not None else self.recovery_file.parent
+        else:
+            self.recovery_folder = Path(recovery_folder) if recovery_folder is not None else default_recovery_folder()
+            self.recovery_file = default_recovery_file(self.recovery_folder)
+        self._recovery_lock: QLockFile | None = None  # held from before the first recovery autosave
         self.texture_mode = "cylindrical"
         self._texture_progress: QProgressDialog | None = None
         self._show_weights_for_stored = True  # the weight-map dock opens for the first stored texture
@@ -205,6 +258,7 @@ class MainWindow(QMainWindow):
         m.modified_changed.connect(lambda value: self.setWindowModified(bool(value)))
         m.path_changed.connect(lambda *_: self._update_title())
         self.undo_stack.indexChanged.connect(self._on_edit)
+        self.fits.overlay_photos = self._overlay_photo_ids  # computed in the fit's worker
         self.fits.started.connect(self._on_fit_started)
         self.fits.progress.connect(self._on_fit_progress)
         self.fits.finished.connect(self._on_fit_finished)
@@ -395,7 +449,7 @@ class MainWindow(QMainWindow):
             if self.model.path is not None:
                 remove_autosave(self.model.path)
             else:
-                self.recovery_file.unlink(missing_ok=True)
+                self._drop_recovery()
             return True
         return False
 
@@ -484,13 +538,17 @@ class MainWindow(QMainWindow):
             return False
         self.undo_stack.setClean()
         if untitled:  # it has a file now: its recovery file is obsolete
-            self.recovery_file.unlink(missing_ok=True)
+            self._drop_recovery()
         self._add_recent(written)
         self._status(f"saved {written}")
         return True
 
     def autosave(self) -> None:
         """Autosave: ``<file>.autosave``, or for a never-saved project :attr:`recovery_file`."""
+        if self.model.path is None and self._recovery_lock is None:
+            # locked before it is written: an instance starting meanwhile must not offer it
+            self.recovery_file.parent.mkdir(parents=True, exist_ok=True)
+            self._recovery_lock = lock_recovery_file(self.recovery_file)  # None: written unlocked
         try:
             written = self.model.autosave(recovery=self.recovery_file)
         except (FaceStudioError, OSError) as exc:
@@ -500,13 +558,31 @@ class MainWindow(QMainWindow):
             self._status(f"autosaved to {written.name}", 3000)
 
     def offer_recovery(self) -> bool:
-        """At start: offer the recovery file of a never-saved project, if there is one.
+        """At start: offer the recovery files of never-saved projects, newest first.
 
-        Yes opens it (without a file, marked modified); No deletes it. Returns True if recovered.
+        Offered: this window's own :attr:`recovery_file` if it exists (a file given to the
+        constructor), then every file of :func:`recovery_files` in :attr:`recovery_folder` whose
+        lock no running studio holds (:func:`lock_recovery_file`) — so another instance's
+        project is never offered while that instance runs, and a crashed one's is. Yes opens
+        it (without a file, marked modified) and makes it this window's recovery file; No
+        deletes it and offers the next. Returns True if a project was recovered.
         """
-        f = self.recovery_file
-        if not f.is_file():
-            return False
+        if self.recovery_file.is_file() and self._offer_one_recovery(self.recovery_file, None):
+            return True
+        for f in recovery_files(self.recovery_folder):
+            if f.absolute() == self.recovery_file.absolute():
+                continue
+            lock = lock_recovery_file(f)
+            if lock is None:  # a running studio's
+                continue
+            if not f.is_file():  # deleted meanwhile
+                lock.unlock()
+                continue
+            if self._offer_one_recovery(f, lock):
+                return True
+        return False
+
+    def _offer_one_recovery(self, f: Path, lock: QLockFile | None) -> bool:
         when = QDateTime.fromSecsSinceEpoch(int(f.stat().st_mtime)).toString("yyyy-MM-dd hh:mm")
         answer = QMessageBox.question(
             self, "Recover unsaved project",
@@ -515,15 +591,29 @@ class MainWindow(QMainWindow):
             QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
         if answer != QMessageBox.StandardButton.Yes:
             f.unlink(missing_ok=True)
+            if lock is not None:
+                lock.unlock()
             return False
         try:
             self.model.recover(f)
         except (FaceStudioError, OSError) as exc:
             self.show_error("Cannot recover the project", f"{f}: {exc}")
+            if lock is not None:
+                lock.unlock()
             return False
+        if lock is not None:  # the recovered project autosaves where it came from, still locked by us
+            self._drop_recovery()
+            self.recovery_file, self._recovery_lock = f, lock
         self.undo_stack.clear()
         self._status(f"recovered the unsaved project from {f}")
         return True
+
+    def _drop_recovery(self) -> None:
+        """Delete this window's recovery file and release its lock (saved, discarded or closed)."""
+        self.recovery_file.unlink(missing_ok=True)
+        if self._recovery_lock is not None:
+            self._recovery_lock.unlock()
+            self._recovery_lock = None
 
     def recent_files(self) -> list[str]:
         value = self.settings.value("recent_files", [])
@@ -661,6 +751,13 @@ class MainWindow(QMainWindow):
         self._update_tab_titles()
         self._sync_expr_combo()
         self._sync_preset()
+
+    def _overlay_photo_ids(self, expression: str) -> list[str]:
+        """The photo on screen, if it shows ``expression``'s overlay (:attr:`FitController.overlay_photos`)."""
+        view = self.current_view()
+        if view is None or not self.show_overlay or view.expression != expression:
+            return []
+        return [view.photo_id]
 
     def _on_tab_changed(self, index: int):
         if self._rebuilding:
@@ -973,6 +1070,7 @@ class MainWindow(QMainWindow):
         self.jobs.shutdown()
         self.tracking_view.jobs.shutdown()
         self.autosave_timer.stop()
+        self._drop_recovery()  # the project was saved, discarded or unchanged: nothing left to recover
         event.accept()
 
 

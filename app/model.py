@@ -25,7 +25,7 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -133,6 +133,9 @@ class FitState:
         The in-memory result (warm start of the next refit); None for a loaded result.
     elapsed_s : float or None, wall time of the fit.
     saved : bool, the mesh files on disk hold ``vertices``.
+    overlays : dict photo id → photomodel.overlay.PhotoOverlay
+        The wireframe overlays of this fit computed so far (by the fit's worker for the photo on
+        screen, by :meth:`StudioModel.overlay` for the others when they are shown).
     """
 
     cameras: dict
@@ -142,6 +145,7 @@ class FitState:
     result: object = None
     elapsed_s: float | None = None
     saved: bool = False
+    overlays: dict = field(default_factory=dict)
 
 
 class StudioModel:
@@ -556,15 +560,54 @@ class StudioModel:
         result = refitter.fit(snapshot, expression, previous=previous, progress=progress, cancel=cancel)
         return result, time.perf_counter() - t0, refitter.deformer.misses != misses
 
-    def apply_fit(self, expression: str, result, elapsed_s: float | None = None) -> None:
-        """Store a :class:`photomodel.fit.FitResult` as the expression's fit (GUI thread)."""
+    def compute_overlays(self, result, photo_ids, lines) -> dict:
+        """The wireframe overlays of a fit in some of its photos; safe to call from a worker thread.
+
+        Parameters
+        ----------
+        result : photomodel.fit.FitResult, the fit (cameras and vertices).
+        photo_ids : iterable of str; ids the fit has no camera for are skipped.
+        lines : photomodel.overlay.MeshLines, :attr:`overlay_lines` read on the GUI thread.
+
+        Returns
+        -------
+        dict photo id → photomodel.overlay.PhotoOverlay, for :meth:`apply_fit` ``overlays``.
+        """
+        from photomodel.overlay import photo_overlay
+
+        cams = dict(zip(result.photo_ids, result.cameras, strict=True))
+        faces = self.mesh.faces
+        return {pid: photo_overlay(cams[pid], result.vertices, faces, lines) for pid in photo_ids if pid in cams}
+
+    def overlay(self, photo_id: str, expression: str | None = None):
+        """The wireframe overlay (:class:`photomodel.overlay.PhotoOverlay`) of a fit in one photo, or None.
+
+        Taken from the fit's cache (filled by the fit's worker); computed here, on the calling
+        thread, and cached when missing (a photo that was not on screen when the fit ran).
+        """
+        fit = self.fit(expression)
+        if fit is None or fit.vertices is None or photo_id not in fit.cameras:
+            return None
+        found = fit.overlays.get(photo_id)
+        if found is None:
+            from photomodel.overlay import photo_overlay
+
+            found = fit.overlays[photo_id] = photo_overlay(fit.cameras[photo_id], fit.vertices, self.mesh.faces,
+                                                           self.overlay_lines)
+        return found
+
+    def apply_fit(self, expression: str, result, elapsed_s: float | None = None, overlays: dict | None = None) -> None:
+        """Store a :class:`photomodel.fit.FitResult` as the expression's fit (GUI thread).
+
+        ``overlays`` (:meth:`compute_overlays` of this result) fill the fit's overlay cache.
+        """
         e = self._expr(expression)
         cams = {pid: c for pid, c in zip(result.photo_ids, result.cameras, strict=True)}
         pts = {n: p for n, p in zip(result.feature_names, result.points_3d, strict=True)}
         e.result = ExpressionResult(cameras=cams, points_3d=pts, mesh_obj=None, mesh_ply=None,
                                     report=result.report)
         self.fits[expression] = FitState(cams, pts, np.asarray(result.vertices), result.report, result,
-                                         elapsed_s, saved=False)
+                                         elapsed_s, saved=False, overlays=dict(overlays or {}))
         self._drop_texture(expression)  # it was made for the previous mesh
         self._touch()
         self.fit_changed.emit(expression)

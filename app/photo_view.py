@@ -234,6 +234,8 @@ class PhotoView(QGraphicsView):
         self.user_zoomed = False
         self.overlay_stale = True
         self.overlay_time_s: float | None = None
+        self.overlay_compute_s: float | None = None
+        self.overlay_from_cache = False
         self._items: dict[str, PointItem] = {}
         self._curve_items: dict[str, QGraphicsPathItem] = {}
         self._drag: dict | None = None
@@ -399,30 +401,34 @@ class PhotoView(QGraphicsView):
             self.update_overlay()
 
     def update_overlay(self) -> None:
-        """Project the fitted mesh's lines with the fitted camera of this photo (hidden lines removed)."""
-        import time
+        """Draw the fitted mesh's lines with the fitted camera of this photo (hidden lines removed).
 
-        from photomodel.overlay import project_lines
+        The lines come from the fit's overlay cache, filled by the fit's worker for the photo on
+        screen (:class:`app.workers.FitTask`), so after a refit this only paints; a photo that
+        was not on screen then has its overlay computed here once (:meth:`StudioModel.overlay`).
+        """
+        import time
 
         self.overlay_stale = False
         fit = self.model.fit(self.expression)
-        cam = None if fit is None else fit.cameras.get(self.photo_id)
-        if cam is None or fit.vertices is None or not self.show_overlay:
+        if fit is None or not self.show_overlay:
             self.overlay_item.clear()
             self.overlay_stale = fit is not None and not self.show_overlay
             return
         t0 = time.perf_counter()
-        lines = self.model.overlay_lines
-        try:
-            uv, visible = project_lines(cam, fit.vertices, self.model.mesh.faces, lines)
-        except (RuntimeError, ValueError) as exc:  # no OpenGL: draw without hidden-line removal
-            self.status_message.emit(f"overlay without hidden-line removal: {exc}")
-            from photomodel.overlay import line_points
-
-            uv = cam.project(line_points(lines, fit.vertices).reshape(-1, 3)).reshape(-1, 2, 2)
-            visible = np.ones(len(uv), dtype=bool)
-        self.overlay_item.set_lines(uv[visible], lines.kind[visible])
+        cached = self.photo_id in fit.overlays
+        overlay = self.model.overlay(self.photo_id, self.expression)
+        if overlay is None:
+            self.overlay_item.clear()
+            return
+        if overlay.note is not None:
+            self.status_message.emit(overlay.note)
+        self.overlay_item.set_lines(overlay.segments, overlay.kind)
+        # for benchmarks/bench_gui.py: GUI-thread time of this update, time computing the lines
+        # (in the fit's worker when they came from the cache right after a refit)
         self.overlay_time_s = time.perf_counter() - t0
+        self.overlay_compute_s = overlay.elapsed_s
+        self.overlay_from_cache = cached
 
     def showEvent(self, event):
         super().showEvent(event)

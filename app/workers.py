@@ -7,6 +7,11 @@ queued Qt signal, where it is applied to the model — unless the project was re
 meantime (then it is dropped). Cancelling sets a flag that :func:`photomodel.fit.fit_expression`
 polls between its stages (``cancel=``).
 
+The wireframe overlay of the photos on screen (:attr:`FitController.overlay_photos`) is
+computed in the same worker job right after the fit (:meth:`StudioModel.compute_overlays`)
+and travels with the result, so the GUI thread only paints it; a result that is dropped (an
+older edit's, a replaced project's) drops its overlays with it, so a stale overlay never shows.
+
 Auto-refit: after each edit, :meth:`FitController.schedule_refit` starts a warm refit
 (:mod:`photomodel.refit`) after a short debounce, when the last warm refit of the project took
 less than :data:`AUTO_REFIT_MAX_S`; edits made while a refit runs are picked up by one more
@@ -34,7 +39,7 @@ AUTO_REFIT_DELAY_MS = 60
 
 class _TaskSignals(QObject):
     progress = Signal(str, float)
-    finished = Signal(object, float, bool)  # FitResult, seconds, built caches (cold)
+    finished = Signal(object, float, bool, object)  # FitResult, seconds, built caches (cold), overlays
     failed = Signal(str)
     cancelled = Signal()
 
@@ -81,21 +86,27 @@ class _CancellableTask(QRunnable):
 class FitTask(_CancellableTask):
     """One fit of one expression of a project snapshot, run by a :class:`QThreadPool`."""
 
-    def __init__(self, model: StudioModel, expression: str, warm: bool):
+    def __init__(self, model: StudioModel, expression: str, warm: bool, overlay_photos=()):
         super().__init__(_TaskSignals())
         self.model, self.expression, self.warm = model, expression, warm
         self.snapshot = model.fit_snapshot()
         self.previous = model.warm_start(expression) if warm else None  # read here, on the GUI thread
         self.generation = model.generation
+        self.overlay_photos = tuple(overlay_photos)
+        self.lines = model.overlay_lines if self.overlay_photos else None  # built (once) on the GUI thread
+
+    def _compute(self):  # worker thread
+        result, seconds, cold = self.model.compute_fit(
+            self.snapshot, self.expression, previous=self.previous, progress=self._progress,
+            cancel=self._cancel.is_set,
+        )
+        overlays = {}
+        if self.overlay_photos and not self._cancel.is_set():
+            overlays = self.model.compute_overlays(result, self.overlay_photos, self.lines)
+        return result, seconds, cold, overlays
 
     def run(self) -> None:  # worker thread
-        self._guarded(
-            lambda: self.model.compute_fit(
-                self.snapshot, self.expression, previous=self.previous, progress=self._progress,
-                cancel=self._cancel.is_set,
-            ),
-            lambda out: self.signals.finished.emit(*out),
-        )
+        self._guarded(self._compute, lambda out: self.signals.finished.emit(*out))
 
 
 class FitController(QObject):
@@ -105,6 +116,12 @@ class FitController(QObject):
     -------
     started (expression, interactive), progress (stage, fraction), finished (expression, seconds),
     failed (message), cancelled (), busy_changed (bool).
+
+    Attributes
+    ----------
+    overlay_photos : callable expression → iterable of photo ids, optional
+        Asked on the GUI thread when a fit starts: the photos whose overlay the worker computes
+        after the fit (the window passes the photo on screen).
     """
 
     started = Signal(str, bool)
@@ -125,6 +142,7 @@ class FitController(QObject):
         self.last_warm_s: float | None = None
         self.last_fit_s: float | None = None
         self._pending_expression: str | None = None
+        self.overlay_photos = None
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
         self._timer.setInterval(AUTO_REFIT_DELAY_MS)
@@ -148,9 +166,10 @@ class FitController(QObject):
             if name is not None:
                 self._pending_expression = name if warm else self._pending_expression
             return None
-        task = FitTask(self.model, name, warm)
+        task = FitTask(self.model, name, warm, self.overlay_photos(name) if self.overlay_photos else ())
         task.signals.progress.connect(self.progress)
-        task.signals.finished.connect(lambda result, s, cold, t=task: self._on_finished(t, result, s, cold))
+        task.signals.finished.connect(
+            lambda result, s, cold, overlays, t=task: self._on_finished(t, result, s, cold, overlays))
         task.signals.failed.connect(lambda msg, t=task: self._on_ended(t, failed=msg))
         task.signals.cancelled.connect(lambda t=task: self._on_ended(t, cancelled=True))
         self.task = task
@@ -188,7 +207,7 @@ class FitController(QObject):
                 return
             self.start(name, warm=True)
 
-    def _on_finished(self, task: FitTask, result, seconds: float, cold: bool = False) -> None:
+    def _on_finished(self, task: FitTask, result, seconds: float, cold: bool = False, overlays=None) -> None:
         if task is not self.task:
             return
         applied = task.generation == self.model.generation
@@ -198,7 +217,7 @@ class FitController(QObject):
             except FaceStudioError:
                 applied = False
         if applied:
-            self.model.apply_fit(task.expression, result, seconds)
+            self.model.apply_fit(task.expression, result, seconds, overlays=overlays)
             self.last_fit_s = seconds
             if task.warm and not cold:  # a refit that rebuilt the RBF cache says nothing about the next
                 self.last_warm_s = seconds

@@ -255,3 +255,48 @@ def project_lines(
     depth = renderer.render(small, vertices, faces).depth
     visible = visible_points(camera, P.mean(axis=1), depth)
     return uv, visible
+
+
+@dataclass(frozen=True)
+class PhotoOverlay:
+    """The overlay of one photo, ready to draw: its visible segments only.
+
+    Attributes
+    ----------
+    segments : (k, 2, 2) float px
+        Endpoints of the visible segments in the photo (pixel centres at integers).
+    kind : (k,) uint8
+        :data:`GRID`, :data:`OUTLINE` or :data:`CURVE` of each segment.
+    note : str or None
+        Why hidden lines were not removed (no OpenGL context), else None.
+    elapsed_s : float
+        Wall time of :func:`photo_overlay` (on whichever thread ran it).
+    """
+
+    segments: np.ndarray
+    kind: np.ndarray
+    note: str | None = None
+    elapsed_s: float = 0.0
+
+
+def photo_overlay(camera: Camera, vertices: np.ndarray, faces: np.ndarray, lines: MeshLines, *,
+                  renderer=None, depth_scale: float = 0.5) -> PhotoOverlay:
+    """:func:`project_lines` reduced to what is drawn; without OpenGL, every line is drawn.
+
+    Safe to call from a worker thread: the depth map comes from ``renderer`` (default this
+    thread's :func:`photomodel.render.get_renderer`), and nothing else is shared. Parameters
+    as :func:`project_lines`.
+    """
+    import time
+
+    if not 0 < depth_scale <= 1:
+        raise ValueError(f"depth_scale must be in (0, 1], got {depth_scale}")
+    t0 = time.perf_counter()
+    note = None
+    try:
+        uv, visible = project_lines(camera, vertices, faces, lines, renderer=renderer, depth_scale=depth_scale)
+    except (RuntimeError, ValueError) as exc:  # no OpenGL (or a camera it cannot render): draw every line
+        note = f"overlay without hidden-line removal: {exc}"
+        uv = camera.project(line_points(lines, vertices).reshape(-1, 3)).reshape(-1, 2, 2)
+        visible = np.ones(len(uv), dtype=bool)
+    return PhotoOverlay(uv[visible], lines.kind[visible], note, time.perf_counter() - t0)

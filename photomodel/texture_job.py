@@ -241,13 +241,14 @@ def encode_texture_outputs(project, job: TextureJob) -> tuple[dict, dict]:
     rel = project.default_texture_paths(name)
     # per-corner uv in the mesh's face order: the texture's seam-split rendering mesh, merged
     uv = merge_uv_seams(faces, tex.seam_vertices, tex.seam_faces, tex.seam_uv)
-    files = {project.resolve(rel["image"]): encode_png(tex.image)}
+    png = encode_png(tex.image)  # encoded once: the file and the .glb embed the same bytes
+    files = {project.resolve(rel["image"]): png}
     for pid, w in zip(ids, tex.weight_maps, strict=True):
         files[project.resolve(rel["weight_maps"][pid])] = encode_png(w)  # black 0 … white 1
     obj = encode_textured_obj(project.resolve(rel["obj"]), vertices, faces, uv, None,
                               texture_path=project.resolve(rel["image"]), check_exists=False)
     files.update(obj.files)  # after the PNG it refers to
-    files[project.resolve(rel["glb"])] = encode_glb(vertices, faces, uv=uv, texture=tex.image, name=name)
+    files[project.resolve(rel["glb"])] = encode_glb(vertices, faces, uv=uv, texture=png, name=name)
     files[project.resolve(rel["ply"])] = encode_colored_ply(vertices, faces, uv=uv, texture=tex.image)
     rel["weight_maps"] = {pid: rel["weight_maps"][pid] for pid in ids}
     return files, rel

@@ -259,6 +259,17 @@ def test_glb_without_texture_and_bad_input(tmp_path, sphere):
     assert not list(tmp_path.iterdir())  # nothing written, no temporary left behind
 
 
+def test_glb_from_encoded_png_bytes_is_the_same_file(sphere, texture):
+    """Already-encoded PNG bytes (as the texture job passes them) give byte-identical output."""
+    from photomodel.exchange.files import encode_png
+
+    v, f, uv = sphere
+    png = encode_png(texture)
+    assert encode_glb(v, f, uv=uv, texture=png) == encode_glb(v, f, uv=uv, texture=texture)
+    with pytest.raises(ValueError, match="PNG signature"):
+        encode_glb(v, f, uv=uv, texture=b"GIF89a not a png")
+
+
 def test_reopened_glb_and_obj_render_like_the_original(tmp_path, sphere, texture):
     """The exported files, reopened and drawn by our renderer, look like the mesh we exported."""
     from photomodel.camera import orbit_camera

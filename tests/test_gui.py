@@ -240,6 +240,72 @@ def test_autosave_is_offered_for_recovery(qtbot, tmp_path, project_copy, message
     w2.model.modified = False
 
 
+def _crashed_instance_lock(path: Path) -> None:
+    """Leave ``<path>.lock`` as a studio that crashed leaves it: taken by a process that then died."""
+    import subprocess
+    import sys
+
+    code = ("import os, sys; from PySide6.QtCore import QLockFile; "
+            "l = QLockFile(sys.argv[1]); l.setStaleLockTime(0); assert l.tryLock(0); os._exit(0)")
+    subprocess.run([sys.executable, "-c", code, str(path) + ".lock"], check=True, timeout=60)
+    assert Path(str(path) + ".lock").is_file()
+
+
+def test_two_instances_keep_their_own_recovery_files(qtbot, tmp_path, project_copy, messages):
+    """Two studios at once autosave untitled projects to files of their own; one starting later
+    offers neither (both run) but does offer the file of an instance that crashed."""
+    folder = tmp_path / "data"
+
+    def window():
+        w = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat),
+                       autosave_interval_ms=0, recovery_folder=folder)
+        qtbot.addWidget(w)
+        return w
+
+    photos = sorted((project_copy.parent / "photos").glob("*.png"))
+    a, b = window(), window()
+    assert a.recovery_file != b.recovery_file and a.recovery_file.parent == b.recovery_file.parent == folder
+    a.add_photos([str(photos[0])])
+    a.model.set_point("neutral", a.model.photos[0].id, "nose_tip", (500.0, 520.0))
+    b.add_photos([str(p) for p in photos[:3]])
+    a.autosave(), b.autosave()
+    b.autosave()  # unchanged: not written again
+    assert len(load_project(a.recovery_file).expression("neutral").photos) == 1
+    assert len(load_project(b.recovery_file).expression("neutral").photos) == 3
+
+    # a third studio starting now offers nothing: both files belong to running instances
+    c = window()
+    assert not c.offer_recovery() and messages == [] and c.model.photos == []
+    # b saves its project: its recovery file goes, a's stays
+    assert b._save_to(tmp_path / "b.facestudio.json")
+    assert not b.recovery_file.exists() and a.recovery_file.is_file()
+
+    # an instance crashed with a's project in its recovery file: its lock names a dead process
+    dead = folder / "untitled-1-deadbeef.recovery.facestudio.json"
+    shutil.copy(a.recovery_file, dead)
+    _crashed_instance_lock(dead)
+    d = window()
+    messages.answers["question"] = QMessageBox.StandardButton.Yes
+    assert d.offer_recovery()
+    assert len(messages) == 1 and messages[0][1] == "Recover unsaved project" and str(dead) in messages[0][2]
+    np.testing.assert_allclose(d.model.photos[0].points["nose_tip"], (500.0, 520.0))
+    assert d.model.path is None and d.model.modified
+    # d adopted the file (and holds its lock): a later start does not offer it while d runs
+    assert d.recovery_file == dead
+    assert not window().offer_recovery() and len(messages) == 1
+    d.model.set_point("neutral", d.model.photos[0].id, "nose_tip", (510.0, 520.0))
+    d.autosave()
+    assert load_project(dead).expression("neutral").photos[0].points["nose_tip"][0] == 510.0
+    np.testing.assert_allclose(load_project(a.recovery_file).expression("neutral").photos[0].points["nose_tip"],
+                               (500.0, 520.0))  # a's own file untouched
+    # closing a (its project discarded) removes its file and lock only
+    messages.answers["question"] = QMessageBox.StandardButton.Discard
+    assert a.close()
+    assert not a.recovery_file.exists() and not Path(str(a.recovery_file) + ".lock").exists()
+    assert dead.is_file() and Path(str(dead) + ".lock").is_file()
+    d.model.modified = False
+
+
 def test_fit_can_be_cancelled(qtbot, studio_window, project_copy):
     assert studio_window.open_project(project_copy)
     assert studio_window.run_fit()

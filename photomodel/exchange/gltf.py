@@ -139,8 +139,10 @@ def encode_glb(vertices, faces, *, uv=None, texture=None, name: str = "face", un
     faces : (m, 3) int, counter-clockwise seen from outside (glTF's front faces too).
     uv : (n, 2) per-vertex or (m, 3, 2) per-corner float in [0, 1], ``v`` up, optional (with
         ``texture``). Written as ``TEXCOORD_0 = (u, 1 − v)``.
-    texture : (H, W, 3|4) uint8 or float in [0, 1], row 0 = top, optional (with ``uv``);
-        embedded as PNG.
+    texture : (H, W, 3|4) uint8 or float in [0, 1], row 0 = top, or bytes of a PNG file, optional
+        (with ``uv``); embedded as PNG. Pass the bytes when the PNG was encoded already (the
+        texture job writes the same PNG next to the ``.glb``): encoding a 1024² texture again
+        costs tens of milliseconds.
     name : str, the mesh's and node's name.
     unlit : bool, also declare ``KHR_materials_unlit`` on the material (see module notes).
 
@@ -163,7 +165,7 @@ def encode_glb(vertices, faces, *, uv=None, texture=None, name: str = "face", un
         v, normals = v[source], normals[source]
         texcoord = np.column_stack([uv_out[:, 0], 1.0 - uv_out[:, 1]]).astype(np.float32)
         attributes.TEXCOORD_0 = doc.add_accessor(texcoord)
-        pbr.baseColorTexture = gl.TextureInfo(index=doc.add_png_texture(encode_png(check_texture(texture)),
+        pbr.baseColorTexture = gl.TextureInfo(index=doc.add_png_texture(_texture_png(texture),
                                                                         name=f"{name}_texture"))
     else:
         pbr.baseColorFactor = [0.8, 0.8, 0.8, 1.0]
@@ -183,6 +185,20 @@ def encode_glb(vertices, faces, *, uv=None, texture=None, name: str = "face", un
     doc.gltf.scenes.append(gl.Scene(nodes=[len(doc.gltf.nodes) - 1]))
     doc.gltf.scene = 0
     return doc.to_bytes()
+
+
+#: The eight bytes every PNG file starts with (PNG spec §5.2).
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _texture_png(texture) -> bytes:
+    """The PNG bytes of ``encode_glb``'s ``texture``: given bytes as they are, an array encoded."""
+    if isinstance(texture, (bytes, bytearray, memoryview)):
+        png = bytes(texture)
+        if not png.startswith(PNG_SIGNATURE):
+            raise ValueError("texture bytes must be a PNG file (they do not start with the PNG signature)")
+        return png
+    return encode_png(check_texture(texture))
 
 
 def write_glb(path: str | os.PathLike, vertices, faces, *, uv=None, texture=None, name: str = "face",
