@@ -3,7 +3,7 @@
     facestudio fit PROJECT [--expression NAME] [--no-refine] [--json] [--dry-run]
     facestudio texture PROJECT [--expression NAME] [--size 1024] [--json]
     facestudio track PROJECT --video PATH [--out DIR] [--first-pose JSON] [--focal-px F] [--frames N]
-                     [--restart] [--no-overlay] [--json]
+                     [--restart] [--correct FRAME --pose JSON] [--no-overlay] [--json]
     facestudio sample-data
     facestudio studio [PROJECT]
 
@@ -202,6 +202,9 @@ def cmd_track(args) -> int:
         raise FaceStudioError(f"--frames {args.frames}: track at least one frame")
     if args.focal_px is not None and not args.focal_px > 0:
         raise FaceStudioError(f"--focal-px {args.focal_px}: the focal length must be a positive number of pixels")
+    if (args.correct is None) != (args.pose is None):
+        raise FaceStudioError("--correct FRAME and --pose FILE go together: the frame to correct and its pose "
+                              "(clicks of frame FRAME in the first-pose format)")  # fmt: skip
     show = not args.json or sys.stderr.isatty()
     bar = None
     stop = []
@@ -227,7 +230,8 @@ def cmd_track(args) -> int:
         names = None if args.expressions is None else [n.strip() for n in args.expressions.split(",") if n.strip()]
         result = track_video(args.project, args.video, args.out, expressions=names,
                              first_pose=args.first_pose, focal_px=args.focal_px,
-                             max_frames=args.frames, restart=args.restart, overlay=not args.no_overlay,
+                             max_frames=args.frames, restart=args.restart, correct_frame=args.correct,
+                             correct_pose=args.pose, overlay=not args.no_overlay,
                              progress=progress, cancel=lambda: bool(stop))  # fmt: skip
     except KeyboardInterrupt:
         if bar is not None:
@@ -246,6 +250,7 @@ def cmd_track(args) -> int:
     summary = {
         "project": str(Path(args.project)), "video": str(Path(args.video)), "out_dir": str(result.out_dir),
         "frames": len(result.frames), "tracked": result.tracked, "resumed_from": result.resumed_from,
+        "corrected": result.corrected,
         "complete": result.complete, "cancelled": result.cancelled, "fps": round(result.fps, 3),
         "diverged_frames": result.diverged, "mean_rms": float(sum(rms) / len(rms)) if rms else None, "files": files,
     }  # fmt: skip
@@ -253,6 +258,8 @@ def cmd_track(args) -> int:
         print(json.dumps(summary, indent=1))
     else:
         resumed = f" (continuing after frame {result.resumed_from - 1})" if result.resumed_from else ""
+        if result.corrected is not None:
+            resumed = f" (from frame {result.corrected}, corrected to the given pose)"
         print(f"tracked {result.tracked} frames{resumed} at {result.fps:.2f} frames/s; {len(result.frames)} frames "
               f"in the results, {result.diverged} diverged, mean image RMS {summary['mean_rms'] or 0:.4f}")
         for name, path in files.items():
@@ -315,6 +322,11 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--expressions", help="comma-separated expressions of the face model, neutral first "
                                          "(default: every expression of the project)")
     k.add_argument("--restart", action="store_true", help="discard earlier results in the output folder")
+    k.add_argument("--correct", type=int, metavar="FRAME", help="correct tracked frame FRAME (e.g. a diverged "
+                                                                "one) with --pose: keep frames 0..FRAME-1, fit "
+                                                                "FRAME from that pose, track on from there")
+    k.add_argument("--pose", type=Path, metavar="FILE", help="frame FRAME's pose for --correct: JSON like the "
+                                                             "first-pose file (clicks of that frame, or R/t_mm)")
     k.add_argument("--no-overlay", action="store_true", help="do not write the overlay video")
     k.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     k.set_defaults(func=cmd_track)

@@ -13,6 +13,12 @@ cancellable progress dialog; the results land in :func:`tracking.batch.default_o
   translation, RMS: the paper's Figs. 12–19), each with a vertical marker at the current frame
   drawn on a copy of the plot image (:func:`plot_with_marker`).
 
+A frame that diverged or drifted is corrected where it is shown: *Correct pose here…* opens the
+click dialog of the first pose (:class:`FirstPoseDialog`) on that frame, its pose features placed
+where the tracked model puts them, so the user only drags the wrong ones; accepting re-tracks from
+that frame in the worker (:func:`tracking.batch.track_video`'s ``correct_frame``/``correct_pose``),
+behind the same cancellable progress dialog as *Track video…*.
+
 Nothing here computes tracking itself: the view reads ``track.json`` (:func:`load_track_results`)
 and renders overlays on the GUI thread with a :class:`tracking.fit.FrameFitter` of the run's model
 and camera (the renderer is per thread).
@@ -154,10 +160,18 @@ class TrackingView(QWidget):
         self.first_pose_button.setToolTip("click the pose features in frame 0: tracking starts from that pose")
         self.first_pose_button.clicked.connect(lambda: self.first_pose_dialog())
         self.first_pose_dialog_widget: FirstPoseDialog | None = None
+        self.correct_button = QPushButton("Correct pose here…")
+        self.correct_button.setToolTip("the shown frame's pose is wrong (diverged, drifted): drag its pose features "
+                                       "into place, then re-track from this frame on")  # fmt: skip
+        self.correct_button.clicked.connect(lambda: self.correct_pose_dialog())
+        self.correct_button.setEnabled(False)
+        self.correct_dialog_widget: FirstPoseDialog | None = None
+        self._pending_frame: int | None = None
         self.cancel_button = QPushButton("Cancel tracking")
         self.cancel_button.setEnabled(False)
         self.cancel_button.clicked.connect(self.jobs.cancel)
         self.jobs.busy_changed.connect(self.cancel_button.setEnabled)
+        self.jobs.busy_changed.connect(lambda *_: self._update_buttons())
 
         top = QHBoxLayout()
         top.addWidget(QLabel("frames to track"))
@@ -165,6 +179,7 @@ class TrackingView(QWidget):
         top.addWidget(self.overlay_box)
         top.addStretch(1)
         top.addWidget(self.first_pose_button)
+        top.addWidget(self.correct_button)
         top.addWidget(self.cancel_button)
         scrub = QHBoxLayout()
         scrub.addWidget(self.slider, 1)
@@ -241,12 +256,44 @@ class TrackingView(QWidget):
         if project_path is None:
             self._error("Cannot track", "save the project first: tracking reads the project file")
             return False
-        if max_frames is None:
-            max_frames = self.limit_box.value() or None
         from tracking.batch import default_out_dir
 
         video = Path(video).absolute()
-        out = default_out_dir(project_path, video)
+        self._run(project_path, video, default_out_dir(project_path, video), max_frames, f"Tracking {video.name}…")
+        return True
+
+    def start_correction(self, frame: int, pose: dict, max_frames: int | None = None) -> bool:
+        """Re-track the shown results from ``frame`` on, frame ``frame`` fitted from ``pose`` (the
+        first-pose JSON object: clicks of that frame, or R/t), in the worker behind the progress
+        dialog (:func:`tracking.batch.track_video` with ``correct_frame``/``correct_pose``).
+
+        The run's settings come from the shown ``track.json`` (video, expressions, first pose, focal
+        length) and its results folder; ``max_frames`` None uses the "frames to track" box (0: the
+        whole video). Frames before ``frame`` are kept. Returns False (with a dialog saying why)
+        when nothing was started.
+        """
+        if self.jobs.busy:
+            self.last_message = "a video is already being tracked"
+            return False
+        if self.doc is None or self.out_dir is None:
+            self._error("Cannot correct", "no tracking results are shown: track a video or open results first")
+            return False
+        project_path = self.model.path
+        if project_path is None:
+            self._error("Cannot correct", "save the project first: tracking reads the project file")
+            return False
+        d = self.doc
+        video = Path(d["video"]["path"])
+        self._pending_frame = int(frame)
+        self._run(project_path, video, self.out_dir, max_frames, f"Re-tracking {video.name} from frame {frame}…",
+                  correct_frame=int(frame), correct_pose=pose, expressions=list(d["model"]["expressions"]),
+                  first_pose=d["first_pose"]["spec"], focal_px=float(d["camera"]["focal_px"]))  # fmt: skip
+        return True
+
+    def _run(self, project_path, video: Path, out: Path, max_frames: int | None, label: str, **kwargs) -> None:
+        """:func:`tracking.batch.track_video` into ``out`` in the worker, behind the progress dialog."""
+        if max_frames is None:
+            max_frames = self.limit_box.value() or None
         self._pending_out = out
 
         def work(progress, cancel):
@@ -256,12 +303,67 @@ class TrackingView(QWidget):
                 frac = done / total if total else 0.0
                 progress(f"tracked frame {done} of {total if total else '?'}", frac)
 
-            return track_video(project_path, video, out, max_frames=max_frames, progress=report, cancel=cancel)
+            return track_video(project_path, video, out, max_frames=max_frames, progress=report, cancel=cancel,
+                               **kwargs)  # fmt: skip
 
         self.jobs.start(work)
-        self._progress = open_progress(self, "Tracking", f"Tracking {video.name}…", self.jobs.cancel)
-        self.last_message = f"tracking {video.name} into {out}…"
-        return True
+        self._progress = open_progress(self, "Tracking", label, self.jobs.cancel)
+        self.last_message = f"{label[0].lower()}{label[1:-1]} into {out}…"
+
+    def tracked_feature_positions(self, index: int) -> dict[str, tuple[float, float]]:
+        """{feature: (u, v)} image px: the project's pose features where the tracked model puts them
+        in frame ``index`` (its pose and expression there, projected by the video camera; clamped to
+        the image so that a model that left it still has markers to drag)."""
+        from tracking.fit import FrameState
+
+        rec = self._records[index]
+        fitter = self._overlay_fitter()
+        model = fitter.model
+        st = FrameState(np.array(rec["R"], float), np.array(rec["centre_mm"], float), np.array(rec["alpha"], float))
+        project = self.model.project
+        names = project.feature_names(pose_only=True)
+        X = model.blend_geometry(model.vertex_weights(model.region_weights(st.alpha)))[project.feature_vertices(names)]
+        uv = fitter.camera(st).project(X)
+        uv[:, 0] = np.clip(uv[:, 0], -0.5, fitter.W - 0.5)
+        uv[:, 1] = np.clip(uv[:, 1], -0.5, fitter.H - 0.5)
+        return {n: (float(u), float(v)) for n, (u, v) in zip(names, uv, strict=True)}
+
+    def correct_pose_dialog(self, frame: int | None = None, modal: bool = True) -> FirstPoseDialog | None:
+        """Open :class:`FirstPoseDialog` in correction mode on tracked frame ``frame`` (default: the
+        shown one), its features prefilled by :meth:`tracked_feature_positions`; accepting it
+        (*Re-track from here*) calls :meth:`start_correction` with its clicks.
+
+        ``modal`` runs it with ``exec()``; otherwise it is shown and returned (tests). None (with a
+        message box) without results, while tracking, or when the frame cannot be read.
+        """
+        if self.jobs.busy:
+            self._error("Cannot correct", "a video is being tracked: wait for it or cancel it first")
+            return None
+        if not self._records or self.doc is None:
+            self._error("Cannot correct", "no tracking results are shown: track a video or open results first")
+            return None
+        frame = self.current_frame if frame is None else int(frame)
+        if not 0 <= frame < len(self._records):
+            self._error("Cannot correct", f"frame {frame} is not tracked (frames 0..{len(self._records) - 1})")
+            return None
+        try:
+            clicks = self.tracked_feature_positions(frame)
+            dlg = FirstPoseDialog(self.model.project, self.doc["video"]["path"], parent=self, frame=frame,
+                                  clicks=clicks, focal_px=float(self.doc["camera"]["focal_px"]),
+                                  model=self._overlay_fitter().model, correct=True)  # fmt: skip
+        except FaceStudioError as exc:
+            self._error("Cannot correct the pose", str(exc))
+            return None
+        dlg.accepted.connect(lambda: self.start_correction(dlg.frame, dlg.spec()))
+        self.correct_dialog_widget = dlg
+        if modal:
+            dlg.exec()
+        else:
+            dlg.show()
+        return dlg
+
+    def _update_buttons(self) -> None:
+        self.correct_button.setEnabled(bool(self._records) and not self.jobs.busy)
 
     def first_pose_dialog(self, video: str | Path | None = None, modal: bool = True) -> FirstPoseDialog | None:
         """Open :class:`FirstPoseDialog` on ``video`` (asked for when None) with the current project.
@@ -300,10 +402,15 @@ class TrackingView(QWidget):
         self.load_results(result.out_dir)
         self.last_message = (f"tracked {result.tracked} frames ({result.fps:.1f} frames/s), "
                              f"{result.diverged} diverged; results in {result.out_dir}")  # fmt: skip
+        if result.corrected is not None:
+            self.last_message = f"frame {result.corrected} corrected: re-{self.last_message}"
+            self.set_frame(result.corrected)
+        self._pending_frame = None
         self.caption.setText(self._caption() + f" — {result.tracked} frames tracked, {result.fps:.1f} frames/s")
 
     def _on_failed(self, message: str):
         self._close_progress()
+        self._pending_frame = None
         self._error("Tracking failed", message)
 
     def _on_cancelled(self):
@@ -312,6 +419,9 @@ class TrackingView(QWidget):
         out = self._pending_out
         if out is not None and (out / "track.json").is_file():
             self.load_results(out)
+            if self._pending_frame is not None:
+                self.set_frame(self._pending_frame)
+        self._pending_frame = None
         self.last_message = (f"tracking cancelled after {self.frame_count} frames; a new run continues "
                              f"from there")  # fmt: skip
         self.caption.setText(self._caption() + f" — {self.last_message}")
@@ -356,6 +466,7 @@ class TrackingView(QWidget):
         self.slider.setEnabled(bool(self._records))
         self.caption.setText(self._caption())
         self._show_frame(0)
+        self._update_buttons()
         return True
 
     def _caption(self) -> str:
@@ -401,7 +512,8 @@ class TrackingView(QWidget):
         index = int(np.clip(index, 0, len(self._records) - 1))
         rec = self._records[index]
         self.index_label.setText(f"frame {index} / {len(self._records) - 1}   rms {rec['rms']:.3f}"
-                                 + ("  DIVERGED" if rec["diverged"] else ""))  # fmt: skip
+                                 + ("  DIVERGED" if rec["diverged"] else "")
+                                 + ("  corrected" if rec.get("start") == "user" else ""))  # fmt: skip
         if index < len(self._footage):
             frame = self._footage[index].astype(np.float32) / 255.0
             if self.overlay_box.isChecked():
@@ -428,7 +540,7 @@ class TrackingView(QWidget):
 
 
 class ClickCanvas(QWidget):
-    """Frame 0 with one draggable marker per clicked feature (image px, centres at integers).
+    """A video frame with one draggable marker per clicked feature (image px, centres at integers).
 
     A press near a marker (≤ :attr:`GRAB_PX` screen px) drags it; elsewhere it places the
     feature :attr:`current` there. Emits :attr:`changed` after every placement or drag.
@@ -518,49 +630,74 @@ class ClickCanvas(QWidget):
 
 
 class FirstPoseDialog(QDialog):
-    """Set or correct the first frame's pose of a video by clicking the project's pose features (§6.2).
+    """Set the first frame's pose of a video, or correct a tracked frame's, by clicking the project's
+    pose features (§6.2).
 
-    Shows frame 0, the project's pose features (``project.feature_names(pose_only=True)``) and a
-    focal length, pre-filled from an existing first-pose JSON (:func:`tracking.batch.load_first_pose`
-    format). *Solve* runs :func:`tracking.fit.pose_from_clicks` (≥ 6 clicks) and shows the model
-    over frame 0 (:func:`tracking.batch.overlay_frame`); *Save* writes ``{"focal_px", "clicks"}``
-    atomically to :attr:`path` (default :func:`tracking.batch.default_first_pose_path`).
+    Shows a frame, the project's pose features (``project.feature_names(pose_only=True)``) and a
+    focal length. *Solve* runs :func:`tracking.fit.pose_from_clicks` (≥ 6 clicks) and shows the
+    model over the frame (:func:`tracking.batch.overlay_frame`).
+
+    * **First pose** (default): frame 0, pre-filled from an existing first-pose JSON
+      (:func:`tracking.batch.load_first_pose` format); *Save* writes ``{"focal_px", "clicks"}``
+      atomically to :attr:`path` (default :func:`tracking.batch.default_first_pose_path`).
+    * **Correction** (``correct=True``, :meth:`TrackingView.correct_pose_dialog`): frame ``frame``,
+      pre-filled with ``clicks`` (where the tracked model puts the features), the focal length fixed
+      to the run's; *Re-track from here* solves (the clicks must give a pose) and accepts; the
+      caller reads :meth:`spec`. Nothing is written.
 
     Parameters
     ----------
     project : photomodel.project.Project, whose features are clicked (and whose face model is fitted).
     video : path of the video file or frame folder.
-    path : where to read/write the first pose (default beside the video).
+    path : where to read/write the first pose (default beside the video; unused when correcting).
+    frame : int, the frame shown and clicked (default 0).
+    clicks : {feature: (u, v)} px, optional, initial marker positions (instead of the file's).
+    focal_px : float, optional, the video camera's focal length (fixed when correcting).
+    model : tracking.facemodel.FaceModel, optional, the face model to solve with (default: the
+        project's, :func:`tracking.batch.project_face_model`, built on the first *Solve*).
+    correct : bool, correction mode (see above).
 
     Attributes
     ----------
-    canvas : ClickCanvas, frame 0 and the clicks (image px).
+    frame : int, the frame shown.
+    frame_image : (H, W, 3) float32, that frame (``frame0``: the same, the name of the first-pose mode).
+    canvas : ClickCanvas, the frame and the clicks (image px).
     features : QListWidget, the pose features (check marks: clicked).
     focal_box : QDoubleSpinBox, focal length in px.
+    save_button : QPushButton, *Save* (first pose) or *Re-track from here* (correction).
     state : FrameState or None, the last solved pose.
     overlay : (H, W, 3) float32 or None, the last solved overlay image.
     last_message : str
     """
 
-    def __init__(self, project, video: str | Path, path: str | Path | None = None, parent=None):
+    def __init__(self, project, video: str | Path, path: str | Path | None = None, parent=None, *, frame: int = 0,
+                 clicks: dict | None = None, focal_px: float | None = None, model=None,
+                 correct: bool = False):  # fmt: skip
         super().__init__(parent)
-        from tracking.batch import VideoFrames, default_first_pose_path
+        from tracking.batch import VideoError, VideoFrames, default_first_pose_path
 
         self.project = project
         self.video = Path(video).absolute()
         self.path = Path(path).absolute() if path is not None else default_first_pose_path(self.video)
+        self.frame = int(frame)
+        self.correct = bool(correct)
         self.state = None
         self.overlay: np.ndarray | None = None
         self.last_message = ""
-        self._model = None
+        self._model = model
         self._fitter = None
+        self._focal = None if focal_px is None else float(focal_px)
         frames = VideoFrames(self.video)  # raises VideoError naming the file
-        self.frame0 = next(frames.frames(0, 1))[1]
+        shown = next(frames.frames(self.frame, self.frame + 1), None) if self.frame >= 0 else None
+        if shown is None:
+            raise VideoError(f"frame {self.frame} of {self.video} cannot be read (the video is shorter)")
+        self.frame_image = shown[1]
         self.width, self.height = frames.width, frames.height
-        self.setWindowTitle(f"First pose — {self.video.name}")
+        self.setWindowTitle(f"Correct the pose of frame {self.frame} — {self.video.name}" if self.correct
+                            else f"First pose — {self.video.name}")  # fmt: skip
 
         self.canvas = ClickCanvas()
-        self.canvas.set_image(np.round(self.frame0 * 255).astype(np.uint8))
+        self.canvas.set_image(np.round(self.frame_image * 255).astype(np.uint8))
         self.canvas.changed.connect(self._sync_list)
         self.features = QListWidget()
         for name in project.feature_names(pose_only=True):
@@ -572,16 +709,20 @@ class FirstPoseDialog(QDialog):
         self.focal_box.setRange(1.0, 1e6)
         self.focal_box.setDecimals(2)
         self.focal_box.setSuffix(" px")
-        self.focal_box.setValue(max(self.width, self.height) * 1.5)
+        self.focal_box.setValue(self._focal if self._focal is not None else max(self.width, self.height) * 1.5)
+        if self.correct:  # one camera per video: the run's
+            self.focal_box.setEnabled(False)
         clear = QPushButton("Clear click")
         clear.clicked.connect(lambda: self.canvas.current and self.remove_click(self.canvas.current))
         self.solve_button = QPushButton("Solve")
         self.solve_button.clicked.connect(self.solve)
-        self.save_button = QPushButton("Save")
-        self.save_button.clicked.connect(lambda: self.save() and self.accept())
+        self.save_button = QPushButton("Re-track from here" if self.correct else "Save")
+        self.save_button.clicked.connect(self._confirm)
         close = QPushButton("Close")
         close.clicked.connect(self.reject)
-        self.info = QLabel("click each feature's position in frame 0 (≥ 6), then Solve")
+        self.info = QLabel(f"drag the features that are off in frame {self.frame} (≥ 6 placed), Solve to preview, "
+                           f"then Re-track from here" if self.correct
+                           else "click each feature's position in frame 0 (≥ 6), then Solve")  # fmt: skip
         self.info.setWordWrap(True)
 
         side = QVBoxLayout()
@@ -600,9 +741,18 @@ class FirstPoseDialog(QDialog):
         lay.addLayout(row, 1)
         lay.addWidget(self.info)
         self.resize(760, 560)
-        self._prefill()
+        if clicks is not None:
+            for name, uv in clicks.items():
+                self.set_click(name, uv)
+        elif not self.correct:
+            self._prefill()
         if self.features.count():
             self.features.setCurrentRow(0)
+
+    @property
+    def frame0(self) -> np.ndarray:
+        """The frame shown (frame 0 in the first-pose mode)."""
+        return self.frame_image
 
     # ------------------------------------------------------------------ public API
     @property
@@ -625,12 +775,14 @@ class FirstPoseDialog(QDialog):
         self._sync_list()
 
     def spec(self) -> dict:
-        """The first-pose JSON object: ``{"focal_px": f, "clicks": {name: [u, v]}}``."""
-        return {"focal_px": float(self.focal_box.value()),
+        """The first-pose JSON object: ``{"focal_px": f, "clicks": {name: [u, v]}}`` (clicks of
+        :attr:`frame`; when correcting, ``f`` is the run's focal length exactly)."""
+        focal = self._focal if self.correct and self._focal is not None else float(self.focal_box.value())
+        return {"focal_px": focal,
                 "clicks": {n: [round(u, 3), round(v, 3)] for n, (u, v) in self.canvas.clicks.items()}}  # fmt: skip
 
     def solve(self) -> bool:
-        """Pose from the clicks (:func:`tracking.fit.pose_from_clicks`) and its overlay on frame 0.
+        """Pose from the clicks (:func:`tracking.fit.pose_from_clicks`) and its overlay on the frame.
 
         False (with a message box) with fewer than 6 clicks or when no pose is found."""
         from tracking.batch import overlay_frame
@@ -638,18 +790,18 @@ class FirstPoseDialog(QDialog):
 
         names = list(self.canvas.clicks)
         if len(names) < 6:
-            return self._fail(f"{len(names)} features clicked: the first frame's pose needs at least 6")
+            return self._fail(f"{len(names)} features clicked: the pose of frame {self.frame} needs at least 6")
         try:
             model = self._face_model()
             vertices = self.project.feature_vertices(names)
             uv = np.array([self.canvas.clicks[n] for n in names], float)
-            focal = float(self.focal_box.value())
+            focal = float(self.spec()["focal_px"])
             state = pose_from_clicks(model, vertices, uv, focal, self.width, self.height)
             if self._fitter is None or self._fitter.f != focal:
                 self._fitter = FrameFitter(model, focal, self.width, self.height)
             rec = {"R": state.R.tolist(), "centre_mm": state.t.tolist(), "alpha": state.alpha.tolist(),
-                   "frame": 0, "rms": 0.0, "diverged": False}  # fmt: skip
-            overlay = overlay_frame(self._fitter, self.frame0, rec)
+                   "frame": self.frame, "rms": 0.0, "diverged": False}  # fmt: skip
+            overlay = overlay_frame(self._fitter, self.frame_image, rec)
         except (FaceStudioError, cv2.error) as exc:
             return self._fail(f"no pose from these clicks: {exc}")
         self.state, self.overlay = state, overlay
@@ -679,6 +831,15 @@ class FirstPoseDialog(QDialog):
         return True
 
     # ------------------------------------------------------------------ internals
+    def _confirm(self) -> None:
+        """*Save* (then close), or when correcting *Re-track from here*: accept once the clicks solve."""
+        if self.correct:
+            if self.solve():
+                self.last_message = f"re-tracking from frame {self.frame} with {len(self.canvas.clicks)} features"
+                self.accept()
+        elif self.save():
+            self.accept()
+
     def _face_model(self):
         if self._model is None:
             from tracking.batch import project_face_model
@@ -728,5 +889,5 @@ class FirstPoseDialog(QDialog):
 
     def _fail(self, message: str) -> bool:
         self.last_message = message
-        QMessageBox.critical(self, "First pose", message)
+        QMessageBox.critical(self, "Correct pose" if self.correct else "First pose", message)
         return False

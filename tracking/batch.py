@@ -19,6 +19,11 @@ settings on the same folder continues after the last saved frame, its prediction
 last two saved frames (the JSON keeps the parameters at full precision, so a resumed run computes
 what an uninterrupted one would). Other settings in the folder are refused unless ``restart``.
 
+Correcting a frame: when frame N diverged or drifted, ``correct_frame=N`` with ``correct_pose`` (that
+frame's clicks or pose, the first-pose format) keeps frames 0 .. N−1, fits frame N from the user's
+pose in several rounds like frame 0, and tracks on from there; ``track.json`` records the correction
+(``corrections``) so that continuing reproduces it (see :func:`track_video`).
+
 Where the pieces come from
 --------------------------
 * **Video**: a file OpenCV's :class:`cv2.VideoCapture` reads (a kept decoder), or a folder of
@@ -73,6 +78,7 @@ __all__ = [
     "default_first_pose_path",
     "default_out_dir",
     "frame_record",
+    "STARTS",
     "load_track_results",
     "write_overlay_video",
 ]
@@ -247,8 +253,42 @@ def _vector(spec: dict, key: str, shape: tuple, where: str) -> np.ndarray:
     return a
 
 
+def _read_pose_spec(spec: dict | str | os.PathLike, frame: int = 0) -> tuple[dict, str]:
+    """The pose JSON object of frame ``frame`` (a path or the parsed dict) and how to name it in errors."""
+    if isinstance(spec, dict):
+        try:  # what is recorded in track.json must survive JSON (no numpy scalars, no NaN)
+            spec = json.loads(json.dumps(spec, allow_nan=False))
+        except (TypeError, ValueError) as exc:
+            raise FitError(f"the pose of frame {frame} is not plain JSON: {exc}") from exc
+        return spec, "first pose" if frame == 0 else f"the pose of frame {frame}"
+    path = Path(spec)
+    kind = "first-pose" if frame == 0 else "pose"
+    if not path.is_file():
+        if frame == 0:
+            raise FitError(f"the first-pose file {path} does not exist: write the first frame's pose or clicks "
+                           f"there (see docs/tracking.md) or pass --first-pose")  # fmt: skip
+        raise FitError(f"the pose file {path} does not exist: write frame {frame}'s pose or clicks there "
+                       f"(the first-pose format, see docs/tracking.md)")  # fmt: skip
+    try:
+        spec = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise FitError(f"{path}: not a JSON {kind} file: {exc}") from exc
+    if not isinstance(spec, dict):
+        raise FitError(f"{path}: the {kind} file must hold a JSON object")
+    return spec, str(path)
+
+
+def _spec_focal(spec: dict, where: str, width: int) -> float | None:
+    """The focal length (px) a pose JSON gives (``focal_px``, or ``focal_mm`` on a 36 mm-wide sensor); None if none."""
+    if "focal_px" in spec:
+        return float(_vector(spec, "focal_px", (), where))
+    if "focal_mm" in spec:
+        return focal_mm_to_px(float(_vector(spec, "focal_mm", (), where)), width)
+    return None
+
+
 def load_first_pose(spec: dict | str | os.PathLike, project, model: FaceModel, width: int, height: int,
-                    focal_px: float | None = None) -> FirstPose:  # fmt: skip
+                    focal_px: float | None = None, *, frame: int = 0) -> FirstPose:  # fmt: skip
     """The first frame's pose from a first-pose JSON (a path or the parsed dict).
 
     The JSON object::
@@ -261,28 +301,21 @@ def load_first_pose(spec: dict | str | os.PathLike, project, model: FaceModel, w
          "weights": {"mouth": {"smile": 0.3}}  # optional start expression (default neutral)
         }
 
-    ``focal_px`` (the command line's ``--focal-px``) overrides the file's. Raises :class:`FitError`
+    ``focal_px`` (the command line's ``--focal-px``) overrides the file's. ``frame``: the frame the
+    clicks or pose are of — the same format gives a user's correction of a later frame
+    (:func:`track_video`'s ``correct_pose``); it only changes the messages. Raises :class:`FitError`
     naming the file and the field.
     """
-    where = "first pose"
-    if not isinstance(spec, dict):
-        path = Path(spec)
-        where = str(path)
-        if not path.is_file():
-            raise FitError(f"the first-pose file {path} does not exist: write the first frame's pose or clicks "
-                           f"there (see docs/tracking.md) or pass --first-pose")  # fmt: skip
-        try:
-            spec = json.loads(path.read_text())
-        except (OSError, ValueError) as exc:
-            raise FitError(f"{path}: not a JSON first-pose file: {exc}") from exc
-        if not isinstance(spec, dict):
-            raise FitError(f"{path}: the first-pose file must hold a JSON object")
+    spec, where = _read_pose_spec(spec, frame)
+    return _pose_from_spec(spec, where, project, model, width, height, focal_px, frame)
+
+
+def _pose_from_spec(spec: dict, where: str, project, model: FaceModel, width: int, height: int,
+                    focal_px: float | None, frame: int) -> FirstPose:  # fmt: skip
+    """:func:`load_first_pose` of a parsed JSON object named ``where`` in errors."""
     if focal_px is None:
-        if "focal_px" in spec:
-            focal_px = float(_vector(spec, "focal_px", (), where))
-        elif "focal_mm" in spec:
-            focal_px = focal_mm_to_px(float(_vector(spec, "focal_mm", (), where)), width)
-        else:
+        focal_px = _spec_focal(spec, where, width)
+        if focal_px is None:
             raise FitError(f"{where}: the video camera's focal length is missing: give 'focal_px' (or 'focal_mm' "
                            f"for a 36 mm-wide sensor) or pass --focal-px")  # fmt: skip
     if not (math.isfinite(focal_px) and focal_px > 0):
@@ -297,7 +330,10 @@ def load_first_pose(spec: dict | str | os.PathLike, project, model: FaceModel, w
         except FaceStudioError as exc:
             raise FitError(f"{where}: {exc}") from exc
         uv = np.array([_vector(clicks, n, (2,), f"{where}: clicks") for n in names])
-        state = pose_from_clicks(model, vertices, uv, focal_px, width, height)
+        try:
+            state = pose_from_clicks(model, vertices, uv, focal_px, width, height)
+        except FitError as exc:
+            raise FitError(f"{where}: {exc} (clicks of frame {frame})") from exc
         source = f"{where}: {len(names)} clicked features, pose by tracking.fit.pose_from_clicks"
     elif "R" in spec or "rotation_vector" in spec:
         R = _vector(spec, "R", (3, 3), where) if "R" in spec else rodrigues(_vector(spec, "rotation_vector", (3,),
@@ -310,7 +346,7 @@ def load_first_pose(spec: dict | str | os.PathLike, project, model: FaceModel, w
         state = FrameState(R, t + R @ model.centre, np.zeros(sum(model.n_alpha)))
         source = f"{where}: pose given"
     else:
-        raise FitError(f"{where}: give either 'clicks' (≥ 6 features of frame 0) or a pose ('R' or "
+        raise FitError(f"{where}: give either 'clicks' (≥ 6 features of frame {frame}) or a pose ('R' or "
                        f"'rotation_vector', and 't_mm')")  # fmt: skip
     if "weights" in spec:
         state.alpha = model.alpha_of_weights(_weights_array(spec["weights"], model, where))
@@ -342,11 +378,14 @@ def _weights_array(weights, model: FaceModel, where: str) -> np.ndarray:
 CSV_COLUMNS = (
     ["frame", "rx_rad", "ry_rad", "rz_rad", "pitch_deg", "yaw_deg", "roll_deg", "tx_mm", "ty_mm", "tz_mm",
      "cx_mm", "cy_mm", "cz_mm"],
-    ["rms", "pixels", "diverged", "steps", "evaluations", "seconds"],
+    ["rms", "pixels", "diverged", "steps", "evaluations", "seconds", "start"],
 )  # fmt: skip
+#: Where a frame's fit started (a record's ``start``): the first pose (frame 0), the prediction from
+#: the frames before (§6.2), or a pose the user gave for that frame (a correction).
+STARTS = ("first_pose", "predicted", "user")
 
 
-def frame_record(index: int, result, model: FaceModel, seconds: float) -> dict:
+def frame_record(index: int, result, model: FaceModel, seconds: float, start: str = "predicted") -> dict:
     """One frame's JSON record.
 
     Keys: ``frame``; ``rotation_vector`` (3,) rad and ``R`` (3, 3) with ``t_mm`` (3,):
@@ -356,8 +395,12 @@ def frame_record(index: int, result, model: FaceModel, seconds: float) -> dict:
     parameters (concatenated per region); ``weights`` {region: {expression: w}} of each control
     region (rest excluded: it is always neutral); ``rms`` (image RMS, intensity in [0, 1]),
     ``pixels`` covered, ``diverged``, ``steps`` (accepted LM steps), ``evaluations`` (renderings),
-    ``seconds``. Floats at full precision: a run continues from them exactly.
+    ``seconds``; ``start``: where the fit started (:data:`STARTS`: ``"first_pose"``,
+    ``"predicted"``, or ``"user"`` for a corrected frame). Floats at full precision: a run continues
+    from them exactly.
     """
+    if start not in STARTS:
+        raise ValueError(f"start must be one of {STARTS}, got {start!r}")
     st = result.state
     R = np.asarray(st.R, float)
     return {
@@ -376,6 +419,7 @@ def frame_record(index: int, result, model: FaceModel, seconds: float) -> dict:
         "steps": len(result.history),
         "evaluations": int(result.evaluations),
         "seconds": float(seconds),
+        "start": start,
     }
 
 
@@ -392,7 +436,8 @@ def _csv_bytes(frames: list[dict], regions: list[str], names: list[str]) -> byte
     for f in frames:
         row = [f["frame"], *f["rotation_vector"], *f["head_rotation_deg"], *f["t_mm"], *f["centre_mm"]]
         row += [f["weights"][r][e] for r, e in wcols]
-        row += [f["rms"], f["pixels"], int(f["diverged"]), f["steps"], f["evaluations"], f["seconds"]]
+        row += [f["rms"], f["pixels"], int(f["diverged"]), f["steps"], f["evaluations"], f["seconds"],
+                f.get("start", "")]
         w.writerow([repr(v) if isinstance(v, float) else v for v in row])
     return buf.getvalue().encode()
 
@@ -488,6 +533,7 @@ class TrackResult:
     cancelled : bool, stopped by ``cancel()``.
     seconds : float, fitting time of this run.
     files : dict name → Path of the files written.
+    corrected : int or None, the frame this run corrected (re-tracked from the user's pose), if any.
     """
 
     out_dir: Path
@@ -498,6 +544,7 @@ class TrackResult:
     cancelled: bool
     seconds: float
     files: dict
+    corrected: int | None = None
 
     @property
     def fps(self) -> float:
@@ -516,9 +563,39 @@ def _settings_differ(old: dict, new: dict) -> list[str]:
         if key == "video":  # the frame count may be learnt later; the path and size decide
             a = {k: (a or {}).get(k) for k in ("path", "width", "height")}
             b = {k: b.get(k) for k in ("path", "width", "height")}
+        elif key == "first_pose":  # what it says, not where it was read from (a file or the recorded JSON)
+            a, b = (a or {}).get("spec"), b.get("spec")
         if a != b:
             differ.append(key)
     return differ
+
+
+def _check_corrections(corrections, path: Path) -> list[dict]:
+    """The ``corrections`` of a ``track.json`` (list of ``{frame, source, spec}``), checked."""
+    if corrections is None:
+        return []
+    ok = isinstance(corrections, list) and all(
+        isinstance(c, dict) and type(c.get("frame")) is int and c["frame"] >= 0 and isinstance(c.get("spec"), dict)
+        for c in corrections
+    )  # fmt: skip
+    if not ok:
+        raise FaceStudioError(f"{path}: 'corrections' must be a list of {{frame, source, spec}}; pass --restart")
+    return sorted(corrections, key=lambda c: c["frame"])
+
+
+def _check_correct_frame(frame, tracked: int, max_frames: int | None, path: Path) -> int:
+    """``frame`` as the index of a tracked frame a correction may restart from; FaceStudioError otherwise."""
+    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
+        raise FaceStudioError(f"the frame to correct must be a frame index (an integer), got {frame!r}")
+    frame = int(frame)
+    if tracked == 0:
+        raise FaceStudioError(f"{path}: no frames tracked yet, nothing to correct; track the video first")
+    if not 0 <= frame < tracked:
+        raise FaceStudioError(f"frame {frame} is out of range: {path} holds frames 0..{tracked - 1}; correct one of "
+                              f"those (track further first to reach a later frame)")  # fmt: skip
+    if max_frames is not None and frame >= max_frames:
+        raise FaceStudioError(f"frame {frame} is beyond the frame limit {max_frames} (frames 0..{max_frames - 1})")
+    return frame
 
 
 def track_video(
@@ -535,6 +612,8 @@ def track_video(
     options: TrackOptions | None = None,
     save_every: int = SAVE_EVERY,
     restart: bool = False,
+    correct_frame: int | None = None,
+    correct_pose: dict | str | os.PathLike | None = None,
     plots: bool = True,
     overlay: bool = True,
     progress: Callable[[int, int | None], None] | None = None,
@@ -556,6 +635,16 @@ def track_video(
     options : :class:`tracking.fit.TrackOptions`.
     save_every : write the results after every this many frames.
     restart : discard results of other settings in ``out_dir`` instead of refusing to continue.
+    correct_frame, correct_pose : the user's correction of a tracked frame N = ``correct_frame``
+        (both or neither): ``correct_pose`` is frame N's pose in the first-pose format (a path or the
+        parsed dict, :func:`load_first_pose`: usually ≥ 6 features clicked in frame N; its focal
+        length, if given, must be the run's). The results in ``out_dir`` (same settings) keep frames
+        0 .. N−1 unchanged; frame N is fitted from that pose in several rounds, like frame 0
+        (:func:`tracking.fit.track_frames`' ``first_rounds``), and recorded with ``start: "user"``;
+        the frames after it are tracked from there as usual. ``track.json`` keeps the list of
+        corrections (``corrections``: frame, source, spec); corrections of frames ≥ N are dropped
+        with those frames. Prediction does not reach back across a corrected frame (frame N + 1
+        starts from frame N alone, like frame 1 from frame 0), so a later rerun continues exactly.
     plots, overlay : write the plots (at the end of every run, cancelled or not) and the overlay
         video (only once the video, or its first ``max_frames``, is tracked).
     progress : ``progress(done, total)`` after each frame (``total`` None if the video does not say).
@@ -567,11 +656,16 @@ def track_video(
 
     Raises
     ------
-    ProjectError, VideoError, FitError naming what is wrong; KeyboardInterrupt after saving the
-    frames tracked so far.
+    ProjectError, VideoError, FitError, FaceStudioError naming what is wrong (a correction: no
+    results to correct, the frame out of range or beyond the tracked frames, a malformed pose file);
+    KeyboardInterrupt after saving the frames tracked so far.
     """
     from photomodel.project import load_project
 
+    if (correct_frame is None) != (correct_pose is None):
+        raise FaceStudioError("a correction needs both the frame (--correct) and its pose (--pose)")
+    if correct_frame is not None and restart:
+        raise FaceStudioError("--restart discards the results a correction keeps: restart or correct, not both")
     project = load_project(project_path)
     frames_in = VideoFrames(video)
     if model is None:
@@ -584,7 +678,7 @@ def track_video(
     if max_frames is not None and max_frames < 1:
         raise FaceStudioError(f"the frame limit must be at least 1, got {max_frames}")
     out = Path(out_dir).absolute() if out_dir is not None else default_out_dir(project_path, video)
-    out.mkdir(parents=True, exist_ok=True)
+    json_path = out / "track.json"
 
     regions = [r for r, a in zip(CONTROL_REGIONS, model.n_alpha, strict=True) if a]
     doc = {
@@ -603,20 +697,49 @@ def track_video(
         "options": asdict(options),
         "max_frames": max_frames,
         "complete": False,
+        "corrections": [],
         "frames": [],
     }
     old = None if restart else load_track_results(out)
     if old is not None:
         differ = _settings_differ(old, doc)
         if differ:
-            raise FaceStudioError(f"{out / 'track.json'} holds tracking with other settings (different "
+            raise FaceStudioError(f"{json_path} holds tracking with other settings (different "
                                   f"{', '.join(differ)}); pass --restart to start over or choose another --out")
         doc["frames"] = old["frames"]
+        doc["first_pose"] = old["first_pose"]  # the same JSON: keep naming the file it first came from
+        doc["corrections"] = _check_corrections(old.get("corrections"), json_path)
+    elif correct_frame is not None:
+        raise FaceStudioError(f"{out} holds no tracking results to correct: track the video first")
     records: list[dict] = doc["frames"]
-    start = len(records)
     if any(r["frame"] != i for i, r in enumerate(records)):
-        raise FaceStudioError(f"{out / 'track.json'}: the frame records are not consecutive from 0; pass --restart")
-    files = {"json": out / "track.json", "csv": out / "track.csv"}
+        raise FaceStudioError(f"{json_path}: the frame records are not consecutive from 0; pass --restart")
+    # where fits start from a pose instead of the prediction: frame 0 and the user's corrections
+    size = (frames_in.width, frames_in.height)
+    if correct_frame is not None:
+        correct_frame = _check_correct_frame(correct_frame, len(records), max_frames, json_path)
+        spec, where = _read_pose_spec(correct_pose, correct_frame)
+        given = _spec_focal(spec, where, frames_in.width)
+        if given is not None and abs(given - fp.focal_px) > 1e-9 * fp.focal_px:
+            raise FitError(f"{where}: focal length {given} px, but the video camera of these results has "
+                           f"{fp.focal_px} px (one camera per video; leave the focal length out)")  # fmt: skip
+        cp = _pose_from_spec(spec, where, project, model, *size, fp.focal_px, correct_frame)
+        del records[correct_frame:]
+        doc["corrections"] = [c for c in doc["corrections"] if c["frame"] < correct_frame]
+        doc["corrections"].append({"frame": correct_frame, "source": cp.source, "spec": cp.spec})
+    start = len(records)
+    starts = {0: ("first_pose", fp)}
+    for c in doc["corrections"]:
+        starts[c["frame"]] = ("user", None)
+    # poses of the corrections still ahead (the one just given, or one whose frame an interrupted
+    # run did not reach): solved from their recorded JSON, as when they were given
+    for c in doc["corrections"]:
+        if c["frame"] >= start:
+            where = f"{json_path}: correction of frame {c['frame']}"
+            starts[c["frame"]] = ("user", _pose_from_spec(c["spec"], where, project, model, *size, fp.focal_px,
+                                                          c["frame"]))  # fmt: skip
+    out.mkdir(parents=True, exist_ok=True)
+    files = {"json": json_path, "csv": out / "track.csv"}
 
     def save(complete: bool) -> None:
         doc["complete"] = complete
@@ -627,17 +750,25 @@ def track_video(
     fitter = FrameFitter(model, fp.focal_px, frames_in.width, frames_in.height, options)
     total = frames_in.count if max_frames is None else (
         max_frames if frames_in.count is None else min(max_frames, frames_in.count))  # fmt: skip
-    states = [_state_of(r) for r in records[-2:]]
+    # the prediction restored from the last two saved frames, not reaching back across a start
+    anchor = max((f for f in starts if f < start), default=0)
+    states = [_state_of(r) for r in records[max(anchor, start - 2) : start]]
     cancelled, ended, seconds = False, False, 0.0
     unsaved = 0
     try:
         it = frames_in.frames(start, max_frames)
         for i, frame in it:
             t0 = time.perf_counter()
-            (res,) = track_frames(fitter, [frame], fp.state, previous=states)
+            if i in starts:  # fitted from the pose in several rounds (track_frames' first_rounds)
+                kind, pose = starts[i]
+                (res,) = track_frames(fitter, [frame], pose.state)
+                states = []
+            else:
+                kind = "predicted"
+                (res,) = track_frames(fitter, [frame], fp.state, previous=states)
             dt = time.perf_counter() - t0
             seconds += dt
-            records.append(frame_record(i, res, model, dt))
+            records.append(frame_record(i, res, model, dt, kind))
             states = (states + [res.state])[-2:]
             unsaved += 1
             if unsaved >= save_every:
@@ -668,4 +799,4 @@ def track_video(
         files["overlay"] = out / "overlay.mp4"
         if last is not None:
             files["overlay_last"] = atomic_write_bytes(out / "overlay_last.png", encode_png(last))
-    return TrackResult(out, records, start, len(records) - start, complete, cancelled, seconds, files)
+    return TrackResult(out, records, start, len(records) - start, complete, cancelled, seconds, files, correct_frame)
