@@ -347,6 +347,10 @@ def fitted_sample_model(names: tuple = EXPRESSION_NAMES) -> FaceModel:
     return face_model_from_project(load_project(fitted_sample_project()), names)[0]
 
 
+#: model_gauge results per model object (a few seconds each; the sample models are cached objects).
+_GAUGES: dict = {}
+
+
 def model_gauge(model: FaceModel, iterations: int = 15) -> tuple[float, np.ndarray, np.ndarray]:
     """``(s, R, t)``: the similarity taking a james model's head frame to the true one
     (``X_true ≈ s R X + t``): its neutral face vertices registered onto the scan's surface
@@ -364,6 +368,10 @@ def model_gauge(model: FaceModel, iterations: int = 15) -> tuple[float, np.ndarr
     from photomodel.sample_data import load_james_scan
     from photomodel.synthetic import scan_surface
 
+    key = (id(model), iterations)
+    cached = _GAUGES.get(key)
+    if cached is not None and cached[0] is model:  # the same (cached, unchanged) model object
+        return cached[1]
     truth = sample_face_model()
     face = model.face_mask
     P = model.geometry[0][face]
@@ -372,4 +380,6 @@ def model_gauge(model: FaceModel, iterations: int = 15) -> tuple[float, np.ndarr
     for _ in range(iterations):
         closest = surface.closest(P @ (s * R).T + t)[0]
         s, R, t = similarity_transform(P, closest)
+    _GAUGES[key] = (model, (s, R, t))
     return s, R, t
+
