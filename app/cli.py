@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 
 from photomodel.errors import FaceStudioError, ProjectError
-from photomodel.texture_job import TEXTURE_SIZES
+from photomodel.texturing.job import TEXTURE_SIZES
 
 #: Texture sizes ``facestudio texture`` accepts (texels per side).
 
@@ -129,7 +129,7 @@ def _sigint_deferred():
 def cmd_texture(args) -> int:
     from photomodel.generic_mesh import load_generic_mesh
     from photomodel.project import load_project, save_project
-    from photomodel.texture_job import commit_texture, encode_texture_outputs, fitted_expressions, texture_expression
+    from photomodel.texturing.job import commit_texture, encode_texture_outputs, fitted_expressions, texture_expression
 
     lo, hi = TEXTURE_SIZES
     if not lo <= args.size <= hi:

@@ -20,7 +20,7 @@ the window closes. At start-up :meth:`MainWindow.offer_recovery` offers every re
 the folder whose lock no live process holds (a crashed instance's lock is stale: Qt checks its
 pid), so two studios running at once never overwrite, delete or recover each other's data.
 
-Texture (§5.2): *Texture → Extract texture* runs :mod:`photomodel.texture_job` in a worker
+Texture (§5.2): *Texture → Extract texture* runs :mod:`photomodel.texturing.job` in a worker
 (:class:`~app.workers.JobController`) behind a cancellable progress dialog; the 3D view then
 shows the model with the cylindrical texture or view-dependently (a toggle), and the
 :class:`~app.texture_views.WeightMapPanel` dock shows the weight maps. A project saved with

@@ -15,7 +15,7 @@ The fitted result of an expression (:class:`FitState`) is kept in memory with th
 vertices; the mesh files (``results/<expr>.obj|.ply``) are written when the project is saved,
 so a fit never writes next to a project the artist has not saved. A texture (:class:`TextureState`)
 likewise; the texture stored with an opened project is read back from its files
-(:func:`photomodel.texture_job.load_stored_texture`) when its expression is first shown.
+(:func:`photomodel.texturing.job.load_stored_texture`) when its expression is first shown.
 """
 
 from __future__ import annotations
@@ -81,15 +81,15 @@ class MissingPhotos(ProjectError):
 
 @dataclass
 class TextureState:
-    """The texture extracted for one expression's fit (:mod:`photomodel.texture_job`).
+    """The texture extracted for one expression's fit (:mod:`photomodel.texturing.job`).
 
     Attributes
     ----------
-    job : photomodel.texture_job.TextureJob, the texture, its weight maps and inputs.
+    job : photomodel.texturing.job.TextureJob, the texture, its weight maps and inputs.
     vertices : (N, 3) float mm, the fitted mesh it was made for (a new fit drops it).
     saved : bool, its files (``results/<expr>_texture.png`` …) are written next to the project.
     photos_from : Project or None, where to read the photographs of a texture read back from its
-        files (``job.inputs.photos`` None: :func:`photomodel.texture_job.load_stored_texture`).
+        files (``job.inputs.photos`` None: :func:`photomodel.texturing.job.load_stored_texture`).
     """
 
     job: object
@@ -99,16 +99,16 @@ class TextureState:
     _view_dependent: object = None
 
     def view_dependent(self):
-        """The :class:`photomodel.view_dependent.ViewDependentTexture` of the same photos (built once).
+        """The :class:`photomodel.texturing.view_dependent.ViewDependentTexture` of the same photos (built once).
 
         A stored texture's photographs are read now (:class:`ProjectError` names a missing one).
         """
         if self._view_dependent is None:
-            from photomodel.view_dependent import ViewDependentTexture
+            from photomodel.texturing.view_dependent import ViewDependentTexture
 
             i = self.job.inputs
             if i.photos is None:
-                from photomodel.texture_job import load_texture_photos
+                from photomodel.texturing.job import load_texture_photos
 
                 if self.photos_from is None:
                     raise ProjectError(f"the photographs of the texture of {i.expression!r} are not known")
@@ -639,7 +639,7 @@ class StudioModel:
     @staticmethod
     def compute_texture(inputs, size: int, *, progress=None, cancel=None):
         """Extract the texture of :meth:`texture_inputs` (worker thread): a TextureJob."""
-        from photomodel.texture_job import texture_expression
+        from photomodel.texturing.job import texture_expression
 
         snapshot, name, vertices, faces, face_mask = inputs
         return texture_expression(snapshot, name, size, face_mask=face_mask, vertices=vertices, faces=faces,
@@ -691,7 +691,7 @@ class StudioModel:
         try:
             if fit.vertices is None:
                 raise ProjectError(f"expression {name!r}: its fitted mesh {e.result.mesh_obj} could not be read")
-            from photomodel.texture_job import load_stored_texture
+            from photomodel.texturing.job import load_stored_texture
 
             job = load_stored_texture(self.project, name, fit.vertices, self.mesh.faces,
                                       face_mask=self.mesh.face_mask)
@@ -814,7 +814,7 @@ class StudioModel:
         from photomodel.mesh_io import write_mesh
 
         moved = old_path is None or target.parent != old_path.parent
-        from photomodel.texture_job import commit_texture, encode_texture_outputs
+        from photomodel.texturing.job import commit_texture, encode_texture_outputs
 
         at_target = copy.copy(self.project)  # shares the expressions; resolves paths in the target folder
         at_target.path = target

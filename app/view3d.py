@@ -40,7 +40,7 @@ class View3D(QWidget):
     texture : (uv (M, 2), image, vertex_index (M,) or None, faces (F, 3) or None) or None, an
         optional cylindrical texture to render with (set by the texturing tools; the view only
         draws it).
-    view_dependent : photomodel.view_dependent.ViewDependentTexture or None; when set, the mesh
+    view_dependent : photomodel.texturing.view_dependent.ViewDependentTexture or None; when set, the mesh
         is drawn view-dependently (§5.2.3) for the view's camera instead (``align=False``: the
         paper's plain blend, for interactive speed).
     """
@@ -90,7 +90,7 @@ class View3D(QWidget):
 
         ``uv`` (N, 2) per mesh vertex with ``image`` (H, W, 3) uint8; or, for a mesh whose
         triangles cross the texture's seam, the seam-split rendering mesh of
-        :meth:`photomodel.texture.CylindricalTexture.render_mesh`: ``uv`` (M, 2) per rendering
+        :meth:`photomodel.texturing.cylindrical.CylindricalTexture.render_mesh`: ``uv`` (M, 2) per rendering
         vertex, ``vertex_index`` (M,) its mesh vertex and ``faces`` (F, 3) its triangles.
         """
         if uv is None or image is None:
@@ -101,7 +101,7 @@ class View3D(QWidget):
         self.invalidate()
 
     def set_view_dependent(self, texture) -> None:
-        """Draw with a :class:`~photomodel.view_dependent.ViewDependentTexture` (None: stop)."""
+        """Draw with a :class:`~photomodel.texturing.view_dependent.ViewDependentTexture` (None: stop)."""
         self.view_dependent = texture
         self.invalidate()
 

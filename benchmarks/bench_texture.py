@@ -62,9 +62,9 @@ from photomodel.project import load_project  # noqa: E402
 from photomodel.render import get_renderer, write_png  # noqa: E402
 from photomodel.sample_data import load_james_scan  # noqa: E402
 from photomodel.synthetic import load_ground_truth, true_correspondence  # noqa: E402
-from photomodel.texture import cylindrical_texture, render_cylindrical, single_view_weights  # noqa: E402
-from photomodel.view_dependent import ViewDependentTexture  # noqa: E402
-from photomodel.weights import FEATHER_WIDTH_MM  # noqa: E402
+from photomodel.texturing.cylindrical import cylindrical_texture, render_cylindrical, single_view_weights  # noqa: E402
+from photomodel.texturing.view_dependent import ViewDependentTexture  # noqa: E402
+from photomodel.texturing.weights import FEATHER_WIDTH_MM  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 BACKGROUND = (0.86, 0.86, 0.85)  # the sample photos' backdrop

@@ -145,12 +145,12 @@ def test_bad_size_is_refused(project_copy, capsys):
 
 
 def test_ctrl_c_cancels_cleanly_with_nothing_written(project_copy, capsys, monkeypatch):
-    import photomodel.texture
+    import photomodel.texturing.cylindrical
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(photomodel.texture, "cylindrical_texture", interrupted)
+    monkeypatch.setattr(photomodel.texturing.cylindrical, "cylindrical_texture", interrupted)
     before = _snapshot(project_copy.parent)
     assert main(["texture", str(project_copy), "--size", "64"]) == 130
     assert "nothing was written" in capsys.readouterr().err

@@ -53,7 +53,7 @@ def seam_corners(f, uv):
     """Per-corner uv in [0, 1] with a genuine seam: the triangles across the cut take the
     unwrapped ``u + 1`` and every ``u`` is halved, so a vertex on the cut has ``u`` near 0 in
     some triangles and near 0.5 in others (as a cylindrical texture that repeats its seam
-    region, :mod:`photomodel.texture`)."""
+    region, :mod:`photomodel.texturing.cylindrical`)."""
     c = uv[f].copy()
     u = c[:, :, 0]
     seam = np.ptp(u, axis=1) > 0.5

@@ -1,4 +1,4 @@
-"""Tests of photomodel.texture and photomodel.view_dependent against ground truth (§5.2.2–5.2.4).
+"""Tests of photomodel.texturing.cylindrical and .view_dependent against ground truth (§5.2.2–5.2.4).
 
 Ground truth: the sample project's photos are renders of the james scan from known cameras
 (``sample_projects/james/ground_truth.json``). Texturing the scan's *own geometry* from those
@@ -20,7 +20,7 @@ from photomodel.generic_mesh import load_generic_mesh
 from photomodel.render import get_renderer, vertex_normals
 from photomodel.sample_data import load_james_scan
 from photomodel.synthetic import load_ground_truth, true_correspondence
-from photomodel.texture import (
+from photomodel.texturing.cylindrical import (
     CylindricalTexture,
     cylinder_map_for,
     cylindrical_texture,
@@ -29,8 +29,8 @@ from photomodel.texture import (
     render_cylindrical,
     single_view_weights,
 )
-from photomodel.view_dependent import ViewDependentTexture, render_view_dependent
-from photomodel.visibility import project_points, sample_image
+from photomodel.texturing.view_dependent import ViewDependentTexture, render_view_dependent
+from photomodel.texturing.visibility import project_points, sample_image
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 SCALE = 4  # photos 1000 → 250 px

@@ -1,4 +1,4 @@
-"""photomodel.texture_job: the texture path shared by ``facestudio texture`` and the studio.
+"""photomodel.texturing.job: the texture path shared by ``facestudio texture`` and the studio.
 
 On a copy of the sample project fitted as ``facestudio fit`` does: the mesh is read from the
 project's result file, the texture extracted (64² keeps this fast: the content of the texture is
@@ -19,7 +19,7 @@ from photomodel.fit import Cancelled, fit_expression, store_fit_result
 from photomodel.generic_mesh import load_generic_mesh
 from photomodel.mesh_io import read_mesh
 from photomodel.project import load_project, save_project
-from photomodel.texture_job import (
+from photomodel.texturing.job import (
     commit_texture,
     encode_texture_outputs,
     fitted_expressions,

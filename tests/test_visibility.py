@@ -1,4 +1,4 @@
-"""Tests of photomodel.visibility: depth-map visibility against analytic scenes (§5.2.1)."""
+"""Tests of photomodel.texturing.visibility: depth-map visibility against analytic scenes (§5.2.1)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from photomodel.camera import Camera, orbit_camera
-from photomodel.visibility import (
+from photomodel.texturing.visibility import (
     depth_visible,
     front_facing,
     project_points,

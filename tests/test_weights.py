@@ -1,4 +1,4 @@
-"""Tests of photomodel.weights: the weight maps g_k = F_k P_k (V_k) of §5.2.1–5.2.3."""
+"""Tests of photomodel.texturing.weights: the weight maps g_k = F_k P_k (V_k) of §5.2.1–5.2.3."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from photomodel.camera import orbit_camera
-from photomodel.weights import (
+from photomodel.texturing.weights import (
     apply_single_view,
     blend,
     cubic_ramp,

@@ -141,7 +141,7 @@ def _read_texture(project, name: str, size: int) -> np.ndarray:
 
 def _texture_uv(project, name: str, V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n, 2) the cylindrical texture coordinates (v up) of the expression's vertices."""
-    from photomodel.texture_job import stored_cylinder
+    from photomodel.texturing.job import stored_cylinder
 
     return stored_cylinder(project.expression(name).result.texture, V, F).uv(V)
 

@@ -292,7 +292,7 @@ def fitted_sample_project(progress=None) -> Path:
     from photomodel.generic_mesh import load_generic_mesh
     from photomodel.project import load_project, save_project
     from photomodel.sample_data import cache_dir
-    from photomodel.texture_job import commit_texture, encode_texture_outputs, texture_expression
+    from photomodel.texturing.job import commit_texture, encode_texture_outputs, texture_expression
 
     src = SAMPLE_PROJECT
     project = load_project(src)

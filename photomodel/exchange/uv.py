@@ -10,7 +10,7 @@ seam of the cylindrical texture of Pighin et al. (2002), §5.2.2, where the angl
 has one ``u`` in the triangles on one side and another in the triangles on the other.
 Formats with a single index per vertex (glTF, and what trimesh builds from an OBJ) then need
 the vertex duplicated, one copy per distinct ``uv`` (:func:`split_uv_seams`);
-:func:`merge_uv_seams` goes back, e.g. from :class:`photomodel.texture.CylindricalTexture`'s
+:func:`merge_uv_seams` goes back, e.g. from :class:`photomodel.texturing.cylindrical.CylindricalTexture`'s
 seam-split rendering mesh to per-corner coordinates. Textures are sampled clamped to the edge
 (as :mod:`photomodel.render` does and as the glTF export declares), so ``uv`` should lie in
 ``[0, 1]``.
@@ -111,7 +111,7 @@ def merge_uv_seams(faces: np.ndarray, source: np.ndarray, split_faces: np.ndarra
     """Per-corner texture coordinates of ``faces`` from a seam-split copy of the mesh.
 
     The inverse of :func:`split_uv_seams`, also when the split mesh lists the triangles in
-    another order (as :attr:`photomodel.texture.CylindricalTexture.seam_faces` does).
+    another order (as :attr:`photomodel.texturing.cylindrical.CylindricalTexture.seam_faces` does).
 
     Parameters
     ----------

@@ -7,7 +7,7 @@ The texture colour at a surface point ``m`` is the convex combination (§5.2.1)
 with one weight map per photograph, built from the paper's considerations:
 
 1. *self-occlusion* — ``g_k = 0`` unless ``m`` is front-facing and visible in photo ``k``
-   (:mod:`photomodel.visibility`);
+   (:mod:`photomodel.texturing.visibility`);
 2. *smoothness* — the binary visibility map is **feathered**: ramped from 1 to 0 near its
    boundaries with a cubic polynomial (§5.2.2 step 1; :func:`feather`, :func:`cubic_ramp`);
 3. *positional certainty* ``P_k(m) = n · d_k`` (:func:`positional_certainty`);

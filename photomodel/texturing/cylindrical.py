@@ -3,7 +3,7 @@
 "This texture map is constructed on a virtual cylinder enclosing the face model." A texel
 ``(u, v)`` names the first point where a horizontal ray from the cylinder towards its
 (vertical) axis meets the mesh; the photographs are sampled where that point projects and
-blended with the weight maps ``g_k = F_k P_k`` of §5.2.1 (:mod:`photomodel.weights`).
+blended with the weight maps ``g_k = F_k P_k`` of §5.2.1 (:mod:`photomodel.texturing.weights`).
 
 The cylinder (:class:`CylinderMap`)
 -----------------------------------
@@ -73,8 +73,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from photomodel.camera import Camera
-from photomodel.visibility import DEPTH_TOL_MM, depth_visible, project_points, render_depth, sample_image
-from photomodel.weights import FEATHER_WIDTH_MM, apply_single_view, blend, cubic_ramp, feather, positional_certainty
+from photomodel.texturing.visibility import DEPTH_TOL_MM, depth_visible, project_points, render_depth, sample_image
+from photomodel.texturing.weights import (
+    FEATHER_WIDTH_MM,
+    apply_single_view,
+    blend,
+    cubic_ramp,
+    feather,
+    positional_certainty,
+)
 
 __all__ = [
     "CylinderMap",
@@ -405,7 +412,7 @@ def cylinder_surface(cmap: CylinderMap, vertices: np.ndarray, faces: np.ndarray,
     raster) without the texel points, ~0.07 s for a 1024² texture instead of ~0.4 s.
 
     Used to rebuild a stored texture's :attr:`CylindricalTexture.surface`
-    (:func:`photomodel.texture_job.load_stored_texture`).
+    (:func:`photomodel.texturing.job.load_stored_texture`).
     """
     V = np.asarray(vertices, dtype=float)
     F = np.asarray(faces, dtype=np.int64)
@@ -642,7 +649,7 @@ def cylindrical_texture(
 
     For every texel: its surface point ``m`` and normal from the cylindrical raster
     (:func:`rasterise_cylinder`); in each photograph ``k`` its projection ``(x_k, y_k)``,
-    visibility (depth map and front-facing, :mod:`photomodel.visibility`) and positional
+    visibility (depth map and front-facing, :mod:`photomodel.texturing.visibility`) and positional
     certainty ``P_k(m) = n · d_k``; the binary visibility maps are feathered in texture
     space (``F_k``, cubic ramp over ``feather_mm``) and the photographs, sampled
     bilinearly, are blended with ``g_k = F_k P_k`` (§5.2.1). Texels no photograph sees are

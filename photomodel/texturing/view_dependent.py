@@ -3,7 +3,7 @@
 Instead of one resampled, blended texture, each new view is coloured directly from the
 photographs, "select[ing] just the two photographs whose view directions ``d_ℓ`` and
 ``d_{ℓ+1}`` are the closest to ``d``" and blending them per pixel with
-``g_k = F_k(x_k, y_k) P_k(m) V_k(d)`` (:mod:`photomodel.weights`).
+``g_k = F_k(x_k, y_k) P_k(m) V_k(d)`` (:mod:`photomodel.texturing.weights`).
 
 One pass with a position buffer (the default) vs the paper's multi-pass
 ------------------------------------------------------------------------
@@ -49,9 +49,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from photomodel.camera import Camera
-from photomodel.texture import check_photos, fill_holes
-from photomodel.visibility import DEPTH_TOL_MM, depth_visible, project_points, render_depth, sample_image
-from photomodel.weights import (
+from photomodel.texturing.cylindrical import check_photos, fill_holes
+from photomodel.texturing.visibility import DEPTH_TOL_MM, depth_visible, project_points, render_depth, sample_image
+from photomodel.texturing.weights import (
     FEATHER_WIDTH_MM,
     apply_single_view,
     blend,
@@ -109,7 +109,7 @@ class ViewDependentTexture:
     photos : k (H_k, W_k, 3) uint8 RGB
     single_view : (N,) float in [0, 1], optional
         per-vertex weight of the single-best-view fallback of §5.2.4
-        (:func:`photomodel.texture.single_view_weights`).
+        (:func:`photomodel.texturing.cylindrical.single_view_weights`).
     feather_mm : float
         width of the feathering ramp on the surface (mm).
     tol_mm : float

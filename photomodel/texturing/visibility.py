@@ -27,7 +27,7 @@ half a pixel times the slope). Background pixels (``inf``) are replaced by a far
 before interpolation: a point whose neighbourhood includes background lies on a silhouette,
 where it is in front of the interpolated value and therefore classified visible — points
 on a silhouette are seen edge-on and get a vanishing positional certainty anyway
-(:func:`photomodel.weights.positional_certainty`). The default tolerance of 1.5 mm is well
+(:func:`photomodel.texturing.weights.positional_certainty`). The default tolerance of 1.5 mm is well
 under the depth step of every occlusion on a face (the nose over the cheek: ≥ 10 mm; an
 eyelid over the eye: ~3 mm) and well over the interpolation error of a triangle surface
 drawn at ≥ 0.2 mm per pixel.
@@ -216,7 +216,7 @@ def front_facing(camera: Camera, points: np.ndarray, normals: np.ndarray, min_co
     -------
     (n,) bool
     """
-    from photomodel.weights import positional_certainty
+    from photomodel.texturing.weights import positional_certainty
 
     return positional_certainty(camera, points, normals, clip=False) > min_cos
 

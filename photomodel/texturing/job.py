@@ -7,7 +7,7 @@ the slow one in a worker and commit on its own thread:
 
 1. :func:`load_texture_inputs` — the fitted mesh (from the project's mesh file, or the vertices
    the caller holds in memory), the recovered cameras and the RGB photographs, all checked;
-2. :func:`extract_texture` — :func:`photomodel.texture.cylindrical_texture` with the §5.2.4
+2. :func:`extract_texture` — :func:`photomodel.texturing.cylindrical.cylindrical_texture` with the §5.2.4
    fallback weights (when the mesh has the generic mesh's topology), ``progress`` / ``cancel``;
 3. :func:`encode_texture_outputs` — every file in memory: the texture PNG, one weight-map PNG per
    photo (black 0 … white 1), textured OBJ+MTL, glb and coloured PLY;
@@ -45,7 +45,7 @@ __all__ = [
     "texture_expression",
 ]
 
-#: Texture sizes accepted (texels per side), as :func:`photomodel.texture.cylindrical_texture`.
+#: Texture sizes accepted (texels per side), as :func:`photomodel.texturing.cylindrical.cylindrical_texture`.
 TEXTURE_SIZES = (8, 16384)
 
 
@@ -80,7 +80,7 @@ class TextureJob:
     ----------
     inputs : TextureInputs
     size : int, texels per side.
-    texture : photomodel.texture.CylindricalTexture
+    texture : photomodel.texturing.cylindrical.CylindricalTexture
     single_view : (N,) float32 or None, the §5.2.4 fallback weights used.
     report : dict, ``coverage`` (fraction of the surface texels seen by a photo), ``extract_s``,
         ``photos``, ``single_view_fallback`` — the project's texture report.
@@ -193,14 +193,14 @@ def extract_texture(inputs: TextureInputs, size: int = 1024, *, face_mask: np.nd
     face_mask : (N,) bool, optional
         the generic mesh's face (:attr:`GenericMesh.face_mask`); when given and the fitted mesh
         has as many vertices, vertices away from it are textured from the single best photo.
-    progress, cancel : see :func:`photomodel.texture.cylindrical_texture` (``cancel`` raises
+    progress, cancel : see :func:`photomodel.texturing.cylindrical.cylindrical_texture` (``cancel`` raises
         :class:`photomodel.fit.Cancelled`).
 
     Raises
     ------
     FaceStudioError (ProjectError) for a size out of range.
     """
-    from photomodel.texture import cylindrical_texture, single_view_weights
+    from photomodel.texturing.cylindrical import cylindrical_texture, single_view_weights
 
     lo, hi = TEXTURE_SIZES
     if not lo <= int(size) <= hi:
@@ -272,12 +272,12 @@ def commit_texture(project, job: TextureJob, files: dict, rel: dict) -> None:
 
 
 def stored_cylinder(texture, vertices: np.ndarray, faces: np.ndarray):
-    """The :class:`~photomodel.texture.CylinderMap` of a stored texture (a
+    """The :class:`~photomodel.texturing.cylindrical.CylinderMap` of a stored texture (a
     :class:`~photomodel.project.TextureResult`): its ``report["cylinder"]``, or for a texture
-    recorded before the cylinder was, :func:`~photomodel.texture.cylinder_map_for` the fitted mesh
+    recorded before the cylinder was, :func:`~photomodel.texturing.cylindrical.cylinder_map_for` the fitted mesh
     at the texture's size (what its extraction used: the cylinder is a function of the mesh).
     """
-    from photomodel.texture import CylinderMap, cylinder_map_for
+    from photomodel.texturing.cylindrical import CylinderMap, cylinder_map_for
 
     c = texture.report.get("cylinder") if isinstance(texture.report, dict) else None
     try:
@@ -320,11 +320,11 @@ def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndar
     * ``weight_maps`` — the weight-map PNGs, to 8 bits (within 0.5/255 of the extraction's);
     * ``uv``, ``seam_*`` — from the cylinder of ``report["cylinder"]``
       (:func:`stored_cylinder`), exactly the extraction's for the same vertices;
-    * ``surface`` — :func:`photomodel.texture.cylinder_surface`, the extraction's raster (needs
+    * ``surface`` — :func:`photomodel.texturing.cylindrical.cylinder_surface`, the extraction's raster (needs
       OpenGL; without it, ``coverage`` stands in — it only matters for statistics);
     * ``coverage`` — the texels some weight map is non-zero at (the 8-bit maps lose weights below
       0.5/255, a few texels at the feathered edges);
-    * ``single_view`` — :func:`~photomodel.texture.single_view_weights` again when the report says
+    * ``single_view`` — :func:`~photomodel.texturing.cylindrical.single_view_weights` again when the report says
       the §5.2.4 fallback was used and ``face_mask`` is given;
     * ``inputs.cameras`` — the fit's cameras of the weight maps' photos; ``inputs.photos`` is None.
 
@@ -348,7 +348,7 @@ def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndar
         naming the texture file that is missing, unreadable or of the wrong size, or a weight map
         whose photo has no camera.
     """
-    from photomodel.texture import (
+    from photomodel.texturing.cylindrical import (
         CylindricalTexture,
         cylinder_surface,
         seam_render_mesh,
