@@ -111,6 +111,7 @@ class FaceModel:
     centre: np.ndarray
     face_mask: np.ndarray
     _texture_groups: list = field(default_factory=list, repr=False)
+    _group_uv: tuple | None = field(default=None, repr=False, compare=False)
 
     # -- parameter bookkeeping --------------------------------------------------------
     @property
@@ -181,8 +182,12 @@ class FaceModel:
         return self._texture_groups
 
     def group_uv(self) -> np.ndarray:
-        """(n, 2G) the texture coordinates of each :meth:`texture_groups` entry, side by side."""
-        return np.concatenate([self.uv[ks[0]] for _, ks in self.texture_groups()], axis=1)
+        """(n, 2G) the texture coordinates of each :meth:`texture_groups` entry, side by side
+        (made once per grouping: every rendering needs it)."""
+        groups = self.texture_groups()
+        if self._group_uv is None or self._group_uv[0] is not groups:
+            self._group_uv = (groups, np.concatenate([self.uv[ks[0]] for _, ks in groups], axis=1))
+        return self._group_uv[1]
 
 
 def control_regions(mesh_regions: np.ndarray, vertices: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
