@@ -31,8 +31,10 @@ fi
 
 PY=${PYTHON:-python3}
 [ -x .venv/bin/python ] || "$PY" -m venv .venv
-.venv/bin/python -m pip install -q --upgrade pip setuptools wheel
-.venv/bin/python -m pip install -q -e '.[test]'
+# every package at the version in constraints.txt (the versions the tests pass with; README.md
+# says how to update them), pip/setuptools/wheel included
+.venv/bin/python -m pip install -q -c constraints.txt --upgrade pip setuptools wheel
+.venv/bin/python -m pip install -q -c constraints.txt -e '.[test]'
 # fetch, verify and cache the sample data now so tests and the studio start offline
 .venv/bin/python -m photomodel.sample_data
 echo "Face Studio installed. Run the tests with: .venv/bin/python -m pytest"

@@ -16,6 +16,16 @@ from tracking.expressions import deformed_scan_vertices, expression_displacement
 EXPRESSIONS = ("smile", "open_mouth", "brows_raised", "frown")
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
+# How far regenerated 3D ground truth may be from the committed ground_truth.json. Not the file's
+# rounding (1e-4 mm): the generator (closest points, smoothing, projection onto the scan) runs
+# through numpy/scipy/trimesh, and other versions of those libraries move its output by ~0.01 mm
+# (0.0096 mm seen; 5e-6 mm with the versions in constraints.txt). The truth exists to score fits:
+# their 3D feature errors are ~0.3 mm (1 px of click noise ≈ 0.3 mm; measured median 0.30 mm) and
+# their bounds 1–2 mm. 0.05 mm is 5x that library drift and 6x below the smallest error the truth
+# scores, so regeneration noise cannot change a score, while a real change of the generator is
+# still caught (e.g. skipping the final projection onto the scan moves points by 0.1–0.2 mm).
+GROUND_TRUTH_TOL_MM = 0.05
+
 
 @pytest.fixture(scope="module")
 def truth(mesh, scan):
@@ -275,7 +285,7 @@ def test_sample_ground_truth_is_current(sample, mesh, scan, truth):
         np.testing.assert_allclose(ref.R, cam.R, atol=1e-12)
         np.testing.assert_allclose(ref.t, cam.t, atol=1e-9)
     for f in project.features:
-        np.testing.assert_allclose(gt["features_3d"][f.name], truth[f.vertex], atol=1e-4)
+        np.testing.assert_allclose(gt["features_3d"][f.name], truth[f.vertex], atol=GROUND_TRUTH_TOL_MM)
     # every expression: the same rig, and the features where the expression field moves them
     geometry = true_expression_geometry(mesh, scan, ("neutral", *EXPRESSIONS))
     for k, expression in enumerate(("neutral", *EXPRESSIONS)):
@@ -284,7 +294,7 @@ def test_sample_ground_truth_is_current(sample, mesh, scan, truth):
             assert synthetic.preset_for(cam) == pid
             np.testing.assert_allclose(Camera.from_dict(p["camera"]).R, cam.R, atol=1e-12)
         for f in project.features:
-            np.testing.assert_allclose(g["features_3d"][f.name], geometry[k, f.vertex], atol=1e-4)
+            np.testing.assert_allclose(g["features_3d"][f.name], geometry[k, f.vertex], atol=GROUND_TRUTH_TOL_MM)
 
 
 @pytest.mark.parametrize("expression", ["neutral", "open_mouth"])
