@@ -32,6 +32,7 @@ import numpy as np
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
 from photomodel.errors import FaceStudioError, ProjectError
+from photomodel.exif import focal_mm_guess_from_exif
 from photomodel.project import (
     CurveDef,
     Expression,
@@ -477,9 +478,11 @@ class StudioModel:
         return e, i
 
     def photo_from_file(self, path: str | os.PathLike, expression: str | None = None,
-                        preset: str = "front") -> Photo:
+                        preset: str = "front", focal_mm_guess: float | None = None) -> Photo:
         """A :class:`Photo` for an image file (size read with OpenCV), with an unused id.
 
+        ``focal_mm_guess`` (mm on a 36 mm-wide sensor) when given, else the focal length the
+        file's EXIF records (:func:`photomodel.exif.focal_mm_guess_from_exif`), else none.
         Raises :class:`ProjectError` naming the file when it is missing or not an image.
         """
         import cv2
@@ -497,7 +500,9 @@ class StudioModel:
         pid, k = stem, 2
         while pid in ids:
             pid, k = f"{stem}_{k}", k + 1
-        return Photo(id=pid, path=str(path), width=w, height=h, preset=preset)
+        if focal_mm_guess is None:
+            focal_mm_guess = focal_mm_guess_from_exif(path, w, h)
+        return Photo(id=pid, path=str(path), width=w, height=h, preset=preset, focal_mm_guess=focal_mm_guess)
 
     # ------------------------------------------------------------------ fits
     def click_residuals(self, expression: str | None = None) -> dict[str, dict[str, float]]:
