@@ -166,6 +166,23 @@ class SetPresetCommand(QUndoCommand):
         self.model.set_photo_preset(self.expression, self.photo_id, self.old)
 
 
+class SetCameraGroupCommand(QUndoCommand):
+    """Name the camera a photo was taken with (photos of one group share one focal length);
+    ``None`` clears it."""
+
+    def __init__(self, model: StudioModel, expression: str, photo_id: str, group: str | None):
+        super().__init__(f"Set camera group of {photo_id} to {group}" if group is not None
+                         else f"Clear camera group of {photo_id}")
+        self.model, self.expression, self.photo_id, self.group = model, expression, photo_id, group
+        self.old = model.photo(photo_id, expression).camera_group
+
+    def redo(self):
+        self.model.set_photo_camera_group(self.expression, self.photo_id, self.group)
+
+    def undo(self):
+        self.model.set_photo_camera_group(self.expression, self.photo_id, self.old)
+
+
 class AddExpressionCommand(QUndoCommand):
     """Add an (empty) expression and make it current; ``cameras_from``: the expression whose
     fitted cameras it reuses (photographed by the same rig), or None."""

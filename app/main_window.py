@@ -4,7 +4,7 @@ Layout: the current expression's photos fill the centre (one :class:`~app.photo_
 per tab, the tab title showing the photo's reprojection RMS after a fit); the
 :class:`~app.feature_list.FeaturePanel` docks on the left and the :class:`~app.view3d.View3D` on
 the right. The toolbar holds the expression, the editing mode (points / draw curve), the fit
-and overlay switches and the current photo's starting view.
+and overlay switches, and the current photo's starting view and camera group.
 
 Everything the window shows observes one :class:`~app.model.StudioModel`; edits are
 :mod:`app.commands` pushed on a :class:`QUndoStack`; fits run in a worker
@@ -50,6 +50,7 @@ from PySide6.QtWidgets import (
     QFileDialog,
     QInputDialog,
     QLabel,
+    QLineEdit,
     QMainWindow,
     QMessageBox,
     QProgressDialog,
@@ -60,7 +61,13 @@ from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import FaceStudioError, ProjectError
 from photomodel.project import FILE_SUFFIX
 
-from .commands import AddExpressionCommand, AddPhotosCommand, RemovePhotoCommand, SetPresetCommand
+from .commands import (
+    AddExpressionCommand,
+    AddPhotosCommand,
+    RemovePhotoCommand,
+    SetCameraGroupCommand,
+    SetPresetCommand,
+)
 from .feature_list import FeaturePanel
 from .model import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, remove_autosave
 from .photo_view import CURVE, POINTS, PhotoView
@@ -419,6 +426,16 @@ class MainWindow(QMainWindow):
         self.preset_combo.setToolTip("the rough direction the current photo was taken from (starts the pose recovery)")
         self.preset_combo.activated.connect(self._on_preset_combo)
         tb.addWidget(self.preset_combo)
+        tb.addWidget(QLabel(" Camera group "))
+        self.camera_group_edit = QLineEdit()
+        self._camera_group_target = None  # (expression, photo id) whose group the field shows
+        self.camera_group_edit.setPlaceholderText("own camera")
+        self.camera_group_edit.setMaximumWidth(140)
+        self.camera_group_edit.setToolTip(
+            "photos with the same camera group were taken with one camera and lens (frames of a video, "
+            "a fixed lens) and share one focal length; empty: a camera of its own")
+        self.camera_group_edit.editingFinished.connect(self._on_camera_group_edited)
+        tb.addWidget(self.camera_group_edit)
         tb.addAction(self.act_add_photos)
 
     # ------------------------------------------------------------------ errors
@@ -702,12 +719,48 @@ class MainWindow(QMainWindow):
         if view is not None and preset != view.photo.preset:
             self.undo_stack.push(SetPresetCommand(self.model, view.expression, view.photo_id, preset))
 
+    def _on_camera_group_edited(self):
+        """Enter or leaving the field: apply the camera group typed to the photo it was typed for."""
+        pending = self._take_camera_group_edit()
+        if pending is not None:
+            self._apply_camera_group(*pending)
+
+    def _take_camera_group_edit(self) -> tuple | None:
+        """(project, expression, photo id, group) of a camera group typed but not yet applied, or None."""
+        edit, target = self.camera_group_edit, self._camera_group_target
+        if target is None or not edit.isModified():
+            return None
+        edit.setModified(False)
+        return (self.model.project, *target, edit.text().strip() or None)
+
+    def _apply_camera_group(self, project, expression: str, photo_id: str, group: str | None) -> None:
+        if project is not self.model.project:  # typed in a project since closed
+            return
+        try:
+            photo = self.model.photo(photo_id, expression)
+        except FaceStudioError:  # the photo went away meanwhile
+            return
+        if group != photo.camera_group:
+            self.undo_stack.push(SetCameraGroupCommand(self.model, expression, photo_id, group))
+
     def _sync_preset(self):
+        """The toolbar's photo properties (starting view, camera group) show the current photo's."""
+        # a group still being typed belongs to the photo shown until now; applied once the edit
+        # that brought us here (a tab change, an undo) has finished: never push inside an undo
+        pending = self._take_camera_group_edit()
+        if pending is not None:
+            QTimer.singleShot(0, self, lambda: self._apply_camera_group(*pending))
         view = self.current_view()
         self.preset_combo.setEnabled(view is not None)
+        self.camera_group_edit.setEnabled(view is not None)
         if view is not None:
             i = self.preset_combo.findData(view.photo.preset)
             self.preset_combo.setCurrentIndex(i)
+            self._camera_group_target = (view.expression, view.photo_id)
+            self.camera_group_edit.setText(view.photo.camera_group or "")  # also clears isModified
+        else:
+            self._camera_group_target = None
+            self.camera_group_edit.clear()
 
     # ------------------------------------------------------------------ photo tabs
     def current_view(self) -> PhotoView | None:

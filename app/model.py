@@ -451,6 +451,17 @@ class StudioModel:
         self.photo_changed.emit(expression, photo_id)
         return old
 
+    def set_photo_camera_group(self, expression: str, photo_id: str, group: str | None) -> str | None:
+        """Name the camera (and lens) a photo was taken with: photos of one group share one focal
+        length (``Photo.camera_group``); ``None``: a camera of its own. Returns the old group."""
+        if group is not None and (not isinstance(group, str) or not group):
+            raise ProjectError(f"a camera group is a non-empty name or none, got {group!r}")
+        photo = self.photo(photo_id, expression)
+        old, photo.camera_group = photo.camera_group, group
+        self._touch()
+        self.photo_changed.emit(expression, photo_id)
+        return old
+
     def add_expression(self, name: str, index: int | None = None, expression: Expression | None = None) -> None:
         if not isinstance(name, str) or not name.strip():
             raise ProjectError("an expression needs a non-empty name")

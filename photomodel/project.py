@@ -1,4 +1,4 @@
-"""Face Studio project files (format version 1): data model, validation, atomic save.
+"""Face Studio project files (format version 2): data model, validation, atomic save.
 
 A project is one JSON file, ``<name>.facestudio.json``, that names the generic mesh, the
 features (generic-mesh vertices the artist clicks, §5.1 of Pighin et al. 2002) and curves
@@ -15,7 +15,8 @@ finite numbers, got [12.0]``. The checks run in this order:
 
 1. JSON syntax (line and column), duplicate object keys, and the ``NaN``/``Infinity`` literals
    that Python's :mod:`json` accepts but JSON does not;
-2. ``format`` and ``version`` (a newer version is refused: "written by a newer Face Studio");
+2. ``format`` and ``version`` (a newer version is refused: "written by a newer Face Studio";
+   an older one is upgraded in memory, see :data:`FORMAT_VERSION`);
 3. the structure, against ``project_schema.json`` (JSON Schema draft 2020-12, shipped with the
    package) — the single most relevant schema error is reported;
 4. cross-references the schema cannot express: unique names and photo ids, points / hidden
@@ -58,7 +59,13 @@ from .camera import PRESET_AZIMUTH_DEG, Camera
 from .errors import ProjectError
 
 FORMAT_NAME = "facestudio-project"
-FORMAT_VERSION = 1
+#: The version this Face Studio writes; it reads every version from 1 up to this one.
+#: History (``docs/project-format.md``, "Versioning"):
+#:
+#: * 1 — the first format.
+#: * 2 — a photo may name its ``camera_group`` (photos taken with one camera and lens share one
+#:   focal length). Upgrading a version-1 file: nothing to do (no photo has a group).
+FORMAT_VERSION = 2
 FILE_SUFFIX = ".facestudio.json"
 BUILTIN_MESH = "builtin:template-v1"
 
@@ -134,6 +141,9 @@ class Photo:
     width, height : int, image size in pixels.
     preset : str, rough initial camera, a key of :data:`photomodel.camera.PRESET_AZIMUTH_DEG`.
     focal_mm_guess : float or None, lens guess in mm on a 36 mm-wide sensor.
+    camera_group : str or None, photos with the same (non-empty) group name were taken with one
+        camera and lens (frames of one video, a fixed lens) and so share one focal length; None:
+        a camera of its own (:meth:`Expression.camera_groups`). Format version 2.
     points : dict[str, (2,) float], clicked feature positions ``[u, v]`` in pixels.
     hidden : set[str], features the artist marked as not visible in this photo (a hidden
         feature is unobserved even if it also has a click).
@@ -149,6 +159,7 @@ class Photo:
     points: dict[str, np.ndarray] = field(default_factory=dict)
     hidden: set[str] = field(default_factory=set)
     curves: dict[str, np.ndarray] = field(default_factory=dict)
+    camera_group: str | None = None
 
     def __post_init__(self):
         self.path = Path(self.path).as_posix() if isinstance(self.path, Path) else str(self.path)
@@ -162,9 +173,9 @@ class Photo:
     def __eq__(self, other):
         return (isinstance(other, Photo)
                 and (self.id, self.path, self.width, self.height, self.preset, self.focal_mm_guess,
-                     self.hidden)
+                     self.camera_group, self.hidden)
                 == (other.id, other.path, other.width, other.height, other.preset,
-                    other.focal_mm_guess, other.hidden)
+                    other.focal_mm_guess, other.camera_group, other.hidden)
                 and _array_dicts_equal(self.points, other.points)
                 and _array_dicts_equal(self.curves, other.curves))
 
@@ -280,6 +291,27 @@ class Expression:
         raise ProjectError(f"expression {self.name!r} has no photo {photo_id!r}; "
                            f"its photos are: {_listing(p.id for p in self.photos)}")
 
+    def camera_groups(self) -> list[int]:
+        """The camera of each photo, in photo order, as the index array a solver shares
+        intrinsics by: photos with the same ``camera_group`` get the same index, a photo without
+        a group an index of its own; indices are 0, 1, … in order of first appearance.
+
+        E.g. groups ``["a", None, "a", "b", None]`` → ``[0, 1, 0, 2, 3]``.
+        """
+        index: dict[str, int] = {}
+        out = []
+        n = 0
+        for p in self.photos:
+            if p.camera_group is None:
+                out.append(n)
+                n += 1
+            else:
+                if p.camera_group not in index:
+                    index[p.camera_group] = n
+                    n += 1
+                out.append(index[p.camera_group])
+        return out
+
 
 @dataclass
 class Project:
@@ -337,6 +369,11 @@ class Project:
         by_name = {f.name: f.vertex for f in self.features}
         self._require_features(names, by_name)
         return np.array([by_name[n] for n in names], dtype=np.int64)
+
+    def camera_groups(self, expression_name: str) -> list[int]:
+        """:meth:`Expression.camera_groups` of the expression called ``expression_name``: one
+        camera index per photo, in the order of its photos (that of :meth:`observations`)."""
+        return self.expression(expression_name).camera_groups()
 
     def photo_path(self, photo: Photo) -> Path:
         """Absolute path of ``photo``'s image file."""
@@ -496,6 +533,10 @@ class Project:
                     "height": int(p.height),
                     "preset": p.preset,
                     "focal_mm_guess": None if p.focal_mm_guess is None else float(p.focal_mm_guess),
+                }
+                if p.camera_group is not None:  # optional: photos without a group omit the key
+                    pd["camera_group"] = p.camera_group
+                pd |= {
                     "points": {k: _round_list(p.points[k], _PIXEL_DECIMALS)
                                for k in ordered(p.points, feature_order)},
                     "hidden": sorted(p.hidden, key=lambda k: (feature_order.get(k, len(feature_order)), k)),
@@ -701,7 +742,7 @@ def _fsync_dir(folder: Path) -> None:
 
 @lru_cache(maxsize=1)
 def project_schema() -> dict:
-    """The JSON Schema (draft 2020-12) of format version 1, shipped as package data."""
+    """The JSON Schema (draft 2020-12) of the format (versions 1 and 2), shipped as package data."""
     text = resources.files("photomodel").joinpath("project_schema.json").read_text(encoding="utf-8")
     return json.loads(text)
 
@@ -853,6 +894,9 @@ def _validate(d: Any, source: str) -> None:
                            f"this version reads up to {FORMAT_VERSION}); please update Face Studio")
     if version < 1:
         raise ProjectError(f"{source}: version: unknown project format version {version}")
+    # Older versions need no upgrade: version 2 only added the optional photo camera_group, and a
+    # version-1 file's photos have none. (A future change that renames or restructures a field
+    # converts the older dict here, before the schema check.)
 
     _check_schema(d, source)
     problems = _cross_reference_problems(d)
@@ -1067,6 +1111,7 @@ def _expression_from_dict(e: dict) -> Expression:
             id=p["id"], path=p["path"], width=p["width"], height=p["height"], preset=p["preset"],
             focal_mm_guess=p.get("focal_mm_guess"),
             points=p.get("points", {}), hidden=p.get("hidden", []), curves=p.get("curves", {}),
+            camera_group=p.get("camera_group"),
         )
         for p in e["photos"]
     ]

@@ -361,3 +361,40 @@ def test_studio_command_opens_the_project(qtbot, qapp, project_copy, monkeypatch
     monkeypatch.setattr(QApplication, "exec", staticmethod(exec_))
     assert main(["studio", str(project_copy)]) == 0
     assert seen["path"] == project_copy.absolute() and len(seen["photos"]) == 5
+
+
+def test_camera_group_field_is_an_undoable_photo_edit(qtbot, studio_window, project_copy):
+    """The toolbar's Camera group field names the current photo's camera (Photo.camera_group):
+    Enter applies it, switching photos applies what was typed to the photo it was typed for,
+    each change is one undo step, and it is saved with the project."""
+    assert studio_window.open_project(project_copy)
+    model, edit, undo = studio_window.model, studio_window.camera_group_edit, studio_window.undo_stack
+    view = studio_window.show_photo("front")
+    qtbot.waitUntil(lambda: view.isVisible())
+    assert edit.isEnabled() and edit.text() == ""
+    qtbot.keyClicks(edit, "  video ")
+    qtbot.keyClick(edit, Qt.Key.Key_Return)
+    assert model.photo("front").camera_group == "video" and edit.text() == "video"
+    assert undo.undoText() == "Set camera group of front to video"
+    # typed for 'left', then the tab changes before Enter: it still goes to 'left'
+    studio_window.show_photo("left")
+    assert edit.text() == ""
+    qtbot.keyClicks(edit, "video")
+    studio_window.show_photo("front")
+    qtbot.waitUntil(lambda: model.photo("left").camera_group == "video")  # once the tab change is done
+    assert edit.text() == "video" and undo.undoText() == "Set camera group of left to video"
+    assert model.project.camera_groups("neutral") == [0, 1, 2, 3, 2]  # right, ¾ right, front, ¾ left, left
+    # emptying the field clears the group
+    studio_window.show_photo("left")
+    edit.selectAll()
+    qtbot.keyClick(edit, Qt.Key.Key_Delete)
+    qtbot.keyClick(edit, Qt.Key.Key_Return)
+    assert model.photo("left").camera_group is None
+    undo.undo()
+    assert model.photo("left").camera_group == "video" and edit.text() == "video"
+    undo.undo()
+    assert model.photo("left").camera_group is None and edit.text() == ""
+    undo.redo()
+    assert studio_window.save()
+    reopened = load_project(project_copy)
+    assert [p.camera_group for p in reopened.expression("neutral").photos] == [None, None, "video", None, "video"]

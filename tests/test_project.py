@@ -1,4 +1,4 @@
-"""Tests of photomodel.project: the v1 project format, its validation and atomic saving."""
+"""Tests of photomodel.project: the project format (version 2, reading 1), its validation and atomic saving."""
 
 from __future__ import annotations
 
@@ -132,7 +132,7 @@ def test_rounding_to_documented_precision(tmp_path):
 def test_file_is_readable_json(saved):
     path, d = saved
     text = path.read_text()
-    assert text.startswith('{\n  "format": "facestudio-project",\n  "version": 1,')
+    assert text.startswith('{\n  "format": "facestudio-project",\n  "version": 2,')
     assert '"nose_tip": [31.5, 20.25]' in text  # a click on one line
     assert '{"name": "nose_tip", "vertex": 10, "pose": true}' in text
     assert "NaN" not in text and "Infinity" not in text
@@ -301,8 +301,9 @@ CASES = [
      ['expressions[0].photos[0].points["left eye"]: no feature named']),
     ("wrong format", lambda d: d.__setitem__("format", "blender"),
      ["not a Face Studio project file", '"blender"']),
-    ("newer version", lambda d: d.__setitem__("version", 2),
-     ["james.facestudio.json: written by a newer Face Studio (project format version 2"]),
+    ("newer version", lambda d: d.__setitem__("version", 3),
+     ["james.facestudio.json: written by a newer Face Studio (project format version 3; "
+      "this version reads up to 2)"]),
     ("version zero", lambda d: d.__setitem__("version", 0), ["unknown project format version 0"]),
     ("version string", lambda d: d.__setitem__("version", "1"), ['version: expected an integer', '"1"']),
 ]
@@ -665,3 +666,83 @@ def test_invalid_cameras_from_is_not_saved(tmp_path):
     with pytest.raises(ProjectError, match="no expression named 'grin'"):
         save_project(p)
     assert not p.path.exists()
+
+
+# ---------------------------------------------------------------------------------------
+# format version 2: photo camera_group (photos sharing one camera and lens)
+# ---------------------------------------------------------------------------------------
+def test_version_1_file_loads_and_is_saved_as_version_2(tmp_path, saved):
+    """Version 1 needs no upgrade (it has no camera groups); saving writes version 2."""
+    _, d = saved
+    d["version"] = 1
+    p = _load_dict(tmp_path, d)
+    assert p == _project()
+    assert all(ph.camera_group is None for e in p.expressions for ph in e.photos)
+    assert p.camera_groups("neutral") == [0, 1]  # each photo a camera of its own
+    again = json.loads(save_project(p, tmp_path / "v2.facestudio.json").read_text())
+    assert again["version"] == 2 and again["expressions"] == d["expressions"]
+    # the committed sample project is a version-1 file and still loads
+    sample = load_project(Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json")
+    assert sample.camera_groups("neutral") == [0, 1, 2, 3, 4]
+
+
+def test_camera_group_round_trip_and_absent_when_none(tmp_path, saved):
+    _, d = saved
+    assert all("camera_group" not in ph for e in d["expressions"] for ph in e["photos"])
+    p = _project(tmp_path)
+    p.expression("neutral").photos[0].camera_group = "video"
+    p.expression("neutral").photos[1].camera_group = "video"
+    p.expression("smile").photos[0].camera_group = "nikon 85 mm"
+    save_project(p)
+    d = json.loads(p.path.read_text())
+    front = d["expressions"][0]["photos"][0]
+    assert front["camera_group"] == "video"
+    assert list(front)[5:7] == ["focal_mm_guess", "camera_group"]  # next to the lens guess
+    q = load_project(p.path)
+    assert q == p and q.expression("smile").photos[0].camera_group == "nikon 85 mm"
+    q.expression("neutral").photos[1].camera_group = "other"
+    assert q != p  # the group takes part in equality
+    front["camera_group"] = None  # an explicit null is the default
+    assert _load_dict(tmp_path, d).expression("neutral").photos[0].camera_group is None
+
+
+@pytest.mark.parametrize("value, expected", [
+    (3, "expected null or a camera group name (a non-empty string), got 3"),
+    ("", "expected null or a camera group name (a non-empty string), got \"\""),
+    (["video"], "expected null or a camera group name"),
+    (True, "expected null or a camera group name"),
+])
+def test_malformed_camera_group_names_the_field(tmp_path, saved, value, expected):
+    _, d = saved
+    _photo(d, 0, 1)["camera_group"] = value
+    with pytest.raises(ProjectError) as ei:
+        _load_dict(tmp_path, d)
+    msg = str(ei.value)
+    assert msg.startswith("james.facestudio.json: expressions[0].photos[1].camera_group: "), msg
+    assert expected in msg, msg
+
+
+def test_invalid_camera_group_is_not_saved(tmp_path):
+    p = _project(tmp_path)
+    p.expression("neutral").photos[0].camera_group = ""
+    with pytest.raises(ProjectError, match=r"photos\[0\]\.camera_group: expected null or a camera group"):
+        save_project(p)
+    assert not p.path.exists()
+
+
+def test_camera_groups_index_array():
+    """One index per camera, in photo order: a shared group one index, an ungrouped photo its own,
+    numbered by first appearance."""
+
+    def expression(groups):
+        return Expression("e", [Photo(f"p{i}", f"p{i}.png", W, H, camera_group=g) for i, g in enumerate(groups)])
+
+    assert expression(["a", None, "a", "b", None]).camera_groups() == [0, 1, 0, 2, 3]
+    assert expression([None, None]).camera_groups() == [0, 1]
+    assert expression(["x", "x", "x"]).camera_groups() == [0, 0, 0]
+    assert expression(["b", "a", "b", "a"]).camera_groups() == [0, 1, 0, 1]
+    assert expression([]).camera_groups() == []
+    p = Project("p", expressions=[expression(["v", "v", None]), Expression("other")])
+    assert p.camera_groups("e") == [0, 0, 1] and p.camera_groups("other") == []
+    with pytest.raises(ProjectError, match="grin"):
+        p.camera_groups("grin")

@@ -129,3 +129,17 @@ def test_photo_from_file(model, tmp_path):
         model.photo_from_file(junk)
     with pytest.raises(ProjectError, match="no such file"):
         model.photo_from_file(tmp_path / "absent.png")
+
+
+def test_set_photo_camera_group(model):
+    events = []
+    model.photo_changed.connect(lambda *a: events.append(a))
+    assert model.set_photo_camera_group("neutral", "front", "video") is None
+    assert model.photo("front", "neutral").camera_group == "video" and model.modified
+    assert events == [("neutral", "front")]
+    assert model.set_photo_camera_group("neutral", "front", None) == "video"
+    for bad in ("", 3):
+        with pytest.raises(ProjectError, match="camera group is a non-empty name"):
+            model.set_photo_camera_group("neutral", "front", bad)
+    with pytest.raises(ProjectError, match="no photo 'back'"):
+        model.set_photo_camera_group("neutral", "back", "video")
