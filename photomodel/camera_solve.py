@@ -1,0 +1,541 @@
+"""Camera recovery that holds up on real clicks: several cheap starts, a robust polish, named
+suspects and a plausibility check (the §5.1.1 pose stage of ``facestudio fit``; beyond the paper).
+
+The paper recovers the cameras from ~13 hand-picked pose features, starting from the artist's
+rough presets, by its alternating least squares (:mod:`photomodel.pose`). On input a user produces
+every day that fails: a fresh draw of click noise sends a camera behind the head, a profile shows
+too few pose features, one click 80 px off spoils every camera, a wrong preset is never
+recovered from. :func:`solve_cameras` keeps the paper's method at its core and adds:
+
+1. **Every feature clicked in ≥ 2 photos places the cameras**, not only the flagged pose
+   features (a profile with 3 pose features and 20 other clicks solves).
+2. **Several cheap starts, one polish.** (a) the presets, registered to the clicks
+   (:meth:`photomodel.pose._Problem.register`); (b) each photo placed on its own by a
+   perspective-n-point solve (OpenCV's SQPnP, a global solver) of its clicks against the generic
+   head's feature positions, for five focal lengths around the lens guess (×0.5 … ×2), the best
+   by median reprojection error; a photo's clicks that sit > 4× the median off are left out of
+   its PnP and it is solved again. Each start runs :data:`ALS_SWEEPS` sweeps of the paper's
+   alternation (§5.1.1, App. A); the start with the lower *median* reprojection error (robust to
+   a wrong click) is polished — only that one. The presets are then only a hint: a photo whose
+   preset is wrong still solves through (b).
+3. **A robust polish** (:mod:`photomodel.bundle`): Levenberg–Marquardt on the Huber loss of the
+   reprojection errors with threshold ``c = HUBER_C · σ̂``, the noise scale ``σ̂`` taken from the
+   data (item 4). Residuals are leverage-corrected per feature (``e / √(1 − 3 / (2 v))`` for a
+   feature clicked in ``v`` photos: its 3 coordinates absorb part of its 2v residuals), so a
+   two-view feature is judged on the same scale as a five-view one.
+4. **Suspect clicks.** For Gaussian clicks of σ px per axis, the corrected squared residual
+   ``z² = e² 2v / (2v − 3)`` is distributed as ``σ² (2/d) χ²_d`` with ``d = (2v − 3) / v`` residual
+   degrees of freedom per click (a feature in 2 or 3 photos leaves one per click, many photos
+   two). σ̂ is the median of ``z²`` over the median of that law, and a click is a suspect when
+   ``z²`` exceeds its ``1 − SUSPECT_P`` quantile (``SUSPECT_P = 1e-5`` a click: < 1 % of draws of
+   700 clicks carry a false suspect). In units of σ̂ the threshold ``k`` is 4.8 for a feature
+   seen in many photos and 6.2 for one seen in two (whose residual is one number shared by its
+   two clicks, so it has the heavier tail). A click 30 px off at σ = 3 px is flagged. Suspects
+   are left out (when the photo keeps 4 clicks and the feature 2 photos) and the polish is
+   finished by plain least squares on the rest — on draws without a wrong click the result is
+   the Huber minimum with ``c = 2.5 σ̂``, within 1 % of the least-squares RMS. Clicks outside the
+   photo are suspects from the start. (A wrong click of a feature seen in only two photos is
+   detectable only across the epipolar line, and then both clicks of that feature are named.)
+5. **Camera groups** share one focal length (photos of one camera and lens, frames of a video).
+6. **A prior on the structure** for narrow baselines: when the views are so close together that
+   the clicks let the face collapse or flatten (the plausibility check below fails), the polish
+   is run again with each point pulled towards the generic head's feature positions up to a
+   similarity, weight ``β = (σ̂ / PRIOR_SIGMA_MM)²`` px² per mm²: a deviation from the generic
+   head of ``PRIOR_SIGMA_MM`` (15 mm, about how far a person's landmarks lie from the generic
+   head's after alignment) costs as much as one click at the noise level, so the depth the
+   views cannot measure comes from the generic head while the clicks keep everything they do
+   measure. It is not applied where the clicks alone give a plausible face: there it would only
+   bias the result towards the generic head's proportions (measured: on 5 views within ±15°
+   sharing one lens, σ = 1 px, the focal error went from 1–8 % without to 4–7 % with it; a
+   face 10 % deeper than the generic head is measured, not averaged away).
+7. **No silent nonsense.** A result is accepted only if every point is in front of every camera,
+   the face's depth after a similarity onto the generic head is within ×0.5…×2 of the generic
+   head's, the features fit the generic head's shape to within 35 % of its size, and every focal
+   length is between 6 and 2000 mm (35 mm equivalent). Otherwise the next start is tried, and
+   if none passes the error names what collapsed and the photo and clicks that disagree most.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy import stats
+from threadpoolctl import ThreadpoolController
+
+from .alignment import similarity_transform
+from .bundle import BundleProblem, BundleState
+from .camera import Camera, focal_px_to_mm
+from .errors import FitError
+from .pose import MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate
+
+#: BLAS thread control: the polish's matrices are small (≤ ~70 × 70), where a multi-threaded
+#: BLAS spends more time waking threads than computing (a 9-photo solve took 30–100 ms with
+#: OpenBLAS' threads on 2 busy cores, 13–17 ms on one).
+_THREADS = ThreadpoolController()
+
+__all__ = ["CameraSolution", "solve_cameras", "HUBER_C", "SUSPECT_P", "PRIOR_SIGMA_MM"]
+
+#: Huber threshold of the robust polish, in units of σ̂.
+HUBER_C = 2.5
+#: False-alarm probability per click of the suspect test (see the docstring).
+SUSPECT_P = 1e-5
+#: Spread of a person's feature positions around the aligned generic head's (mm), for the prior.
+PRIOR_SIGMA_MM = 15.0
+#: Sweeps of the paper's alternation run on each start.
+ALS_SWEEPS = 3
+#: Floor of σ̂ (px): below it clicks are exact for every practical purpose.
+SIGMA_FLOOR_PX = 0.05
+#: Focal lengths of the PnP start, relative to the lens guess.
+_FOCAL_FACTORS = (1.0,)
+#: Plausibility bounds (see the module docstring).
+DEPTH_RATIO_RANGE = (0.5, 2.0)
+SHAPE_MISFIT_MAX = 0.35
+FOCAL_MM_RANGE = (6.0, 2000.0)
+
+
+@dataclass
+class CameraSolution:
+    """What :func:`solve_cameras` returns.
+
+    Attributes
+    ----------
+    cameras : list[Camera], one per photo.
+    points : (n, 3) float mm, the recovered feature positions (the frame of the initial points,
+        up to the similarity gauge).
+    used : (k, n) bool, the clicks the final least squares used (suspects left out).
+    residuals_px : (k, n, 2) float, projected minus clicked (px) of every click; NaN where none.
+    rms_px : float, RMS reprojection error over the used clicks.
+    rms_all_px : float, RMS over every click (suspects included).
+    per_view_rms_px, per_point_rms_px : (k,), (n,) float, over the used clicks.
+    sigma_px : float, the data's noise scale σ̂ (px per axis).
+    suspects : list of dict ``{"photo", "feature", "error_px"}``, worst first.
+    start : str, the start that was polished ("pnp" or "presets").
+    sweeps, iterations : int, ALS sweeps and polish iterations of the accepted start.
+    """
+
+    cameras: list[Camera]
+    points: np.ndarray
+    used: np.ndarray
+    residuals_px: np.ndarray
+    rms_px: float
+    rms_all_px: float
+    per_view_rms_px: np.ndarray
+    per_point_rms_px: np.ndarray
+    sigma_px: float
+    suspects: list[dict] = field(default_factory=list)
+    start: str = "pnp"
+    sweeps: int = 0
+    iterations: int = 0
+
+    def pose_result(self) -> PoseResult:
+        """The solution as a :class:`photomodel.pose.PoseResult` (residuals of the used clicks)."""
+        return PoseResult(
+            cameras=self.cameras,
+            points=self.points,
+            iterations=self.sweeps,
+            converged=True,
+            rms_px=self.rms_px,
+            per_view_rms_px=self.per_view_rms_px,
+            per_point_rms_px=self.per_point_rms_px,
+            residuals_px=np.where(self.used[..., None], self.residuals_px, np.nan),
+            polish_iterations=self.iterations,
+        )
+
+
+# ----------------------------------------------------------------------------------------------
+# helpers
+# ----------------------------------------------------------------------------------------------
+def _outside(obs: np.ndarray, cameras: Sequence[Camera]) -> np.ndarray:
+    """(k, n) bool: clicks more than half a pixel outside their photo."""
+    w = np.array([c.width for c in cameras], float)[:, None]
+    h = np.array([c.height for c in cameras], float)[:, None]
+    u, v = obs[..., 0], obs[..., 1]
+    with np.errstate(invalid="ignore"):
+        return (u < -1.0) | (v < -1.0) | (u > w) | (v > h)
+
+
+def _dof(valid: np.ndarray) -> np.ndarray:
+    """(k, n) residual degrees of freedom per click, ``d = (2 v − 3) / v`` for a feature clicked
+    in ``v`` photos (its 3 coordinates absorb 3 of its 2 v residual components)."""
+    v = np.maximum(valid.sum(0), 2).astype(float)
+    return np.broadcast_to((2.0 * v - 3.0) / v, valid.shape)
+
+
+def _leverage(valid: np.ndarray) -> np.ndarray:
+    """(k, n) factor ``1 / √(1 − 3 / (2 v))`` that puts residuals of a feature clicked in ``v``
+    photos on one scale: ``E[(f e)²] = 2 σ²`` whatever ``v`` (``v ≥ 2``)."""
+    v = np.maximum(valid.sum(0), 2).astype(float)
+    return np.broadcast_to(1.0 / np.sqrt(1.0 - 3.0 / (2.0 * v)), valid.shape)
+
+
+# For Gaussian clicks the corrected squared residual z² = (f e)² is distributed as
+# σ² (2/d) χ²_d with d the click's residual degrees of freedom (d = 1 for a feature in 2 or 3
+# photos, → 2 for many). Tables over d: the median of (2/d) χ²_d (for σ̂) and its 1 − p quantile
+# (the suspect threshold).
+_D_GRID = np.linspace(0.5, 2.0, 61)
+_MEDIAN_U = 2.0 / _D_GRID * stats.chi2.median(_D_GRID)
+_THRESH_U = 2.0 / _D_GRID * stats.chi2.isf(SUSPECT_P, _D_GRID)
+
+
+def _sigma(e: np.ndarray, valid: np.ndarray) -> float:
+    """Robust noise scale σ̂ (px per axis): ``√ median(z² / median of (2/d) χ²_d)`` over the clicks."""
+    u = (e * _leverage(valid))[valid] ** 2
+    if not u.size:
+        return SIGMA_FLOOR_PX
+    m = np.interp(_dof(valid)[valid], _D_GRID, _MEDIAN_U)
+    return max(float(np.sqrt(np.median(u / m))), SIGMA_FLOOR_PX)
+
+
+def _suspect(e: np.ndarray, valid: np.ndarray, sigma: float) -> np.ndarray:
+    """(k, n) bool: clicks whose corrected squared residual exceeds the ``1 − SUSPECT_P`` quantile
+    of ``σ̂² (2/d) χ²_d``; also returns nothing where not valid."""
+    u = np.where(valid, (np.nan_to_num(e) * _leverage(valid)) ** 2, 0.0)
+    return valid & (u > sigma**2 * np.interp(_dof(valid), _D_GRID, _THRESH_U))
+
+
+def _median_error(prob: BundleProblem, st: BundleState) -> float:
+    q, D, P, r, e = prob.evaluate(st)
+    if not (np.all(st.s > 0) and np.all(D[prob.valid] > 0)):
+        return np.inf
+    v = e[prob.valid]
+    return float(np.median(v)) if np.all(np.isfinite(v)) else np.inf
+
+
+def _pnp_cameras(obs, valid, points, cameras, groups) -> list[Camera] | None:
+    """Each photo placed on its own by SQPnP against ``points``, focal lengths around its guess."""
+    out = []
+    best_f = np.zeros(len(cameras))
+    poses = []
+    for j, c in enumerate(cameras):
+        X = np.ascontiguousarray(points[valid[j]], dtype=np.float64)
+        x = np.ascontiguousarray(obs[j, valid[j]], dtype=np.float64)
+        pp = c.principal_point
+        best = (np.inf, None)
+        for fac in _FOCAL_FACTORS:
+            f = c.f * fac
+            sol = _pnp(X, x, f, pp)
+            if sol is not None and sol[0] < best[0]:
+                best = (sol[0], (f, sol[1], sol[2]))
+        if best[1] is None:
+            return None
+        best_f[j] = best[1][0]
+        poses.append(best[1])
+    # one focal per group: the geometric mean of its photos' best, and their poses at it
+    for g in np.unique(groups):
+        members = np.flatnonzero(groups == g)
+        if len(members) > 1:
+            f = float(np.exp(np.mean(np.log(best_f[members]))))
+            for j in members:
+                X = points[valid[j]].astype(np.float64)
+                sol = _pnp(X, obs[j, valid[j]].astype(np.float64), f, cameras[j].principal_point)
+                if sol is None:
+                    return None
+                poses[j] = (f, sol[1], sol[2])
+    for (f, R, t), c in zip(poses, cameras, strict=True):
+        out.append(Camera(R, t, f, c.width, c.height))
+    return out
+
+
+def _pnp(X, x, f, pp):
+    """``(median error px, R, t)`` of SQPnP with focal ``f``, once more without the clicks > 4×
+    the median off; None when OpenCV finds no pose in front of the camera."""
+    K = np.array([[f, 0.0, pp[0]], [0.0, f, pp[1]], [0.0, 0.0, 1.0]])
+    keep = np.ones(len(X), bool)
+    result = None
+    for _ in range(2):
+        try:
+            ok, rvec, tvec = cv2.solvePnP(X[keep], x[keep], K, None, flags=cv2.SOLVEPNP_SQPNP)
+        except cv2.error:
+            return result
+        if not ok:
+            return result
+        R = cv2.Rodrigues(rvec)[0]
+        t = tvec.reshape(3)
+        Xc = X @ R.T + t
+        if not np.all(Xc[:, 2] > 0):
+            return result
+        e = np.linalg.norm(f * Xc[:, :2] / Xc[:, 2:3] + pp - x, axis=1)
+        med = float(np.median(e))
+        result = (med, R, t)
+        out = e > 4.0 * max(med, 1.0)
+        if not out.any() or (~out).sum() < MIN_POINTS_PER_VIEW:
+            break
+        keep = ~out
+    return result
+
+
+def _als(obs, valid, cameras, points, fixed_focal):
+    """:data:`ALS_SWEEPS` sweeps of the paper's alternation from ``cameras``; ``(cameras, points,
+    sweeps)``, the last finite estimate if a sweep breaks down."""
+    prob = _Problem(obs, valid, cameras, fixed_focal)
+    st = prob.state_from(cameras, points)
+    good, sweeps = st.copy(), 0
+    with np.errstate(all="ignore"):
+        prob.register(st)
+        if np.isfinite(prob.evaluate(st)[5]):
+            good = st.copy()
+        for _ in range(ALS_SWEEPS):
+            try:
+                rms = prob.sweep(st)
+            except np.linalg.LinAlgError:
+                break
+            if not (np.isfinite(rms) and np.all(st.eta > 0) and np.isfinite(prob.evaluate(st)[5])):
+                break
+            good, sweeps = st.copy(), sweeps + 1
+    return prob.cameras_from(good, cameras), good.m, sweeps
+
+
+def plausibility_problem(cameras, points, generic_points, names=None, view_names=None) -> str | None:
+    """Why a recovered (cameras, points) pair is nonsense, or None when it is plausible.
+
+    Checks (see the module docstring): every point in front of every camera; the depth of the
+    face after a similarity onto ``generic_points`` within :data:`DEPTH_RATIO_RANGE` of the
+    generic head's; the shape misfit below :data:`SHAPE_MISFIT_MAX` of the generic head's size;
+    focal lengths within :data:`FOCAL_MM_RANGE` (35 mm equivalent).
+    """
+    pts = np.asarray(points, float)
+    gen = np.asarray(generic_points, float)
+    names = list(names) if names is not None else [f"#{i}" for i in range(len(pts))]
+    vnames = list(view_names) if view_names is not None else [f"#{j}" for j in range(len(cameras))]
+    if not np.all(np.isfinite(pts)):
+        return "some feature positions are not finite"
+    for j, c in enumerate(cameras):
+        d = c.depth(pts)
+        if not np.all(d > 0):
+            i = int(np.argmin(d))
+            return (f"feature {names[i]!r} ended up behind the camera of photo {vnames[j]!r} "
+                    f"(depth {d[i]:.3g} mm)")
+        fmm = focal_px_to_mm(c.f, c.width)
+        if not FOCAL_MM_RANGE[0] <= fmm <= FOCAL_MM_RANGE[1]:
+            return f"photo {vnames[j]!r} got a focal length of {fmm:.3g} mm (35 mm equivalent)"
+    if len(pts) < 4:
+        return None
+    s, R, t = similarity_transform(pts, gen)
+    aligned = pts @ (s * R).T + t
+    size = float(np.sqrt(((gen - gen.mean(0)) ** 2).sum(1).mean()))
+    misfit = float(np.sqrt(((aligned - gen) ** 2).sum(1).mean()))
+    depth = float(np.ptp(aligned[:, 2]))
+    depth_gen = float(np.ptp(gen[:, 2]))
+    if depth_gen > 1e-9 and not DEPTH_RATIO_RANGE[0] <= depth / depth_gen <= DEPTH_RATIO_RANGE[1]:
+        return (f"the face came out {depth:.0f} mm deep after scaling to the generic head "
+                f"(the generic head's features span {depth_gen:.0f} mm)")
+    if misfit > SHAPE_MISFIT_MAX * size:
+        return (f"the recovered features do not have a face's shape (they lie {misfit:.0f} mm from the "
+                f"generic head's on average, whose size is {size:.0f} mm)")
+    return None
+
+
+# ----------------------------------------------------------------------------------------------
+# the solver
+# ----------------------------------------------------------------------------------------------
+def solve_cameras(
+    observations: np.ndarray,
+    initial_cameras: Sequence[Camera],
+    points: np.ndarray,
+    *,
+    groups: Sequence[int] | None = None,
+    fixed_focal: bool = False,
+    robust: bool = True,
+    prior: bool = True,
+    names: Sequence[str] | None = None,
+    view_names: Sequence[str] | None = None,
+) -> CameraSolution:
+    """Recover every photo's camera and the features' 3D positions from clicks (see the module).
+
+    Runs with one BLAS thread (the matrices are small; see :data:`_THREADS`).
+
+    Parameters
+    ----------
+    observations : (k, n, 2) float, clicks in px (NaN where not clicked). Features clicked in
+        fewer than 2 photos (after leaving out clicks outside the photo) get NaN points and take
+        no part.
+    initial_cameras : k :class:`Camera`, the presets with the lens guess as focal length (image
+        sizes and principal points are taken from them; with ``fixed_focal`` so are the focal
+        lengths).
+    points : (n, 3) float mm, the generic head's feature positions (start and prior).
+    groups : (k,) int, photos with the same value share a focal length (default: none share).
+    fixed_focal : keep the cameras' focal lengths.
+    robust : Huber polish and suspect clicks (False: least squares over every click).
+    prior : allow the generic-head prior where the clicks alone collapse (see the module docstring).
+    names, view_names : feature and photo names for messages and the suspect list.
+
+    Raises
+    ------
+    FitError
+        naming the photo / feature when the clicks cannot determine the cameras, and what
+        collapsed when no start gives a plausible result.
+    """
+    # a rejected LM step may overflow (a focal length running away); the step is refused, not used
+    with _THREADS.limit(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return _solve(observations, initial_cameras, points, groups, fixed_focal, robust, prior, names, view_names)
+
+
+def _solve(observations, initial_cameras, points, groups, fixed_focal, robust, prior, names, view_names):
+    obs = np.asarray(observations, dtype=float)
+    if obs.ndim != 3 or obs.shape[2] != 2:
+        raise FitError(f"observations must be an array (photos, features, 2); got shape {obs.shape}")
+    k, n, _ = obs.shape
+    cams = list(initial_cameras)
+    pts0 = np.asarray(points, float)
+    vname = [str(v) for v in view_names] if view_names is not None else [f"#{j}" for j in range(k)]
+    pname = [str(v) for v in names] if names is not None else [f"#{i}" for i in range(n)]
+    grp = np.arange(k) if groups is None else np.unique(np.asarray(groups), return_inverse=True)[1].reshape(k)
+    clicked = np.isfinite(obs).all(2)
+    outside = clicked & _outside(obs, cams)
+    valid = clicked & ~outside
+    use_pt = valid.sum(0) >= 2
+    _check_views(valid, use_pt, clicked, vname)
+    fidx = np.flatnonzero(use_pt)
+    o, v, p0 = obs[:, fidx], valid[:, fidx], pts0[fidx]
+    o = np.where(v[..., None], o, np.nan)
+    # the paper's input rules (shapes, counts, collinearity, equations) with the names
+    _validate(o, cams, p0, [pname[i] for i in fidx], vname, fixed_focal)
+
+    starts = []
+    pnp = _pnp_cameras(o, v, p0, cams, grp)
+    if pnp is not None:
+        starts.append(("pnp", pnp))
+    starts.append(("presets", cams))
+    prob = BundleProblem(o, v, np.stack([c.principal_point for c in cams]), grp, not fixed_focal)
+    # score the starts cheaply (median error of the generic head through them, after the presets'
+    # registration); the paper's alternation and the polish run on the best first
+    scored = []
+    for label, start in starts:
+        if label == "presets":
+            start = _registered(o, v, start, p0, fixed_focal)
+        scored.append((_median_error(prob, prob.state_from_cameras(start, p0)), label, start))
+    scored.sort(key=lambda x: x[0])
+    failures = []
+    for _, label, start in scored:
+        scams, spts, sweeps = _als(o, v, start, p0, fixed_focal)
+        if fixed_focal:
+            scams = [Camera(c.R, c.t, c0.f, c.width, c.height) for c, c0 in zip(scams, cams, strict=True)]
+        st0 = prob.state_from_cameras(scams, spts)
+        if not np.isfinite(_median_error(prob, st0)):
+            failures.append((label, "its cameras left a clicked feature behind a camera", None))
+            continue
+        # the clicks alone first; the generic-head prior only where they let the face collapse
+        for with_prior in (False, True) if prior else (False,):
+            final, used, sigma, its = _polish(prob, st0.copy(), v, p0, robust, with_prior)
+            fcams = prob.cameras(final, cams)
+            why = plausibility_problem(fcams, final.m, p0, [pname[i] for i in fidx], vname)
+            tag = label + (" + generic-head prior" if with_prior else "")
+            if why is None:
+                return _solution(obs, valid, outside, fidx, fcams, final.m, used, sigma, tag, sweeps, its,
+                                 vname, pname)
+            failures.append((tag, why, (fcams, final.m)))
+    raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
+
+
+def _check_views(valid, use_pt, clicked, vname):
+    """Every photo needs 4 clicks of features clicked in another photo too: name the ones without."""
+    per_view = (valid & use_pt[None]).sum(1)
+    for j in np.flatnonzero(per_view < MIN_POINTS_PER_VIEW):
+        raise FitError(
+            f"photo {vname[j]!r} has {per_view[j]} clicked feature(s) that are also clicked in another photo "
+            f"({int(clicked[j].sum())} clicks in all); a camera needs at least {MIN_POINTS_PER_VIEW} "
+            "clicks of features it shares with the other photos, not all on one line — click more of them"
+        )
+
+
+def _polish(prob, st, v, p0, robust, with_prior):
+    """Robust polish, suspects left out, least-squares finish. ``(state, used, σ̂, iterations)``."""
+    its = 0
+    sigma = _sigma(prob.evaluate(st)[4], v)
+    prob.prior = p0 if with_prior else None
+    prob.beta = (sigma / PRIOR_SIGMA_MM) ** 2 if with_prior else 0.0
+    used = v.copy()
+    if robust:
+        st, its, _ = prob.solve(st, c=HUBER_C * sigma, max_iter=50, tol=1e-7)
+        e = prob.evaluate(st)[4]
+        sigma = _sigma(e, v)
+        suspect = _suspect(e, v, sigma)
+        z = e * _leverage(v)
+        if not suspect.any():
+            # no wrong click: the Huber minimum with c = 2.5 σ̂ is the least-squares one to well
+            # within 1 % of the RMS (only Gaussian tails beyond 2.5 σ̂ are down-weighted, and
+            # those a little), so it is kept — one least-squares solve fewer
+            return st, used, sigma, its
+        # leave suspects out, worst first, as long as the photo keeps 4 clicks and the feature 2
+        for j, i in sorted(zip(*np.nonzero(suspect), strict=True), key=lambda ji: -z[ji]):
+            if used[j].sum() > MIN_POINTS_PER_VIEW and used[:, i].sum() > 2:
+                used[j, i] = False
+        prob.valid = used
+        if with_prior:
+            prob.beta = (sigma / PRIOR_SIGMA_MM) ** 2
+    st, it, _ = prob.solve(st, c=np.inf, max_iter=50, tol=1e-7)
+    prob.valid = v
+    return st, used, sigma, its + it
+
+
+def _registered(o, v, cameras, points, fixed_focal) -> list[Camera]:
+    """The presets with each photo's image scale and offset fitted to its clicks (the start of
+    :func:`photomodel.pose.recover_poses`)."""
+    prob = _Problem(o, v, cameras, fixed_focal)
+    st = prob.state_from(cameras, points)
+    with np.errstate(all="ignore"):
+        prob.register(st)
+    if not (np.all(np.isfinite(st.s)) and np.all(st.s > 0) and np.all(np.isfinite(st.t2))):
+        return list(cameras)
+    return prob.cameras_from(st, cameras)
+
+
+def _solution(obs, valid, outside, fidx, cams, m, used_sub, sigma, label, sweeps, its, vname, pname):
+    k, n, _ = obs.shape
+    pts = np.full((n, 3), np.nan)
+    pts[fidx] = m
+    used = np.zeros((k, n), bool)
+    used[:, fidx] = used_sub
+    proj = np.stack([c.project(np.nan_to_num(pts)) for c in cams])
+    res = np.where(np.isfinite(obs), proj - obs, np.nan)
+    res[:, ~np.isin(np.arange(n), fidx)] = np.nan
+    e = np.linalg.norm(res, axis=2)
+    sq = np.where(used, e**2, 0.0)
+    rms = float(np.sqrt(sq.sum() / max(used.sum(), 1)))
+    all_valid = np.isfinite(e)
+    rms_all = float(np.sqrt(np.nansum(e**2) / max(all_valid.sum(), 1)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_view = np.sqrt(sq.sum(1) / used.sum(1))
+        per_point = np.sqrt(sq.sum(0) / used.sum(0))
+    solved = valid & np.isfinite(e)
+    flagged = np.zeros_like(valid)
+    flagged[:, fidx] = _suspect(e[:, fidx], valid[:, fidx], sigma)
+    suspects = []
+    for j, i in zip(*np.nonzero((valid & ~used) | outside | (solved & flagged)), strict=True):
+        err = float(e[j, i]) if np.isfinite(e[j, i]) else _outside_distance(obs[j, i], cams[j])
+        suspects.append({"photo": vname[j], "feature": pname[i], "error_px": round(err, 2)})
+    suspects.sort(key=lambda d: -d["error_px"])
+    return CameraSolution(
+        cameras=cams, points=pts, used=used, residuals_px=res, rms_px=rms, rms_all_px=rms_all,
+        per_view_rms_px=per_view, per_point_rms_px=per_point, sigma_px=float(sigma), suspects=suspects,
+        start=label, sweeps=int(sweeps), iterations=int(its),
+    )
+
+
+def _outside_distance(uv, cam) -> float:
+    du = max(-uv[0], uv[0] - cam.width, 0.0)
+    dv = max(-uv[1], uv[1] - cam.height, 0.0)
+    return float(np.hypot(du, dv))
+
+
+def _failure_message(failures, o, v, vname, pname) -> str:
+    """What could not be done: the collapse of the best attempt, and the photo and clicks that
+    disagree most with it."""
+    parts = [f"{label} start: {why}" for label, why, _ in failures]
+    msg = "the cameras could not be recovered from the clicks (" + "; ".join(parts) + ")"
+    attempt = next((a for _, _, a in failures if a is not None), None)
+    if attempt is not None:
+        cams, m = attempt
+        with np.errstate(all="ignore"):
+            proj = np.stack([c.project(m) for c in cams])
+            e = np.where(v, np.linalg.norm(proj - o, axis=2), np.nan)
+        per_view = np.nanmean(np.where(np.isfinite(e), e, np.nan), axis=1)
+        if np.any(np.isfinite(per_view)):
+            j = int(np.nanargmax(per_view))
+            order = np.argsort(-np.nan_to_num(e[j], nan=-1))[:3]
+            worst = ", ".join(f"{pname[i]} ({e[j, i]:.0f} px)" for i in order if np.isfinite(e[j, i]))
+            msg += f"; photo {vname[j]!r} disagrees most with the other photos (worst clicks: {worst})"
+    return msg + ". Check the clicks named here and that the photos show one head."
