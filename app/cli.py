@@ -50,7 +50,14 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         lines.append(f"  cameras of expression {report['cameras_from']!r} (same rig), kept fixed")
     if report.get("bundle"):
         b = report["bundle"]
-        lines.append(f"  cameras re-estimated with all {b['points']} triangulated points: {b['rms_px']:.3f} px")
+        cs = report.get("camera_solve") or {}
+        how = f" (start: {cs['start']}, noise σ̂ {cs['sigma_px']:.2f} px)" if cs else ""
+        lines.append(f"  cameras placed with all {b['points']} features clicked in 2+ photos: {b['rms_px']:.3f} px{how}")
+    suspects = report.get("suspect_clicks") or []
+    if suspects:
+        lines.append(f"  suspect clicks ({len(suspects)}, left out of the fit; check them):")
+        for c in suspects[:10]:
+            lines.append(f"    {c['feature']:<22} in {c['photo']:<20} {c['error_px']:8.1f} px off")
     lines.append(f"  {'photo':<24} {'RMS px':>8} {'points':>7} {'focal mm':>9}")
     for v in report["views"]:
         rms = "-" if v["rms_px"] is None else f"{v['rms_px']:.3f}"

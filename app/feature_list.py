@@ -281,7 +281,19 @@ class FeaturePanel(QWidget):
             rms = "–" if v.get("rms_px") is None else f"{v['rms_px']:.2f}"
             item = QTreeWidgetItem([v["photo"], rms, str(v.get("points", "")), f"{v.get('focal_mm', 0):.0f} mm"])
             self.report.addTopLevelItem(item)
+        suspect = set()
+        for c in rep.get("suspect_clicks") or []:
+            # the robust fit left these out: likely misplaced; listed first
+            item = QListWidgetItem(f"⚠ {c['error_px']:5.1f} px   {c['feature']}  @ {c['photo']}  (suspect, not used)")
+            item.setData(_NAME_ROLE, (c["photo"], c["feature"]))
+            item.setForeground(QBrush(QColor(200, 30, 30)))
+            item.setToolTip("The fit found this click inconsistent with the others and left it out. "
+                            "Drag it to the right place (or hide it) and refit.")
+            self.worst.addItem(item)
+            suspect.add((c["photo"], c["feature"]))
         for px, pid, name in self.model.worst_clicks(25):
+            if (pid, name) in suspect:
+                continue
             item = QListWidgetItem(f"{px:5.2f} px   {name}  @ {pid}")
             item.setData(_NAME_ROLE, (pid, name))
             from .photo_view import residual_color

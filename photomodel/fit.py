@@ -41,6 +41,7 @@ import numpy as np
 
 from .alignment import similarity_transform, transform_cameras
 from .camera import Camera, focal_mm_to_px, preset_camera
+from .camera_solve import solve_cameras
 from .errors import FitError
 from .pose import PoseResult, recover_poses
 from .rbf import deform_vertices
@@ -338,6 +339,10 @@ def fit_expression(
     obs_pose = project.observations(expression_name, pose_names)
     photo_ids = [p.id for p in photos]
     pose_dropped: list[str] = []
+    suspects: list[dict] = []
+    excluded = None  # (k, features) clicks left out as suspects, in project.features order
+    camera_report: dict = {}
+    bundle_report = None
     if source is not None:
         # 1'. cameras of another expression (same rig): triangulate, keep its frame -------
         cameras = source_cameras(project, expression_name, source)
@@ -346,7 +351,58 @@ def fit_expression(
         pose_idx = np.array([feat_vertex[n] for n in pose_names])
         pose_points = pose.points
         check_cancel()
+    elif opt.bundle_all:
+        # 1b. every feature clicked in >= 2 photos places the cameras: cheap starts, the paper's
+        #     ALS, robust polish, suspect clicks named and left out (photomodel.camera_solve)
+        all_names = [f.name for f in project.features]
+        obs_all = project.observations(expression_name, all_names)
+        sol = solve_cameras(
+            obs_all,
+            initial_cameras(photos),
+            mesh.vertices[[feat_vertex[n] for n in all_names]],
+            groups=project.camera_groups(expression_name),
+            fixed_focal=opt.fixed_focal,
+            names=all_names,
+            view_names=photo_ids,
+        )
+        check_cancel()
+        solved = np.isfinite(sol.points[:, 0])
+        col = {n: i for i, n in enumerate(all_names)}
+        pose_dropped = [
+            f"pose feature {n!r}: clicked in {int(np.isfinite(obs_all[:, col[n], 0]).sum())} photo(s), "
+            "needs 2 to be placed" for n in pose_names if not solved[col[n]]
+        ]
+        pose_names = [n for n in pose_names if solved[col[n]]]
+        if len(pose_names) < 4:
+            raise FitError(
+                f"only {len(pose_names)} pose feature(s) are clicked in at least 2 photos; the first "
+                "deformation of the generic mesh needs 4 — click more of: "
+                + ", ".join(f.name for f in project.features if f.pose and f.name not in pose_names)
+            )
+        pose_idx = np.array([feat_vertex[n] for n in pose_names])
+        # 2. gauge: similarity onto the generic feature vertices of the pose features
+        pose_cols = [col[n] for n in pose_names]
+        s, R, t = similarity_transform(sol.points[pose_cols], mesh.vertices[pose_idx])
+        cameras = transform_cameras(sol.cameras, s, R, t)
+        pose_points = sol.points[pose_cols] @ (s * R).T + t
+        base = sol.pose_result()
+        pose = PoseResult(
+            cameras=cameras,
+            points=pose_points,
+            iterations=base.iterations,
+            converged=True,
+            rms_px=sol.rms_px,
+            per_view_rms_px=base.per_view_rms_px,
+            per_point_rms_px=base.per_point_rms_px[pose_cols],
+            residuals_px=base.residuals_px[:, pose_cols],
+            polish_iterations=base.polish_iterations,
+        )
+        suspects = sol.suspects
+        excluded = ~sol.used & np.isfinite(obs_all[..., 0])
+        camera_report = {"start": sol.start, "sigma_px": sol.sigma_px, "rms_all_px": sol.rms_all_px}
+        bundle_report = {"rms_px": float(sol.rms_px), "points": int(solved.sum())}
     else:
+        # 1c. the paper: cameras from the pose features alone (section 5.1.1)
         pose_idx = np.array([feat_vertex[n] for n in pose_names])
         pose = recover_poses(
             obs_pose,
@@ -386,12 +442,14 @@ def fit_expression(
     curve_report: dict = {}
 
     # 4. refinement with fixed cameras --------------------------------------------------
-    bundle_report = None
     if opt.refine:
         extra = [f for f in project.features if not f.pose]
         extra_names = [f.name for f in extra]
         extra_idx = np.array([f.vertex for f in extra], dtype=int)
         obs_extra = project.observations(expression_name, extra_names) if extra else None
+        if obs_extra is not None and excluded is not None:  # suspect clicks stay out
+            ex = excluded[:, [i for i, f in enumerate(project.features) if not f.pose]]
+            obs_extra[ex] = np.nan
         curves = [c for c in project.curves if sum(c.name in p.curves for p in photos) >= 2]
         curve_args = [
             (c.vertices, {k: p.curves[c.name] for k, p in enumerate(photos) if c.name in p.curves})
@@ -430,29 +488,6 @@ def fit_expression(
             pts = np.concatenate([pose_points, targets.targets[[i for _, i in got]].reshape(-1, 3)])
             return vertices, targets, [n for n, _ in got], pts
 
-        if opt.bundle_all and extra and source is None:  # reused cameras stay fixed
-            # 5. (beyond the paper) re-estimate the cameras with every triangulated point ----
-            report_progress("re-estimating cameras with all points", 0.5)
-            tri = triangulate(cameras, obs_extra)
-            ok = tri.ok & np.array([v not in pose_set for v in extra_idx.tolist()], dtype=bool)
-            if ok.any():
-                all_names = list(pose_names) + [n for n, g in zip(extra_names, ok, strict=True) if g]
-                bundle = recover_poses(
-                    project.observations(expression_name, all_names),
-                    cameras,
-                    np.concatenate([pose_points, tri.points[ok]]),
-                    fixed_focal=opt.fixed_focal,
-                    max_sweeps=opt.max_sweeps,
-                    names=all_names,
-                    view_names=photo_ids,
-                )
-                # keep the gauge: the pose features stay where the first stage put them
-                n_pose = len(pose_names)
-                s, R, t = similarity_transform(bundle.points[:n_pose], pose_points)
-                cameras = transform_cameras(bundle.cameras, s, R, t)
-                pose_points = bundle.points[:n_pose] @ (s * R).T + t
-                bundle_report = {"rms_px": float(bundle.rms_px), "points": len(all_names)}
-                check_cancel()
         n_passes = max(1, opt.curve_passes if curves else 1)
         vertices, targets, got_names, points_3d = refine(cameras, pose_points, vertices, n_passes, curve_mesh)
         dropped = targets.dropped
@@ -463,6 +498,8 @@ def fit_expression(
     report = build_report(photo_ids, cameras, pose, project, expression_name, all_names, points_3d)
     report["dropped"] = pose_dropped + list(dropped)
     report["bundle"] = bundle_report
+    report["suspect_clicks"] = suspects
+    report["camera_solve"] = camera_report
     report["curves"] = curve_report
     report["cameras_from"] = source
     report_progress("done", 1.0)

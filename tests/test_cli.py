@@ -42,6 +42,18 @@ def test_fit_writes_results_into_the_project(project_copy, capsys):
         project.expression("neutral").photos[0].points.keys()
         == original.expression("neutral").photos[0].points.keys()
     )
+    # the stored result reprojects at the RMS the report prints (cameras and points as saved,
+    # every click of a feature with a 3D point; 1e-3 px: the file rounds cameras and points)
+    for e in out["expressions"]:
+        res = project.expression(e["name"]).result
+        names = list(res.points_3d)
+        obs = project.observations(e["name"], names)
+        X = np.array([res.points_3d[n] for n in names])
+        ids = [p.id for p in project.expression(e["name"]).photos]
+        err = np.stack([res.cameras[i].project(X) for i in ids]) - obs
+        ok = np.isfinite(err[..., 0])
+        assert abs(np.sqrt((err[ok] ** 2).sum() / ok.sum()) - e["rms_px"]) < 1e-3
+        assert e["suspect_clicks"] == []  # the sample's clicks carry 1 px noise and no wrong click
 
 
 def test_fit_prints_a_table(project_copy, capsys):
