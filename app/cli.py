@@ -52,7 +52,8 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         b = report["bundle"]
         cs = report.get("camera_solve") or {}
         how = f" (start: {cs['start']}, noise σ̂ {cs['sigma_px']:.2f} px)" if cs else ""
-        lines.append(f"  cameras placed with all {b['points']} features clicked in 2+ photos: {b['rms_px']:.3f} px{how}")
+        lines.append(f"  cameras placed with all {b['points']} features clicked in 2+ photos: "
+                     f"{b['rms_px']:.3f} px{how}")
     suspects = report.get("suspect_clicks") or []
     if suspects:
         lines.append(f"  suspect clicks ({len(suspects)}, left out of the fit; check them):")

@@ -212,17 +212,17 @@ class BundleProblem:
             JcT = Jc2.transpose(0, 2, 1)
             Uloc = JcT @ Jc2
             gloc = (JcT @ rw.reshape(k, 2 * n, 1))[..., 0]
-            Wloc = (Jc.transpose(0, 1, 3, 2) @ Jm).transpose(1, 0, 2, 3).reshape(n, k * nc, 3)
-            Jmp = np.ascontiguousarray(Jm.transpose(1, 0, 2, 3)).reshape(n, 2 * k, 3)
-            JmT = Jmp.transpose(0, 2, 1)
-            Vp = JmT @ Jmp
-            gp = (JmT @ rw.transpose(1, 0, 2).reshape(n, 2 * k, 1))[..., 0]
+            # per click J_camᵀ J_point (nc × 3), summed over the click's two rows, elementwise
+            Wloc = Jc[..., 0, :, None] * Jm[..., 0, None, :] + Jc[..., 1, :, None] * Jm[..., 1, None, :]
+            Vp = (Jm[..., 0, :, None] * Jm[..., 0, None, :] + Jm[..., 1, :, None] * Jm[..., 1, None, :]).sum(0)
+            gp = (Jm * rw[..., None]).sum((0, 2))
             Sc = self._scatter
             BD = np.zeros((k, nc, k, nc))
             BD[np.arange(k), :, np.arange(k), :] = Uloc
             U = Sc.T @ BD.reshape(k * nc, k * nc) @ Sc
             gc = Sc.T @ gloc.reshape(-1)
-            W = Sc.T @ Wloc  # (n, C, 3)
+            # W2: (unknowns, 3 n) camera–point coupling, one product through the scatter matrix
+            W2 = Sc.T @ Wloc.transpose(0, 2, 1, 3).reshape(k * nc, 3 * n)
             if self.beta > 0:
                 # the prior's similarity (7 unknowns: translation, rotation, scale) joins the camera
                 # block, so the prior never fights the gauge (variable projection in effect)
@@ -235,22 +235,25 @@ class BundleProblem:
                 B2 = Bs.reshape(3 * n, 7)
                 U = np.block([[U, np.zeros((self.C, 7))], [np.zeros((7, self.C)), beta * (B2.T @ B2)]])
                 gc = np.concatenate([gc, -beta * (B2.T @ d.reshape(-1))])
-                W = np.concatenate([W, -beta * Bs.transpose(0, 2, 1)], axis=1)
+                W2 = np.concatenate([W2, -beta * B2.T], axis=0)
             Ct = U.shape[0]
-            W2 = W.transpose(1, 0, 2).reshape(Ct, 3 * n)
+            W3 = W2.reshape(Ct, n, 3)
             dU = np.diagonal(U).copy()
             dV = np.diagonal(Vp, 0, 1, 2)
             while True:
-                Vinv = np.linalg.inv(Vp + (lam * dV + 1e-12)[:, :, None] * eye3)
-                Y2 = (W @ Vinv).transpose(1, 0, 2).reshape(Ct, 3 * n)
+                Vinv = _inv3(Vp + (lam * dV + 1e-12)[:, :, None] * eye3)
+                # Y = W V⁻¹ with V block-diagonal (3 × 3 per point), as three broadcast products
+                Y2 = (W3[:, :, 0, None] * Vinv[None, :, 0, :] + W3[:, :, 1, None] * Vinv[None, :, 1, :]
+                      + W3[:, :, 2, None] * Vinv[None, :, 2, :]).reshape(Ct, 3 * n)
                 S = U - Y2 @ W2.T
-                S[np.diag_indices_from(S)] += lam * dU + 1e-12
+                S.flat[:: Ct + 1] += lam * dU + 1e-12
                 rhs = Y2 @ gp.reshape(-1) - gc
                 try:
                     dc = np.linalg.solve(S, rhs)
                 except np.linalg.LinAlgError:
                     dc = np.linalg.lstsq(S, rhs, rcond=None)[0]
-                dm = -(Vinv @ (gp + (dc @ W2).reshape(n, 3))[..., None])[..., 0]
+                gm = gp + (dc @ W2).reshape(n, 3)
+                dm = -(Vinv * gm[:, None, :]).sum(2)
                 dcam = dc[: 6 * k].reshape(k, 6)
                 new = BundleState(
                     rodrigues_batch(dcam[:, :3]) @ st.R,
@@ -272,6 +275,26 @@ class BundleProblem:
             if rel < tol or cost < 1e-18:
                 return st, it, True
         return st, it, False
+
+
+def _inv3(A: np.ndarray) -> np.ndarray:
+    """Inverses of a stack of 3 × 3 matrices (b, 3, 3) by the adjugate (symmetric positive
+    definite here: damped normal matrices); ~5× faster than ``np.linalg.inv`` on small stacks."""
+    a, b, c = A[:, 0, 0], A[:, 0, 1], A[:, 0, 2]
+    d, e, f = A[:, 1, 0], A[:, 1, 1], A[:, 1, 2]
+    g, h, i = A[:, 2, 0], A[:, 2, 1], A[:, 2, 2]
+    C = np.empty_like(A)
+    C[:, 0, 0] = e * i - f * h
+    C[:, 0, 1] = c * h - b * i
+    C[:, 0, 2] = b * f - c * e
+    C[:, 1, 0] = f * g - d * i
+    C[:, 1, 1] = a * i - c * g
+    C[:, 1, 2] = c * d - a * f
+    C[:, 2, 0] = d * h - e * g
+    C[:, 2, 1] = b * g - a * h
+    C[:, 2, 2] = a * e - b * d
+    det = a * C[:, 0, 0] + b * C[:, 1, 0] + c * C[:, 2, 0]
+    return C / det[:, None, None]
 
 
 def _similarity_basis(g: np.ndarray) -> np.ndarray:

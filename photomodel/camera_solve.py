@@ -196,12 +196,17 @@ def _suspect(e: np.ndarray, valid: np.ndarray, sigma: float) -> np.ndarray:
     return valid & (u > sigma**2 * np.interp(_dof(valid), _D_GRID, _THRESH_U))
 
 
+def _median(a: np.ndarray) -> float:
+    """Median of a 1-d array (upper median for even sizes; ~10× cheaper than ``np.median``)."""
+    return float(np.partition(a, len(a) // 2)[len(a) // 2])
+
+
 def _median_error(prob: BundleProblem, st: BundleState) -> float:
     q, D, P, r, e = prob.evaluate(st)
     if not (np.all(st.s > 0) and np.all(D[prob.valid] > 0)):
         return np.inf
     v = e[prob.valid]
-    return float(np.median(v)) if np.all(np.isfinite(v)) else np.inf
+    return _median(v) if np.all(np.isfinite(v)) else np.inf
 
 
 def _pnp_cameras(obs, valid, points, cameras, groups) -> list[Camera] | None:
@@ -257,10 +262,13 @@ def _pnp(X, x, f, pp):
         Xc = X @ R.T + t
         if not np.all(Xc[:, 2] > 0):
             return result
-        e = np.linalg.norm(f * Xc[:, :2] / Xc[:, 2:3] + pp - x, axis=1)
-        med = float(np.median(e))
+        d = f * Xc[:, :2] / Xc[:, 2:3] + pp - x
+        e = np.sqrt((d * d).sum(1))
+        med = _median(e)
         result = (med, R, t)
-        out = e > 4.0 * max(med, 1.0)
+        # clicks far off the generic head's fit (beyond 4× the median and 3 % of the face's
+        # extent in the photo, which the generic head's own misfit stays within) are left out once
+        out = e > max(4.0 * med, 0.03 * float(np.ptp(x[:, 0])), 1.0)
         if not out.any() or (~out).sum() < MIN_POINTS_PER_VIEW:
             break
         keep = ~out
@@ -449,7 +457,7 @@ def _polish(prob, st, v, p0, robust, with_prior):
     prob.beta = (sigma / PRIOR_SIGMA_MM) ** 2 if with_prior else 0.0
     used = v.copy()
     if robust:
-        st, its, _ = prob.solve(st, c=HUBER_C * sigma, max_iter=50, tol=1e-7)
+        st, its, _ = prob.solve(st, c=HUBER_C * sigma, max_iter=50, tol=1e-5)
         e = prob.evaluate(st)[4]
         sigma = _sigma(e, v)
         suspect = _suspect(e, v, sigma)
