@@ -228,7 +228,7 @@ class BundleProblem:
                 # block, so the prior never fights the gauge (variable projection in effect)
                 ghat, sc = target
                 beta = self.beta * sc * sc
-                Bs = _similarity_basis(ghat)  # (n, 3, 7)
+                Bs = _similarity_basis(st.m)  # (n, 3, 7): the similarity moves the points, not the target
                 d = st.m - ghat
                 Vp = Vp + beta * eye3
                 gp = gp + beta * d

@@ -177,12 +177,6 @@ def test_a_click_60_px_off_is_the_first_suspect_and_spoils_nothing(seed, photo, 
     assert sol.rms_px == pytest.approx(clean.rms_px, rel=0.05)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="Huber (L1-like beyond c) prefers moving the point when the wrong click of a 3-photo feature "
-    "lies near the epipolar line of the other two: the correct click of 'three_quarter_right' is named first "
-    "(33 px) and left out, the wrong one kept (5 px), cameras 0.38° off; 5 of 30 random 3-photo cases",
-)
 def test_a_wrong_click_of_a_three_photo_feature_is_the_first_suspect():
     rig = make_rig(TRUTH, AZ5, seed=4)
     photo, feature = 0, 11  # the jaw point, clicked in 'right', 'three_quarter_right', 'front'
