@@ -153,10 +153,10 @@ class BundleProblem:
     def _cost(self, st: BundleState, c: float, target=None):
         """``(cost, evaluation, prior target)`` of :meth:`cost`."""
         ev = self.evaluate(st)
-        D, e = ev[1], ev[4]
-        if not (np.all(st.s > 0) and np.all(D[self.valid] > 0)) or not np.all(np.isfinite(e)):
+        D, e = ev[1], ev[4]  # e is 0 where not valid
+        total = float(_huber(e, c).sum())
+        if not (np.isfinite(total) and (st.s > 0).all() and not ((D <= 0) & self.valid).any()):
             return np.inf, ev, target
-        total = float(_huber(e[self.valid], c).sum())
         if self.beta > 0:
             target = self.prior_target(st.m) if target is None else target
             g, sc = target
