@@ -464,10 +464,9 @@ def _polish(prob, st, v, p0, robust, with_prior):
     prob.beta = (sigma / PRIOR_SIGMA_MM) ** 2 if with_prior else 0.0
     used = v.copy()
     if robust:
-        # to 1e-3 relative change of the cost: Gauss–Newton converges quadratically here, so the
-        # step that changes the cost by < 1e-3 leaves it within ~1e-6 of the Huber minimum
-        # (bench_pose: RMS equal to the peer's to 4 digits on every draw)
-        st, its, _ = prob.solve(st, c=HUBER_C * sigma, max_iter=50, tol=1e-3)
+        # to 1e-5 relative change of the cost (a looser 1e-3 stopped ill-conditioned narrow rigs
+        # before their collapse showed, i.e. away from the minimum)
+        st, its, _ = prob.solve(st, c=HUBER_C * sigma, max_iter=50, tol=1e-5)
         e = prob.evaluate(st)[4]
         sigma = _sigma(e, v)
         suspect = _suspect(e, v, sigma)
@@ -551,6 +550,15 @@ def _triangulate(R, t, f, xy) -> np.ndarray | None:
     P = np.concatenate([R, t[:, :, None]], axis=2)  # (m, 3, 4), image coords / f
     x = xy / f[:, None]
     A = np.concatenate([x[:, 0, None] * P[:, 2] - P[:, 0], x[:, 1, None] * P[:, 2] - P[:, 1]])
+    if not np.all(np.isfinite(A)):
+        return None
+    try:
+        return _triangulate_from(A, R, t, f, xy)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def _triangulate_from(A, R, t, f, xy):
     _, _, Vt = np.linalg.svd(A)
     if abs(Vt[-1, 3]) < 1e-12:
         return None
