@@ -4,9 +4,14 @@ The image comes from the project's one renderer (headless moderngl, Lambert shad
 head-light), so the 3D view shows exactly the geometry that texturing and tracking use. It is
 rendered on the GUI thread: ~20 ms for a 400×400 view and 25–35 ms for the default 400×780 dock
 on llvmpipe (``last_render_s``; measured by ``benchmarks/bench_gui.py``), under the 50 ms a drag
-can afford. Left-drag orbits, the wheel zooms, a click (press and release without
-moving) on the mesh picks the nearest named feature as the active one; the project's features
-are drawn as dots, the active one ringed and named.
+can afford. With a view-dependent texture it draws the fragment-shader frame of
+:class:`~photomodel.texturing.view_dependent.ViewDependentTexture` — per-pixel §5.2.3 weights
+and the floating-texture registration, as ``ViewDependentTexture.render`` by default — and takes
+its depth for the feature dots: ~20–30 ms for the 400×780 dock on llvmpipe, where the numpy
+path's plain blend plus a depth render took ~70–80 ms (the first frame also uploads the photos
+and compiles the shaders, ~1 s). Left-drag orbits, the wheel zooms, a click (press and release
+without moving) on the mesh picks the nearest named feature as the active one; the project's
+features are drawn as dots, the active one ringed and named.
 """
 
 from __future__ import annotations
@@ -41,8 +46,9 @@ class View3D(QWidget):
         optional cylindrical texture to render with (set by the texturing tools; the view only
         draws it).
     view_dependent : photomodel.texturing.view_dependent.ViewDependentTexture or None; when set, the mesh
-        is drawn view-dependently (§5.2.3) for the view's camera instead (``align=False``: the
-        paper's plain blend, for interactive speed).
+        is drawn view-dependently (§5.2.3) for the view's camera instead: the fragment-shader path
+        (``method="shader"``) with the floating-texture registration, the same rendering as
+        ``ViewDependentTexture.render``'s default, at every frame of an orbit.
     """
 
     feature_picked = Signal(str)
@@ -131,8 +137,10 @@ class View3D(QWidget):
         if vd is not None and len(vd.vertices) != len(V):
             vd = None  # made for another mesh
         if vd is not None:
-            out = get_renderer().render(cam, V, faces, background=BACKGROUND)  # depth for the feature dots
-            color = vd.render(cam, background=BACKGROUND, align=False).color
+            # the GPU path with the flow registration (floating textures), as a still frame;
+            # its depth serves the feature dots
+            out = vd.render(cam, background=BACKGROUND)
+            color = out.color
         elif self.texture is not None:
             uv, image, index, tfaces = self.texture
             Vt, Ft = (V, faces) if index is None else (V[index], tfaces)

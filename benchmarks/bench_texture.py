@@ -15,11 +15,12 @@ the held-out photo's camera; the render is compared with the held-out photo insi
 
 Methods: ``cyl`` — the view-independent cylindrical texture (§5.2.2, 1024² by default);
 ``vd`` — view-dependent rendering from the two nearest photos as
-:class:`ViewDependentTexture` does by default (§5.2.3, one pass with a position buffer, the
-two photos registered by optical flow before blending — beyond the paper);
-``vd_plain`` — the same without the registration (the paper's blend, ``align=False``);
-``vd_per_vertex`` — the paper's multi-pass variant (per-vertex weights and texture
-coordinates), reported for the choice between one pass and multi-pass.
+:class:`ViewDependentTexture` does by default (§5.2.3, per-pixel weights and blend in a
+fragment shader, the two photos registered by optical flow before blending — beyond the
+paper); ``vd_numpy`` — the same per pixel in numpy/OpenCV (``method="numpy"``, the reference
+the shader path must match: ``psnr_vd_numpy_db``); ``vd_plain`` — the shader path without the
+registration (the paper's blend, ``align=False``); ``vd_per_vertex`` — the paper's multi-pass
+variant (per-vertex weights and texture coordinates).
 
 Comparison region: the generic mesh's face mask (``GenericMesh.face_mask``) placed on the scan
 by the true correspondence, rendered from the held-out camera, intersected with the fitted
@@ -30,9 +31,14 @@ pixels are compared for every method and geometry. Pixels the model does not cov
 
 Metrics: PSNR (dB, RGB in [0, 1]) and SSIM (Wang et al. 2004: Gaussian window σ = 1.5 px,
 ``C1 = 0.01²``, ``C2 = 0.03²``, per RGB channel, averaged over the region), each averaged
-over the five held-out views. Times: extraction of a 1024² texture from all five photos of the
-fitted model (median of ``--repeats``; wall clock on whatever this machine is doing), and one
-view-dependent frame (1000×1000) from a prepared :class:`ViewDependentTexture` (median of 5).
+over the five held-out views; ``psnr_vd_shader_vs_numpy_db``: the shader frame against the
+numpy frame over the same region. Times: extraction of a 1024² texture from all five photos of
+the fitted model (median of ``--repeats``; wall clock on whatever this machine is doing,
+``load_1min`` says how busy it was), and one view-dependent frame (1000×1000, a new view 20°
+from the front photo) from a prepared :class:`ViewDependentTexture`, after a warm-up frame:
+``vd_frame_ms`` the shader path's median of ``--frames`` (everything of a frame: the GL passes,
+the optical flow on the CPU, read-back and the CPU fallback pixels; ``vd_frame_runs_ms`` each
+frame), the other methods' medians of 5.
 
 Images: ``<out>/texture_<geometry>_<held-out>.png`` — held-out photo | cylindrical |
 view-dependent | |error|×4 of each (inside the comparison region); ``<out>/texture_fitted.png``
@@ -46,6 +52,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import time
@@ -129,14 +136,18 @@ def leave_one_out(vertices, faces, cams, photos, masks, size, single, *, feather
         Vr, Fr, uvr = tex.render_mesh(vertices)
         cyl = render_cylindrical(cams[j], Vr, Fr, uvr, tex.image, background=BACKGROUND).color
         vdt = ViewDependentTexture(vertices, faces, cs, ps, single_view=single, feather_mm=feather_mm)
-        vd = vdt.render(cams[j], background=BACKGROUND)  # default: one pass, aligned
+        vd = vdt.render(cams[j], background=BACKGROUND)  # default: fragment shader, aligned
+        vdn = vdt.render(cams[j], background=BACKGROUND, method="numpy")  # the same in numpy
         ref = photos[j].astype(np.float32) / 255.0
         m = masks[j]
         row = {
             "psnr_cyl_db": psnr(cyl, ref, m),
             "psnr_vd_db": psnr(vd.color, ref, m),
+            "psnr_vd_numpy_db": psnr(vdn.color, ref, m),
+            "psnr_vd_shader_vs_numpy_db": psnr(vd.color, vdn.color, m),
             "ssim_cyl": ssim(cyl, ref, m),
             "ssim_vd": ssim(vd.color, ref, m),
+            "ssim_vd_numpy": ssim(vdn.color, ref, m),
             "vd_views": [keep[vd.views[0]], keep[vd.views[1]]],
         }
         if per_vertex:
@@ -168,6 +179,7 @@ def main(argv=None) -> int:
     ap.add_argument("--size", type=int, default=1024, help="cylindrical texture size (texels per side)")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "out"), help="folder for the PNGs")
     ap.add_argument("--repeats", type=int, default=3, help="runs of the timed extraction (median)")
+    ap.add_argument("--frames", type=int, default=9, help="timed shader view-dependent frames (median)")
     ap.add_argument("--feather-sweep", action="store_true", help="held-out PSNR of the fit vs feather width")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -212,15 +224,19 @@ def main(argv=None) -> int:
     Rz = rodrigues(np.array([0.0, np.radians(20.0), 0.0]))
     new_view.R = new_view.R @ Rz.T
     new_view.t = fit_cams[2].R @ c + fit_cams[2].t - new_view.R @ c
-    timings = {}
-    for label, kw in (("default", {}), ("plain", {"align": False}), ("per_vertex", {"method": "per_vertex"})):
-        vdt.render(new_view, **kw)  # warm (texture upload for per_vertex)
+    timings, runs = {}, {}
+    load_1min = os.getloadavg()[0]
+    for label, kw, n in (("default", {}, max(1, args.frames)), ("plain", {"align": False}, 5),
+                         ("numpy", {"method": "numpy"}, 5), ("numpy_plain", {"method": "numpy", "align": False}, 5),
+                         ("per_vertex", {"method": "per_vertex"}, 5)):
+        vdt.render(new_view, background=BACKGROUND, **kw)  # warm: shader compilation, texture uploads
         ts = []
-        for _ in range(5):
+        for _ in range(n):
             t = time.perf_counter()
             frame = vdt.render(new_view, background=BACKGROUND, **kw)
             ts.append(time.perf_counter() - t)
         timings[label] = statistics.median(ts) * 1000.0
+        runs[label] = [x * 1000.0 for x in ts]
         write_png(out / f"vd_new_view_{label}.png", frame.color)
     t = time.perf_counter()
     render_cylindrical(new_view, Vf, F, tex.uv, tex.image, background=BACKGROUND)
@@ -231,8 +247,11 @@ def main(argv=None) -> int:
         "fitted": {
             "psnr_cyl_db": mean_of(fitted, "psnr_cyl_db"),
             "psnr_vd_db": mean_of(fitted, "psnr_vd_db"),
+            "psnr_vd_numpy_db": mean_of(fitted, "psnr_vd_numpy_db"),
+            "psnr_vd_shader_vs_numpy_db": mean_of(fitted, "psnr_vd_shader_vs_numpy_db"),
             "ssim_cyl": mean_of(fitted, "ssim_cyl"),
             "ssim_vd": mean_of(fitted, "ssim_vd"),
+            "ssim_vd_numpy": mean_of(fitted, "ssim_vd_numpy"),
             "psnr_vd_per_vertex_db": mean_of(fitted, "psnr_vd_per_vertex_db"),
             "psnr_vd_plain_db": mean_of(fitted, "psnr_vd_plain_db"),
             "ssim_vd_plain": mean_of(fitted, "ssim_vd_plain"),
@@ -241,8 +260,11 @@ def main(argv=None) -> int:
         "true_geometry": {
             "psnr_cyl_db": mean_of(true_rows, "psnr_cyl_db"),
             "psnr_vd_db": mean_of(true_rows, "psnr_vd_db"),
+            "psnr_vd_numpy_db": mean_of(true_rows, "psnr_vd_numpy_db"),
+            "psnr_vd_shader_vs_numpy_db": mean_of(true_rows, "psnr_vd_shader_vs_numpy_db"),
             "ssim_cyl": mean_of(true_rows, "ssim_cyl"),
             "ssim_vd": mean_of(true_rows, "ssim_vd"),
+            "ssim_vd_numpy": mean_of(true_rows, "ssim_vd_numpy"),
             "psnr_vd_per_vertex_db": mean_of(true_rows, "psnr_vd_per_vertex_db"),
             "psnr_vd_plain_db": mean_of(true_rows, "psnr_vd_plain_db"),
             "ssim_vd_plain": mean_of(true_rows, "ssim_vd_plain"),
@@ -250,9 +272,15 @@ def main(argv=None) -> int:
         },
         "extract_s": statistics.median(ext),
         "extract_runs_s": ext,
+        "psnr_vd_numpy_db": mean_of(fitted, "psnr_vd_numpy_db"),
         "vd_frame_ms": timings["default"],
+        "vd_frame_runs_ms": runs["default"],
         "vd_plain_frame_ms": timings["plain"],
+        "vd_numpy_frame_ms": timings["numpy"],
+        "vd_numpy_plain_frame_ms": timings["numpy_plain"],
         "vd_per_vertex_frame_ms": timings["per_vertex"],
+        "vd_frame_size": [new_view.width, new_view.height],
+        "load_1min": load_1min,
         "cyl_frame_ms": cyl_frame_ms,
         "fit_s": fit_s,
         "texture_size": args.size,
@@ -275,22 +303,24 @@ def main(argv=None) -> int:
         print(json.dumps(result, indent=1, default=float))
         return 0
     print(f"fit {fit_s:.2f} s; comparison region: face mask, {SILHOUETTE_MARGIN_PX} px inside the silhouette")
-    print(f"{'held out':20s} {'geometry':14s} {'PSNR cyl':>9s} {'PSNR vd':>8s} {'vd/vertex':>9s} {'vd/plain':>9s} "
-          f"{'SSIM cyl':>9s} {'SSIM vd':>8s}  vd views")
+    print(f"{'held out':20s} {'geometry':14s} {'PSNR cyl':>9s} {'PSNR vd':>8s} {'vd/numpy':>9s} {'vd/vertex':>9s} "
+          f"{'vd/plain':>9s} {'SSIM cyl':>9s} {'SSIM vd':>8s}  vd views")
     for label, rows in (("fitted", fitted), ("true_geometry", true_rows)):
         for pid, r in zip(ids, rows, strict=True):
             print(f"{pid:20s} {label:14s} {r['psnr_cyl_db']:9.2f} {r['psnr_vd_db']:8.2f} "
-                  f"{r['psnr_vd_per_vertex_db']:9.2f} {r['psnr_vd_plain_db']:9.2f} {r['ssim_cyl']:9.4f} "
-                  f"{r['ssim_vd']:8.4f}  {ids[r['vd_views'][0]]}, {ids[r['vd_views'][1]]}")
+                  f"{r['psnr_vd_numpy_db']:9.2f} {r['psnr_vd_per_vertex_db']:9.2f} {r['psnr_vd_plain_db']:9.2f} "
+                  f"{r['ssim_cyl']:9.4f} {r['ssim_vd']:8.4f}  {ids[r['vd_views'][0]]}, {ids[r['vd_views'][1]]}")
         g = result[label]
         print(f"{'mean':20s} {label:14s} {g['psnr_cyl_db']:9.2f} {g['psnr_vd_db']:8.2f} "
-              f"{g['psnr_vd_per_vertex_db']:9.2f} {g['psnr_vd_plain_db']:9.2f} {g['ssim_cyl']:9.4f} "
-              f"{g['ssim_vd']:8.4f}")
+              f"{g['psnr_vd_numpy_db']:9.2f} {g['psnr_vd_per_vertex_db']:9.2f} {g['psnr_vd_plain_db']:9.2f} "
+              f"{g['ssim_cyl']:9.4f} {g['ssim_vd']:8.4f}")
+        print(f"{'':20s} {label:14s} shader vs numpy frame: {g['psnr_vd_shader_vs_numpy_db']:.1f} dB")
     print(f"extraction 1024² from 5 photos: {result['extract_s']:.2f} s (median of {len(ext)}: "
           + ", ".join(f"{x:.2f}" for x in ext) + ")")
-    print(f"view-dependent frame 1000×1000: {timings['default']:.0f} ms (one pass, aligned), "
-          f"{timings['plain']:.0f} ms plain, {timings['per_vertex']:.0f} ms per-vertex multi-pass; "
-          f"cylindrical frame {cyl_frame_ms:.0f} ms")
+    print(f"view-dependent frame 1000×1000 (load {load_1min:.1f}): {timings['default']:.0f} ms shader, aligned "
+          f"(median of {len(runs['default'])}), {timings['plain']:.0f} ms shader plain; "
+          f"numpy {timings['numpy']:.0f} ms aligned, {timings['numpy_plain']:.0f} ms plain; "
+          f"{timings['per_vertex']:.0f} ms per-vertex multi-pass; cylindrical frame {cyl_frame_ms:.0f} ms")
     if args.feather_sweep:
         for w, r in result["feather_sweep"].items():
             print(f"feather {float(w):5.1f} mm: PSNR cyl {r['psnr_cyl_db']:.2f} dB, vd {r['psnr_vd_db']:.2f} dB")

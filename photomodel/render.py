@@ -39,6 +39,14 @@ An OpenGL context belongs to the thread that created it. :func:`get_renderer` th
 keeps one :class:`Renderer` *per thread* (``threading.local``); a :class:`Renderer` refuses
 (``RuntimeError``) to be used from another thread than the one that created it.
 
+Code beside this module
+-----------------------
+:mod:`photomodel.render_vd` (view-dependent texturing in fragment shaders) draws in the same
+context through public methods only: :meth:`Renderer.context` (the checked moderngl context),
+:meth:`Renderer.program` (programs compiled once per renderer) and
+:meth:`Renderer.defer_release` (GL objects dropped by a finaliser, which may run in any thread,
+are freed at the renderer's next use in its own thread).
+
 Cost (Mesa llvmpipe, 2 shared CPU cores): ~55 ms per 1000×1000 frame of the 12k-triangle james
 scan (colour, depth and face id read back), +10–35 ms when the 2400×1600 texture is uploaded
 per call instead of once with :meth:`Renderer.upload_texture`. Vertex and index buffers are
@@ -323,6 +331,8 @@ class Renderer:
             self._prog["albedo"].value = _ALBEDO
             self.max_size = int(self.ctx.info["GL_MAX_RENDERBUFFER_SIZE"])
         self._fbos: OrderedDict[tuple[int, int], tuple] = OrderedDict()
+        self._programs: dict[tuple[str, str], object] = {}
+        self._release_queue: list = []
         self.released = False
 
     # -- resources ----------------------------------------------------------------
@@ -355,6 +365,54 @@ class Renderer:
                 obj.release()
         return fbo
 
+    def context(self):
+        """The moderngl context, for GL code beside this module that draws with this renderer.
+
+        :mod:`photomodel.render_vd` (view-dependent texturing in a fragment shader) builds its
+        textures, buffers and framebuffers in this context, so everything Face Studio draws
+        shares one context per thread. Enter it (``with renderer.context() as ctx:``) around
+        GL calls; objects made in it die with :meth:`release`, after which this raises.
+
+        Raises
+        ------
+        RuntimeError
+            from another thread than the renderer's, or after :meth:`release`.
+        """
+        self._check_usable()
+        self._collect()
+        return self.ctx
+
+    def defer_release(self, objects) -> None:
+        """Release these GL objects of this renderer at its next use, in its own thread.
+
+        For finalisers (``weakref.finalize``), which may run in any thread: a GL call is
+        only valid in the context's thread, so they hand the objects over here instead.
+        """
+        self._release_queue.extend(objects)  # list.extend is atomic under the GIL
+
+    def _collect(self) -> None:
+        if not self._release_queue or self.released:
+            return
+        with self.ctx:
+            while self._release_queue:
+                self._release_queue.pop().release()
+
+    def program(self, vertex_shader: str, fragment_shader: str):
+        """A ``moderngl.Program`` of these shader sources, compiled once per renderer (cached).
+
+        Compiling costs ~10–100 ms on llvmpipe; code beside this module asks for its programs
+        here instead of compiling per object. Released with the renderer.
+        """
+        self._check_usable()
+        key = (vertex_shader, fragment_shader)
+        prog = self._programs.get(key)
+        if prog is None:
+            with self.ctx:
+                prog = self._programs[key] = self.ctx.program(
+                    vertex_shader=vertex_shader, fragment_shader=fragment_shader
+                )
+        return prog
+
     def release(self) -> None:
         """Free every GL object and the context. The renderer cannot be used afterwards."""
         if self.released:
@@ -363,6 +421,10 @@ class Renderer:
             for obj in objs:
                 obj.release()
         self._fbos.clear()
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+        self._release_queue.clear()  # the context's release frees them
         self._prog.release()
         self.ctx.release()
         self.released = True
@@ -445,6 +507,7 @@ class Renderer:
         RenderResult
         """
         self._check_usable()
+        self._collect()
         if not isinstance(camera, Camera):
             raise TypeError(f"camera must be a photomodel.camera.Camera, got {type(camera).__name__}")
         W, H = camera.width, camera.height

@@ -119,6 +119,14 @@ def test_texture_action_shows_textures_and_weight_maps(qtbot, window, project_co
     vd = head_pixels(window)
     assert (vd[:, 0] - vd[:, 2]).mean() > 20.0
     assert "view-dependent" in window.view3d.vertices()[1]
+    # what the view shows is the registered fragment-shader frame (ViewDependentTexture.render's
+    # default), not a plain-blend stand-in
+    from app.view3d import BACKGROUND
+
+    v3 = window.view3d
+    shown_rgb = qimage_rgb(v3.render_image(200, 160))
+    frame = v3.view_dependent.render(v3.camera(200, 160), background=BACKGROUND)
+    np.testing.assert_array_equal(shown_rgb, (np.clip(frame.color, 0, 1) * 255 + 0.5).astype(np.uint8))
     window.set_texture_mode("untextured")
     assert window.view3d.texture is None and window.view3d.view_dependent is None
     window.act_tex_modes["cylindrical"].trigger()

@@ -1,0 +1,628 @@
+"""View-dependent texturing in fragment shaders, drawn with the one renderer's GL context (§5.2.3).
+
+:class:`ViewDependentGL` keeps, in a :class:`~photomodel.render.Renderer`'s context (reached
+through its public :meth:`~photomodel.render.Renderer.context` and
+:meth:`~photomodel.render.Renderer.program`), what
+:class:`photomodel.texturing.view_dependent.ViewDependentTexture` needs to draw new views on the
+GPU — Mesa's llvmpipe on machines without one — uploaded once:
+
+* the photographs as one ``RGB8`` texture array (a layer per photograph, padded to the
+  largest; mipmapped for the reduced pass below), sampled bilinearly and black outside a
+  photograph, as ``cv2.remap`` samples them with its constant border;
+* per photograph a ``RG32F`` layer with its **depth map** (``Z_cam`` rendered from its camera,
+  a far sentinel off the model) and its feathered visibility map ``F_k(x_k, y_k)``
+  (:func:`~photomodel.texturing.weights.image_feather_map`), both sampled bilinearly;
+* the mesh: vertex normals and the §5.2.4 single-view weight as a static vertex buffer. Per
+  frame only the new view's camera coordinates are uploaded, computed in float64 on the CPU as
+  :meth:`Renderer.render` does, so a pixel is covered exactly when the renderer covers it.
+
+A frame (:meth:`ViewDependentGL.render`) is deferred shading in three passes:
+
+1. **G-buffer** — the mesh from the new camera: per pixel ``Z_cam`` and, packed in one
+   integer, the interpolated normal (octahedral, 2 × 12 bits), the single-view weight (7 bits)
+   and a "covered" bit. The shader is trivial on purpose: a software rasteriser shades whole
+   blocks of pixels wherever a small triangle touches them, so the expensive work is left to
+   pass 3, which shades each covered pixel once.
+2. **flow input** (with ``flow``) — a full-screen pass reduced ``flow_reduce``× over the model's
+   bounding box: the two selected photographs' grey levels as the new view shows them (each
+   where the other does not see the point: no motion there), looked up in the mipmapped
+   photographs at this pass's pixel size. Read back (a few kB), the caller's optical flow runs
+   on them on the CPU (``flow``: OpenCV's DIS in the texturing module); the flow goes back as a
+   small float texture, sampled bilinearly.
+3. **blend** — a full-screen pass over the bounding box; the depth test against pass 1's depth
+   buffer drops the pixels off the model. Per pixel, exactly the numpy path's weights: the
+   surface point rebuilt from ``Z_cam`` (as the numpy path rebuilds it from the depth buffer),
+   projected into the two selected photographs; visibility by the depth comparison
+   ``z ≤ depth(x_k, y_k) + tol`` inside the image and ``P_k = n · d_k > 0``;
+   ``g_k = F_k P_k V_k``, the §5.2.4 single-view mix
+   (:func:`~photomodel.texturing.weights.apply_single_view`) and the blend. With the flow
+   (*floating textures*, Eisemann et al. 2008) photograph A is sampled where the point seen at
+   ``x − w_B f_AB(x)`` projects into it and B where the point seen at ``x + w_A f_AB(x)`` does
+   (``f_BA ≈ −f_AB``), those points taken on the surface's tangent plane at ``x``; the numpy path
+   warps the reprojected images instead, which differs where that neighbourhood is another
+   surface.
+
+Pixels neither selected photograph sees (the blend of every photograph, §5.2.3's fallback) are
+rare — a few hundred in a 1000×1000 frame of the sample — and handed back
+(:attr:`GLFrame.fallback`) to the caller's CPU code: a loop over all photographs in the shader
+would cost every pixel, as a software rasteriser runs both sides of a branch.
+
+Cost on llvmpipe (2 shared cores), one 1000×1000 frame of the fitted sample head: the G-buffer
+~10 ms, the reduced pass ~3 ms, the flow ~7 ms (CPU), the blend ~25 ms, clears, read-back and
+the CPU fallback ~10 ms — ~55–60 ms on an idle machine, up to ~90 ms while other jobs run
+(``benchmarks/bench_texture.py``: ``vd_frame_ms``).
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from photomodel.camera import Camera
+from photomodel.render import Renderer, auto_near_far, gl_projection
+
+__all__ = ["GLFrame", "ViewDependentGL", "FlowFunction"]
+
+_GBUFFER_VS = """
+#version 330
+uniform mat4 proj;
+in vec3 in_pos;     // camera coordinates of the new view, mm
+in vec4 in_ns;      // outward vertex normal (xyz), single-view weight s (w)
+out vec4 v_ns;
+out float v_z;
+void main() {
+    v_ns = in_ns;
+    v_z = in_pos.z;
+    gl_Position = proj * vec4(in_pos, 1.0);
+}
+"""
+
+_GBUFFER_FS = """
+#version 330
+in vec4 v_ns;
+in float v_z;
+// Z_cam (float bits, mm) and the unit normal, octahedral in 2 × 12 bits, the single-view
+// weight s in 7 bits and a "covered" bit (the clear value 0: off the model)
+layout(location = 0) out uvec2 g;
+void main() {
+    vec3 n = v_ns.xyz / max(abs(v_ns.x) + abs(v_ns.y) + abs(v_ns.z), 1e-12);
+    vec2 o = n.z >= 0.0 ? n.xy : (1.0 - abs(n.yx)) * vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
+    uvec2 q = uvec2(round(clamp(o * 0.5 + 0.5, 0.0, 1.0) * 4095.0));
+    uint s = uint(round(clamp(v_ns.w, 0.0, 1.0) * 127.0));
+    g = uvec2(floatBitsToUint(v_z), q.x | (q.y << 12) | (s << 24) | 0x80000000u);
+}
+"""
+
+_FULLSCREEN_VS = """
+#version 330
+uniform float depth;  // NDC depth of the triangle
+void main() {  // one triangle over the whole viewport
+    vec2 p = vec2(float((gl_VertexID & 1) << 2), float((gl_VertexID & 2) << 1)) - 1.0;
+    gl_Position = vec4(p, depth, 1.0);
+}
+"""
+
+# what passes 2 and 3 share: the G-buffer, the selected photographs A and B, g_k = F_k P_k
+_COMMON = """
+#version 330
+uniform usampler2D gbuf;
+uniform sampler2DArray geo;     // R: depth map Z_cam (far sentinel off the model), G: feather F_k
+uniform mat3 a_R;               // world (minus the centre) -> camera of A: X_a = R X + t
+uniform vec3 a_t;
+uniform vec3 a_c;               // camera centre minus the head centre
+uniform vec3 a_k;               // f, cx, cy (px)
+uniform vec3 a_max;             // W - 1, H - 1 (the last pixel centres), texture layer
+uniform mat3 b_R;
+uniform vec3 b_t;
+uniform vec3 b_c;
+uniform vec3 b_k;
+uniform vec3 b_max;
+uniform vec2 tex_scale;         // 1 / (array width, height)
+uniform float tol;              // depth tolerance, mm
+uniform vec2 sel_v;             // V_k(d) of A and B (B's 0 when one photograph is selected)
+uniform float use_single;       // 1: mix in the single-view weight s, 0: plain blend
+
+uniform mat3 view_Rt;           // the new view: camera -> world directions
+uniform vec3 view_c;            // its centre minus the head centre
+uniform vec3 view_k;            // f, cx, cy
+
+struct Surface {
+    vec3 X;        // point minus the head centre
+    vec3 n;        // unit normal
+    float s;       // single-view weight
+    float z;       // Z_cam in the new view
+    bool covered;
+};
+
+// the viewing ray of pixel y (image coordinates) of the new view, world directions, Z_cam = 1
+vec3 ray(vec2 y) {
+    return view_Rt * vec3((y - view_k.yz) / view_k.x, 1.0);
+}
+
+Surface surface(ivec2 p) {
+    uvec2 g = texelFetch(gbuf, p, 0).rg;
+    float z = uintBitsToFloat(g.x);
+    vec2 o = vec2(uvec2(g.y, g.y >> 12) & 0xFFFu) / 4095.0 * 2.0 - 1.0;
+    vec3 n = vec3(o, 1.0 - abs(o.x) - abs(o.y));
+    if (n.z < 0.0) n.xy = (1.0 - abs(n.yx)) * vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
+    float s = float((g.y >> 24) & 0x7Fu) / 127.0 * use_single;
+    // the point from the depth, as the numpy path rebuilds it
+    return Surface(view_c + z * ray(vec2(p)), normalize(n), s, z, (g.y & 0x80000000u) != 0u);
+}
+
+vec2 project(mat3 R, vec3 t, vec3 k, vec3 X) {
+    vec3 Xc = R * X + t;
+    return k.x * Xc.xy / Xc.z + k.yz;
+}
+
+vec3 layer(vec2 uv, float k) {
+    return vec3((uv + 0.5) * tex_scale, k);
+}
+
+// F_k P_k of a photograph at the surface point X (normal n), 0 where it does not see X;
+// uv: X's position in the photograph (pixels)
+float weight(mat3 R, vec3 t, vec3 c, vec3 k, vec3 mx, vec3 X, vec3 n, out vec2 uv) {
+    vec3 Xc = R * X + t;
+    uv = k.x * Xc.xy / Xc.z + k.yz;
+    vec2 dz = textureLod(geo, layer(uv, mx.z), 0.0).rg;
+    vec3 d = c - X;
+    float P = dot(n, d) / max(length(d), 1e-12);
+    bool vis = Xc.z > 0.0 && uv.x >= 0.0 && uv.y >= 0.0 && uv.x <= mx.x && uv.y <= mx.y
+               && Xc.z <= dz.r + tol && P > 0.0;
+    return vis ? dz.g * P : 0.0;
+}
+
+// the blending shares of A and B (§5.2.3 with the §5.2.4 single-view mix); 0 where neither sees
+vec2 shares(float ga, float gb, float s) {
+    float tot = ga + gb;
+    if (!(tot > 0.0)) return vec2(0.0);
+    vec2 w = (1.0 - s) * vec2(ga, gb) / tot;
+    if (gb > ga) w.y += s; else w.x += s;  // argmax, the first photograph on a tie
+    return w;
+}
+"""
+
+_BLEND_FS = _COMMON + """
+uniform sampler2DArray photos;  // RGB8, one layer per photograph, row 0 = top
+uniform sampler2D flow;         // f_AB in pixels of this frame (f_BA = -f_AB)
+uniform vec2 flow_scale;        // 1 / the (padded) extent in pixels that the flow texture covers
+uniform float align;            // 1: register A and B by the flow
+layout(location = 0) out vec3 o_color;   // colour; where neither sees: normal (1 + s)
+layout(location = 1) out float o_depth;  // Z_cam; -Z_cam where neither sees
+
+// the point of the tangent plane at X (normal n) that pixel y of the new view sees
+vec3 on_plane(vec3 X, vec3 n, vec2 y) {
+    vec3 r = ray(y);
+    float nr = dot(n, r);
+    return abs(nr) > 1e-6 ? view_c + r * (dot(n, X - view_c) / nr) : X;
+}
+
+void main() {
+    Surface S = surface(ivec2(gl_FragCoord.xy));
+    vec2 ua, ub;
+    float ga = weight(a_R, a_t, a_c, a_k, a_max, S.X, S.n, ua) * sel_v.x;
+    float gb = weight(b_R, b_t, b_c, b_k, b_max, S.X, S.n, ub) * sel_v.y;
+    vec2 w = shares(ga, gb, S.s);
+    // floating textures: A(x) ~ B(x + f_AB(x)); A moves by B's share of the disagreement, B by A's
+    vec2 x = gl_FragCoord.xy - 0.5;  // this pixel in image coordinates
+    vec2 f = textureLod(flow, gl_FragCoord.xy * flow_scale, 0.0).rg;
+    if (align > 0.0) {
+        ua = project(a_R, a_t, a_k, on_plane(S.X, S.n, x - w.y * f.xy));
+        ub = project(b_R, b_t, b_k, on_plane(S.X, S.n, x + w.x * f));
+    }
+    vec3 col = w.x * textureLod(photos, layer(ua, a_max.z), 0.0).rgb
+             + w.y * textureLod(photos, layer(ub, b_max.z), 0.0).rgb;
+    // (only covered pixels get here: the depth test against the G-buffer's rejects the rest)
+    bool seen = ga + gb > 0.0;
+    o_color = seen ? col : S.n * (1.0 + S.s);
+    o_depth = seen ? S.z : -S.z;
+}
+"""
+
+_FLOW_FS = _COMMON + """
+uniform sampler2DArray photos_mip;  // the photographs, mipmapped
+uniform int reduce;                 // this pass's pixel = reduce × reduce pixels of the frame
+uniform ivec2 last;                 // the frame's last pixel (W - 1, H - 1)
+layout(location = 0) out vec2 o_gray;  // grey levels of A and B (each where the other does not see)
+void main() {
+    ivec2 p = min(ivec2(gl_FragCoord.xy) * reduce + reduce / 2, last);
+    Surface S = surface(p);
+    vec2 ua, ub;
+    float ga = weight(a_R, a_t, a_c, a_k, a_max, S.X, S.n, ua) * sel_v.x;
+    float gb = weight(b_R, b_t, b_c, b_k, b_max, S.X, S.n, ub) * sel_v.y;
+    vec2 w = shares(ga, gb, S.s);
+    // implicit derivatives between this pass's pixels pick the mipmap level of its pixel size
+    vec3 ca = texture(photos_mip, layer(ua, a_max.z)).rgb;
+    vec3 cb = texture(photos_mip, layer(ub, b_max.z)).rgb;
+    vec3 A = (w.x > 0.0) ? ca : cb;
+    vec3 B = (w.y > 0.0) ? cb : ca;
+    const vec3 luma = vec3(0.299, 0.587, 0.114);
+    o_gray = S.covered ? vec2(dot(A, luma), dot(B, luma)) : vec2(0.0);
+}
+"""
+
+#: Optical flow for the registration: ``flow(gray_a, gray_b) -> f_ab``, two (h, w) uint8 images
+#: in, an (h, w, 2) float32 flow in their pixels out, ``A(x) ≈ B(x + f_ab(x))``; the flow from B
+#: to A is taken as ``−f_ab`` (exact to first order in the flow's gradient).
+FlowFunction = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+#: Pixels of the reduced flow images around the model's bounding box (the flow's patches
+#: need some background around the silhouette).
+_FLOW_MARGIN = 4
+
+
+@dataclass
+class GLFrame:
+    """One frame of :meth:`ViewDependentGL.render`, one value per pixel (row 0 = top).
+
+    Attributes
+    ----------
+    color : (H, W, 3) float32
+        RGB in [0, 1]; ``background`` off the model; meaningless at ``fallback``.
+    mask : (H, W) bool
+        pixels covered by the model.
+    depth : (H, W) float32
+        ``Z_cam`` (mm) of the new view, ``inf`` off the model.
+    fallback : (n,) int
+        flat indices of the covered pixels that neither selected photograph sees: the caller
+        colours them (the blend of every photograph, §5.2.3's fallback).
+    fallback_normals : (n, 3) float32
+        the interpolated unit normal there.
+    fallback_single : (n,) float32
+        the single-view weight ``s`` there (0 without one).
+    """
+
+    color: np.ndarray
+    mask: np.ndarray
+    depth: np.ndarray
+    fallback: np.ndarray
+    fallback_normals: np.ndarray
+    fallback_single: np.ndarray
+
+
+class ViewDependentGL:
+    """The photographs, depth maps, feather maps and mesh of a view-dependent texture on the GPU.
+
+    Made by :meth:`photomodel.texturing.view_dependent.ViewDependentTexture.gl_state` for the
+    renderer of its thread; see the module notes for what a frame does. The GL objects are
+    freed by :meth:`release`, or by the renderer at its next use after this is dropped.
+
+    Parameters
+    ----------
+    renderer : Renderer
+        whose context holds everything (use it from the renderer's thread only).
+    vertices : (N, 3) float, mm; faces : (M, 3) int; normals : (N, 3) unit outward normals.
+    cameras : k Camera; photos : k (H_k, W_k, 3) uint8 RGB.
+    depths : k (H_k, W_k) float, the model's depth maps from ``cameras`` (``inf`` off it).
+    feather_maps : k (H_k, W_k) float, ``F_k``.
+    centre : (3,) float, mm, a point near the model (positions are stored relative to it).
+    single_view : (N,) float or None, the §5.2.4 weight ``s``.
+    tol_mm : float, depth tolerance of the visibility test.
+    far_sentinel_mm : float, the depth standing for "off the model" before interpolation.
+    """
+
+    def __init__(
+        self,
+        renderer: Renderer,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        normals: np.ndarray,
+        cameras: Sequence[Camera],
+        photos: Sequence[np.ndarray],
+        depths: Sequence[np.ndarray],
+        feather_maps: Sequence[np.ndarray],
+        *,
+        centre: np.ndarray,
+        single_view: np.ndarray | None,
+        tol_mm: float,
+        far_sentinel_mm: float,
+    ):
+        import moderngl as mgl
+
+        self.renderer = renderer
+        self._mgl = mgl
+        ctx = renderer.context()
+        k = len(cameras)
+        if k == 0 or not (len(photos) == len(depths) == len(feather_maps) == k):
+            raise ValueError("need one photo, depth map and feather map per camera (at least one)")
+        self.k = k
+        self.vertices = np.asarray(vertices, dtype=float)
+        self.faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 3)
+        self.centre = np.asarray(centre, dtype=float).reshape(3)
+        self.tol_mm = float(tol_mm)
+        self.use_single = single_view is not None
+        Wm = max(c.width for c in cameras)
+        Hm = max(c.height for c in cameras)
+        if max(Wm, Hm) > int(ctx.info["GL_MAX_TEXTURE_SIZE"]):
+            raise ValueError(f"photos of {Wm}×{Hm} px exceed the GL texture size limit")
+        self.array_size = (Wm, Hm)
+
+        stack = np.zeros((k, Hm, Wm, 3), np.uint8)
+        geo = np.zeros((k, Hm, Wm, 2), np.float32)
+        geo[..., 0] = far_sentinel_mm
+        for i, (cam, ph, d, fm) in enumerate(zip(cameras, photos, depths, feather_maps, strict=True)):
+            h, w = cam.height, cam.width
+            stack[i, :h, :w] = ph
+            geo[i, :h, :w, 0] = np.where(np.isfinite(d), d, np.float32(far_sentinel_mm))
+            geo[i, :h, :w, 1] = fm
+
+        # per-photograph uniforms: X_k = R (X - c) + (R c + t), composed in float64
+        self._cam_uniforms = [
+            {
+                "R": np.ascontiguousarray(c.R.T, np.float32).tobytes(),  # GL matrices are column-major
+                "t": tuple(float(x) for x in c.R @ self.centre + c.t),
+                "c": tuple(float(x) for x in c.center - self.centre),
+                "k": (c.f, *(float(x) for x in c.principal_point)),
+                "max": (c.width - 1.0, c.height - 1.0, float(i)),
+            }
+            for i, c in enumerate(cameras)
+        ]
+        n = len(self.vertices)
+        s = np.zeros(n, np.float32) if single_view is None else np.asarray(single_view, np.float32).reshape(n)
+        ns = np.column_stack([np.asarray(normals, np.float32).reshape(n, 3), s]).astype(np.float32)
+        self._gbuffer = renderer.program(_GBUFFER_VS, _GBUFFER_FS)
+        self._blend = renderer.program(_FULLSCREEN_VS, _BLEND_FS)
+        self._flow = renderer.program(_FULLSCREEN_VS, _FLOW_FS)
+        with ctx:
+            self._photos = ctx.texture_array((Wm, Hm, k), 3, stack.tobytes(), alignment=1, dtype="f1")
+            self._photos.build_mipmaps()
+            self._geo = ctx.texture_array((Wm, Hm, k), 2, geo.tobytes(), alignment=1, dtype="f4")
+            black = (0.0, 0.0, 0.0, 0.0)  # outside a photograph, as cv2.remap's constant border
+            self._photo_sampler = ctx.sampler(texture=self._photos, filter=(mgl.LINEAR, mgl.LINEAR), border_color=black)
+            self._mip_sampler = ctx.sampler(
+                texture=self._photos, filter=(mgl.LINEAR_MIPMAP_LINEAR, mgl.LINEAR), border_color=black
+            )
+            self._geo_sampler = ctx.sampler(
+                texture=self._geo, filter=(mgl.LINEAR, mgl.LINEAR), repeat_x=False, repeat_y=False
+            )
+            self._pos = ctx.buffer(reserve=max(n, 1) * 12)
+            self._ns = ctx.buffer(ns.tobytes())
+            self._idx = ctx.buffer(self.faces.tobytes() if len(self.faces) else np.zeros(3, np.int32).tobytes())
+            attrs = [(self._pos, "3f", "in_pos"), (self._ns, "4f", "in_ns")]
+            self._vao = ctx.vertex_array(self._gbuffer, attrs, index_buffer=self._idx, index_element_size=4)
+            self._blend_vao = ctx.vertex_array(self._blend, [])
+            self._flow_vao = ctx.vertex_array(self._flow, [])
+        # every GL object held; dropped unreleased, the renderer frees them at its next use
+        self._owned = [self._photo_sampler, self._mip_sampler, self._geo_sampler, self._photos, self._geo,
+                       self._vao, self._blend_vao, self._flow_vao, self._pos, self._ns, self._idx]
+        self._finalizer = weakref.finalize(self, renderer.defer_release, self._owned)
+        self._targets: dict[tuple[int, int, int], dict] = {}
+        self.released = False
+
+    # ------------------------------------------------------------------------------------
+    @property
+    def usable(self) -> bool:
+        """Whether the GL objects are alive (neither this nor its renderer released)."""
+        return not self.released and not self.renderer.released
+
+    def release(self) -> None:
+        """Free the GL objects now (idempotent)."""
+        self._finalizer.detach()
+        if self.usable:
+            with self.renderer.context():
+                for obj in self._owned:
+                    obj.release()
+        self._owned.clear()
+        self._targets.clear()
+        self.released = True
+
+    def _frame_targets(self, W: int, H: int, reduce: int) -> dict:
+        key = (W, H, reduce)
+        if key in self._targets:
+            return self._targets[key]
+        while len(self._targets) >= 2:  # a view being resized: keep the two latest sizes
+            old = self._targets.pop(next(iter(self._targets)))  # the oldest
+            for obj in old["objects"]:
+                self._owned.remove(obj)
+                obj.release()
+        mgl = self._mgl
+        ctx = self.renderer.context()
+        gbuf = ctx.texture((W, H), 2, dtype="u4")
+        gbuf.filter = (mgl.NEAREST, mgl.NEAREST)
+        zbuf = ctx.depth_renderbuffer((W, H))
+        color = ctx.renderbuffer((W, H), components=3, dtype="f4")
+        depth = ctx.renderbuffer((W, H), components=1, dtype="f4")
+        wf, hf = -(-W // reduce), -(-H // reduce)
+        gray = ctx.renderbuffer((wf, hf), components=2, dtype="f1")
+        flow = ctx.texture((wf, hf), 2, np.zeros((hf, wf, 2), np.float32).tobytes(), dtype="f4")
+        flow.filter = (mgl.LINEAR, mgl.LINEAR)
+        flow.repeat_x = flow.repeat_y = False
+        t = {
+            "gbuffer": ctx.framebuffer([gbuf], zbuf),
+            # pass 3 tests against the G-buffer's depth: only covered pixels are shaded
+            "out": ctx.framebuffer([color, depth], zbuf),
+            # the output's attachments alone, to clear each to its own value
+            "out_color": ctx.framebuffer([color]),
+            "out_depth": ctx.framebuffer([depth]),
+            "gray": ctx.framebuffer([gray]),
+            "gbuf": gbuf,
+            "flow": flow,
+            "flow_size": (wf, hf),
+        }
+        t["objects"] = [t["gbuffer"], t["out"], t["out_color"], t["out_depth"], t["gray"], gbuf, zbuf,
+                        color, depth, gray, flow]
+        self._owned.extend(t["objects"])
+        self._targets[key] = t
+        return t
+
+    def _set_photos(self, prog, sel, vw) -> None:
+        for prefix, k in (("a_", sel[0]), ("b_", sel[1])):
+            u = self._cam_uniforms[k]
+            if prefix + "R" in prog:
+                prog[prefix + "R"].write(u["R"])
+            for name in ("t", "c", "k", "max"):
+                _set(prog, prefix + name, u[name])
+        for name, unit in (("gbuf", 0), ("geo", 2), ("photos", 3), ("photos_mip", 3), ("flow", 4)):
+            _set(prog, name, unit)
+        _set(prog, "tex_scale", (1.0 / self.array_size[0], 1.0 / self.array_size[1]))
+        _set(prog, "tol", self.tol_mm)
+        _set(prog, "sel_v", tuple(vw))
+        _set(prog, "use_single", 1.0 if self.use_single else 0.0)
+        view = self._view
+        if "view_Rt" in prog:
+            prog["view_Rt"].write(np.ascontiguousarray(view.R, np.float32).tobytes())  # Rᵀ, column-major
+        _set(prog, "view_c", tuple(float(x) for x in view.center - self.centre))
+        _set(prog, "view_k", (view.f, *(float(x) for x in view.principal_point)))
+
+    def render(
+        self,
+        camera: Camera,
+        selected: Sequence[int],
+        weights: Sequence[float],
+        *,
+        background=0.0,
+        flow: FlowFunction | None = None,
+        flow_reduce: int = 4,
+    ) -> GLFrame:
+        """Draw the model from ``camera``, blending the ``selected`` photographs (§5.2.3).
+
+        Parameters
+        ----------
+        camera : Camera
+            the new view.
+        selected : one or two photograph indices; weights : their ``V_k(d)`` (> 0).
+        background : float or (3,), colour off the model.
+        flow : FlowFunction or None
+            with two photographs, register them by this optical flow before blending
+            (floating textures); ``None`` blends them as they are.
+        flow_reduce : int
+            the flow is estimated on images reduced this many times.
+
+        Returns
+        -------
+        GLFrame
+        """
+        if not self.usable:
+            raise RuntimeError("this ViewDependentGL was released")
+        renderer = self.renderer
+        ctx = renderer.context()
+        mgl = self._mgl
+        if not isinstance(camera, Camera):
+            raise TypeError(f"camera must be a photomodel.camera.Camera, got {type(camera).__name__}")
+        W, H = camera.width, camera.height
+        if W < 1 or H < 1 or max(W, H) > renderer.max_size:
+            raise ValueError(f"cannot render a {W}×{H} frame (GL limit {renderer.max_size} px)")
+        sel = [int(i) for i in selected]
+        vw = [float(v) for v in weights]
+        if len(sel) not in (1, 2) or len(vw) != len(sel) or not all(0 <= i < self.k for i in sel):
+            raise ValueError(f"select one or two photographs with their weights, got {selected}, {weights}")
+        if len(sel) == 2 and sel[0] > sel[1]:
+            sel, vw = sel[::-1], vw[::-1]
+        two = len(sel) == 2
+        if not two:
+            sel, vw = [sel[0], sel[0]], [vw[0], 0.0]
+        reduce = max(1, int(flow_reduce))
+        bg = tuple(float(x) for x in np.broadcast_to(np.asarray(background, np.float32).reshape(-1), (3,)))
+
+        self._view = camera
+        Xc = camera.to_camera(self.vertices)
+        auto = auto_near_far(Xc[:, 2]) if len(self.vertices) and len(self.faces) else None
+        box = _bounding_box(camera, Xc) if auto is not None else None
+        align = two and flow is not None and box is not None
+        color = np.empty((H, W, 3), np.float32)
+        depth = np.empty((H, W), np.float32)
+        with ctx:
+            t = self._frame_targets(W, H, reduce)
+            t["out_color"].use()
+            t["out_color"].clear(*bg, 0.0)
+            t["out_depth"].use()
+            t["out_depth"].clear(float("inf"))
+            if box is not None:
+                x0, y0, x1, y1 = box
+                ctx.disable(mgl.BLEND | mgl.CULL_FACE)
+                # -- 1: the G-buffer (inside the model's bounding box) ----------------------
+                fbo = t["gbuffer"]
+                fbo.use()
+                fbo.viewport = (0, 0, W, H)
+                fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=(x0, y0, x1 - x0, y1 - y0))  # uint: bits 0
+                ctx.enable(mgl.DEPTH_TEST)
+                self._pos.write(Xc.astype(np.float32).tobytes())
+                self._gbuffer["proj"].write(gl_projection(camera, *auto).T.astype(np.float32).tobytes())
+                self._vao.render(mgl.TRIANGLES, vertices=3 * len(self.faces))
+                ctx.disable(mgl.DEPTH_TEST)
+                t["gbuf"].use(location=0)
+                self._geo_sampler.use(location=2)
+                wf, hf = t["flow_size"]
+                # -- 2: the grey levels for the optical flow, reduced -------------------------
+                if align:
+                    self._mip_sampler.use(location=3)
+                    p = self._flow
+                    self._set_photos(p, sel, vw)
+                    _set(p, "reduce", reduce)
+                    _set(p, "last", (W - 1, H - 1))
+                    fx0, fy0 = max(x0 // reduce - _FLOW_MARGIN, 0), max(y0 // reduce - _FLOW_MARGIN, 0)
+                    fx1 = min(-(-x1 // reduce) + _FLOW_MARGIN, wf)
+                    fy1 = min(-(-y1 // reduce) + _FLOW_MARGIN, hf)
+                    fw, fh = fx1 - fx0, fy1 - fy0
+                    fbo = t["gray"]
+                    fbo.use()
+                    fbo.viewport = (0, 0, wf, hf)
+                    ctx.scissor = (fx0, fy0, fw, fh)
+                    self._flow_vao.render(mgl.TRIANGLES, vertices=3)
+                    ctx.scissor = None
+                    gray = np.empty((fh, fw, 2), np.uint8)
+                    fbo.read_into(gray, viewport=(fx0, fy0, fw, fh), components=2, attachment=0, dtype="f1",
+                                  alignment=1)
+                    f_ab = flow(np.ascontiguousarray(gray[..., 0]), np.ascontiguousarray(gray[..., 1]))
+                    f_ab = np.ascontiguousarray(f_ab, np.float32) * np.float32(reduce)  # in pixels of the frame
+                    t["flow"].write(f_ab.tobytes(), viewport=(fx0, fy0, fw, fh))
+                # -- 3: weights, registration and blend, per pixel of the bounding box ---------
+                self._photo_sampler.use(location=3)
+                t["flow"].use(location=4)
+                p = self._blend
+                self._set_photos(p, sel, vw)
+                _set(p, "align", 1.0 if align else 0.0)
+                _set(p, "flow_scale", (1.0 / (wf * reduce), 1.0 / (hf * reduce)))
+                # its NDC depth: behind every surface (the farthest vertex), in front of the clear (1)
+                near, far = auto
+                ndc_far = (far + near) / (far - near) - 2.0 * far * near / ((far - near) * float(Xc[:, 2].max()))
+                _set(p, "depth", 0.5 * (min(ndc_far, 1.0) + 1.0))
+                fbo = t["out"]
+                fbo.use()
+                fbo.viewport = (0, 0, W, H)
+                fbo.depth_mask = False
+                ctx.enable(mgl.DEPTH_TEST)
+                ctx.depth_func = ">"  # passes where the G-buffer holds a surface, fails on its clear value
+                ctx.scissor = (x0, y0, x1 - x0, y1 - y0)
+                self._blend_vao.render(mgl.TRIANGLES, vertices=3)
+                ctx.scissor = None
+                ctx.depth_func = "<"
+                ctx.disable(mgl.DEPTH_TEST)
+                fbo.depth_mask = True
+            t["out"].read_into(color, components=3, attachment=0, dtype="f4", alignment=1)
+            t["out"].read_into(depth, components=1, attachment=1, dtype="f4", alignment=1)
+        fallback = np.flatnonzero(depth.reshape(-1) < 0.0)
+        c = color.reshape(-1, 3)[fallback]
+        length = np.sqrt(np.einsum("ij,ij->i", c, c))
+        depth.reshape(-1)[fallback] *= -1.0
+        return GLFrame(
+            color, depth < np.inf, depth, fallback, c / np.maximum(length, 1e-12)[:, None],
+            np.clip(length - 1.0, 0.0, 1.0).astype(np.float32),
+        )
+
+
+def _set(prog, name, value) -> None:
+    """Set a uniform that the compiler kept (unused ones are optimised away)."""
+    if name in prog:
+        prog[name].value = value
+
+
+def _bounding_box(camera: Camera, Xc: np.ndarray) -> tuple[int, int, int, int] | None:
+    """The pixels ``[x0, x1) × [y0, y1)`` that the mesh (camera coordinates ``Xc``) can cover,
+    or None when it is out of view. Vertices behind the camera make it the whole image."""
+    W, H = camera.width, camera.height
+    z = Xc[:, 2]
+    if not np.any(z > 0):
+        return None
+    if np.any(z <= 0):  # clipped by the near plane: no bound from the projections
+        return 0, 0, W, H
+    uv = camera.f * Xc[:, :2] / z[:, None] + camera.principal_point
+    x0, y0 = np.floor(uv.min(axis=0)).astype(int) - 1
+    x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + 2
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
+    if x1 <= x0 or y1 <= y0:
+        return None
+    return int(x0), int(y0), int(x1), int(y1)
