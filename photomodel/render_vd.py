@@ -49,8 +49,8 @@ would cost every pixel, as a software rasteriser runs both sides of a branch.
 
 Cost on llvmpipe (2 shared cores), one 1000×1000 frame of the fitted sample head: the G-buffer
 ~10 ms, the reduced pass ~3 ms, the flow ~7 ms (CPU), the blend ~25 ms, clears, read-back and
-the CPU fallback ~10 ms — ~55–60 ms on an idle machine, up to ~90 ms while other jobs run
-(``benchmarks/bench_texture.py``: ``vd_frame_ms``).
+the CPU fallback ~10 ms: ``vd_frame_ms`` of ``benchmarks/bench_texture.py`` is 72 ms with the
+machine's load at ~1.2 and 91 ms at ~2 (single frames 57–125 ms).
 """
 
 from __future__ import annotations

@@ -30,8 +30,8 @@ Both per-pixel methods give the same image — same coverage and fallback pixels
 them with the plain blend, 41–47 dB with the registration below (its flow is estimated
 differently) — and the same held-out PSNR within a few hundredths of a dB;
 ``benchmarks/bench_texture.py`` measures them side by side (docs/texturing.md). The shader path
-is 5–8× faster (~60–90 ms against ~450 ms for a 1000×1000 registered frame on llvmpipe; ~25 ms
-for the studio's 400×780 3D view), fast enough for the 3D view to show the registered
+is 5–7× faster (70–90 ms against 370–520 ms for a 1000×1000 registered frame on llvmpipe,
+~25 ms for the studio's 400×780 3D view), fast enough for the 3D view to show the registered
 view-dependent rendering while orbiting.
 
 Floating textures
