@@ -105,6 +105,7 @@ class BundleProblem:
         # scatter matrix from the photos' local camera columns (k·nc) to the unknowns (C)
         self._scatter = np.zeros((k * nc, self.C))
         self._scatter[np.arange(k * nc), cols.reshape(-1)] = 1.0
+        self._Jc = np.zeros((k, self.valid.shape[1], 2, nc))  # zero entries never change
 
     # -- conversions ----------------------------------------------------------------------
     def state_from_cameras(self, cameras, points) -> BundleState:
@@ -178,17 +179,21 @@ class BundleProblem:
         while it < max_iter:
             it += 1
             q, D, P, r, e = ev
+            valid = self.valid
             with np.errstate(divide="ignore", invalid="ignore"):
-                w = np.where(e > c, c / e, 1.0) if np.isfinite(c) else np.ones_like(e)
-            w = np.where(self.valid, w, 0.0)
-            sw = np.sqrt(w)
+                w = np.minimum(c / e, 1.0) if np.isfinite(c) else 1.0
+            sw = np.where(valid, np.sqrt(w), 0.0)
+            # unclicked (camera, point) pairs take no part; keep their entries finite so that
+            # the zero weight removes them (a point behind a camera that does not see it)
+            D = np.where(valid, D, 1.0)
+            P = np.where(valid[..., None], P, 0.0)
             f = np.exp(st.logf[self.groups])
             eta = st.s / f
             a = st.s[:, None] / D  # (k, n)
             b = -eta[:, None] / D
             bPx, bPy = b * P[..., 0], b * P[..., 1]
             qx, qy, qz = q[..., 0], q[..., 1], q[..., 2]
-            Jc = np.zeros((k, n, 2, nc))
+            Jc = self._Jc
             Jc[..., 0, 0] = bPx * qy
             Jc[..., 0, 1] = a * qz - bPx * qx
             Jc[..., 0, 2] = -a * qy
@@ -200,11 +205,11 @@ class BundleProblem:
             Jc[..., 5] = P / (st.s[:, None] * D)[..., None]
             if self.focal_free:
                 Jc[..., 6] = -(b * qz)[..., None] * P
-            g = np.zeros((k, n, 2, 3))
-            g[..., 0, 0] = g[..., 1, 1] = a
-            g[..., 0, 2] = bPx
-            g[..., 1, 2] = bPy
-            Jm = g @ st.R[:, None]  # (k, n, 2, 3)
+            # dP/dm = g R with g = [[a, 0, b P_x], [0, a, b P_y]], written out
+            R = st.R[:, None]  # (k, 1, 3, 3)
+            Jm = np.empty((k, n, 2, 3))
+            Jm[..., 0, :] = a[..., None] * R[..., 0, :] + bPx[..., None] * R[..., 2, :]
+            Jm[..., 1, :] = a[..., None] * R[..., 1, :] + bPy[..., None] * R[..., 2, :]
             Jc *= sw[..., None, None]
             Jm *= sw[..., None, None]
             rw = r * sw[..., None]
