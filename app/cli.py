@@ -74,9 +74,9 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
 
 
 def cmd_fit(args) -> int:
-    from photomodel.fit import FitOptions, fit_expression, fit_order, store_fit_result
-    from photomodel.generic_mesh import load_generic_mesh
-    from photomodel.project import ExpressionResult, load_project, save_project
+    from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, store_fit_result
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.project.format import ExpressionResult, load_project, save_project
 
     project = load_project(args.project)
     if args.expression is not None:
@@ -135,8 +135,8 @@ def _sigint_deferred():
 
 
 def cmd_texture(args) -> int:
-    from photomodel.generic_mesh import load_generic_mesh
-    from photomodel.project import load_project, save_project
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.project.format import load_project, save_project
     from photomodel.texturing.job import commit_texture, encode_texture_outputs, fitted_expressions, texture_expression
 
     lo, hi = TEXTURE_SIZES
@@ -280,7 +280,7 @@ def cmd_track(args) -> int:
 
 
 def cmd_sample_data(args) -> int:
-    from photomodel.sample_data import sample_data_dir
+    from photomodel.samples.sample_data import sample_data_dir
 
     print(sample_data_dir())
     return 0
@@ -288,10 +288,10 @@ def cmd_sample_data(args) -> int:
 
 def cmd_studio(args) -> int:
     try:  # Qt is imported here only
-        from app.qt_compat import check_pyside
+        from app.qt.qt_compat import check_pyside
 
         check_pyside()
-        from app.main_window import run_studio
+        from app.qt.main_window import run_studio
     except ImportError as exc:
         raise FaceStudioError(f"the studio cannot start: {exc}") from exc
     return run_studio(args.project)

@@ -1,10 +1,10 @@
 """The studio's state, apart from any widget: a project being edited, its fits, and events.
 
 This is the napari pattern (``napari/components/viewer_model.py``): one model object holds
-the :class:`~photomodel.project.Project`, the current expression, the active feature and curve,
+the :class:`~photomodel.project.format.Project`, the current expression, the active feature and curve,
 and the fitted results, and announces every change through small :class:`Signal` objects. The
 Qt widgets of :mod:`app` observe it and edit it through undoable commands
-(:mod:`app.commands`); scripts and tests drive the same object without any GUI. Nothing here
+(:mod:`app.qt.commands`); scripts and tests drive the same object without any GUI. Nothing here
 imports Qt.
 
 Every edit goes through one primitive (``set_point``, ``set_hidden``, ``set_curve``,
@@ -32,8 +32,8 @@ import numpy as np
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
 from photomodel.errors import FaceStudioError, ProjectError
-from photomodel.exif import focal_mm_guess_from_exif
-from photomodel.project import (
+from photomodel.photos.exif import focal_mm_guess_from_exif
+from photomodel.project.format import (
     CurveDef,
     Expression,
     ExpressionResult,
@@ -129,12 +129,12 @@ class FitState:
     points_3d : dict feature → (3,) float mm
     vertices : (N, 3) float mm or None
         The fitted mesh (None when a loaded project's mesh file is missing).
-    report : dict, the fit report (:func:`photomodel.fit.build_report`).
-    result : photomodel.fit.FitResult or None
+    report : dict, the fit report (:func:`photomodel.modeling.fit.build_report`).
+    result : photomodel.modeling.fit.FitResult or None
         The in-memory result (warm start of the next refit); None for a loaded result.
     elapsed_s : float or None, wall time of the fit.
     saved : bool, the mesh files on disk hold ``vertices``.
-    overlays : dict photo id → photomodel.overlay.PhotoOverlay
+    overlays : dict photo id → photomodel.modeling.overlay.PhotoOverlay
         The wireframe overlays of this fit computed so far (by the fit's worker for the photo on
         screen, by :meth:`StudioModel.overlay` for the others when they are shown).
     """
@@ -157,7 +157,7 @@ class StudioModel:
     project : Project, optional
         Default: a new, empty project (:meth:`new`).
     mesh_loader : callable returning a GenericMesh
-        Default :func:`photomodel.generic_mesh.load_generic_mesh` (loaded on first use).
+        Default :func:`photomodel.modeling.generic_mesh.load_generic_mesh` (loaded on first use).
 
     Events (:class:`Signal`, arguments in brackets)
     ------------------------------------------------
@@ -214,10 +214,10 @@ class StudioModel:
     # ------------------------------------------------------------------ generic mesh
     @property
     def mesh(self):
-        """The generic face mesh (:class:`photomodel.generic_mesh.GenericMesh`), loaded once."""
+        """The generic face mesh (:class:`photomodel.modeling.generic_mesh.GenericMesh`), loaded once."""
         if self._mesh is None:
             if self._mesh_loader is None:
-                from photomodel.generic_mesh import load_generic_mesh
+                from photomodel.modeling.generic_mesh import load_generic_mesh
 
                 self._mesh_loader = load_generic_mesh
             self._mesh = self._mesh_loader()
@@ -225,18 +225,18 @@ class StudioModel:
 
     @property
     def overlay_lines(self):
-        """The wireframe overlay's lines on the generic mesh (:func:`photomodel.overlay.mesh_lines`)."""
+        """The wireframe overlay's lines on the generic mesh (:func:`photomodel.modeling.overlay.mesh_lines`)."""
         if self._lines is None:
-            from photomodel.overlay import mesh_lines
+            from photomodel.modeling.overlay import mesh_lines
 
             self._lines = mesh_lines(self.mesh.vertices, self.mesh.faces, curves=self.mesh.curves)
         return self._lines
 
     @property
     def refitter(self):
-        """The :class:`photomodel.refit.Refitter` shared by every fit of this model."""
+        """The :class:`photomodel.modeling.refit.Refitter` shared by every fit of this model."""
         if self._refitter is None:
-            from photomodel.refit import Refitter
+            from photomodel.modeling.refit import Refitter
 
             self._refitter = Refitter(self.mesh)
         return self._refitter
@@ -493,7 +493,7 @@ class StudioModel:
         """A :class:`Photo` for an image file (size read with OpenCV), with an unused id.
 
         ``focal_mm_guess`` (mm on a 36 mm-wide sensor) when given, else the focal length the
-        file's EXIF records (:func:`photomodel.exif.focal_mm_guess_from_exif`), else none.
+        file's EXIF records (:func:`photomodel.photos.exif.focal_mm_guess_from_exif`), else none.
         Raises :class:`ProjectError` naming the file when it is missing or not an image.
         """
         import cv2
@@ -565,8 +565,8 @@ class StudioModel:
         """Fit ``expression`` of a snapshot; safe to call from a worker thread.
 
         With ``previous`` (:meth:`warm_start`, taken on the GUI thread) the refinement is
-        warm-started from the last fit (:class:`photomodel.refit.Refitter`); otherwise this is the
-        full pipeline of :func:`photomodel.fit.fit_expression`. Returns ``(FitResult, elapsed_s,
+        warm-started from the last fit (:class:`photomodel.modeling.refit.Refitter`); otherwise this is the
+        full pipeline of :func:`photomodel.modeling.fit.fit_expression`. Returns ``(FitResult, elapsed_s,
         cold)`` where ``cold`` says the fit had to build cached RBF solves (a new set of
         constrained vertices).
         """
@@ -581,22 +581,22 @@ class StudioModel:
 
         Parameters
         ----------
-        result : photomodel.fit.FitResult, the fit (cameras and vertices).
+        result : photomodel.modeling.fit.FitResult, the fit (cameras and vertices).
         photo_ids : iterable of str; ids the fit has no camera for are skipped.
-        lines : photomodel.overlay.MeshLines, :attr:`overlay_lines` read on the GUI thread.
+        lines : photomodel.modeling.overlay.MeshLines, :attr:`overlay_lines` read on the GUI thread.
 
         Returns
         -------
-        dict photo id → photomodel.overlay.PhotoOverlay, for :meth:`apply_fit` ``overlays``.
+        dict photo id → photomodel.modeling.overlay.PhotoOverlay, for :meth:`apply_fit` ``overlays``.
         """
-        from photomodel.overlay import photo_overlay
+        from photomodel.modeling.overlay import photo_overlay
 
         cams = dict(zip(result.photo_ids, result.cameras, strict=True))
         faces = self.mesh.faces
         return {pid: photo_overlay(cams[pid], result.vertices, faces, lines) for pid in photo_ids if pid in cams}
 
     def overlay(self, photo_id: str, expression: str | None = None):
-        """The wireframe overlay (:class:`photomodel.overlay.PhotoOverlay`) of a fit in one photo, or None.
+        """The wireframe overlay (:class:`photomodel.modeling.overlay.PhotoOverlay`) of a fit in one photo, or None.
 
         Taken from the fit's cache (filled by the fit's worker); computed here, on the calling
         thread, and cached when missing (a photo that was not on screen when the fit ran).
@@ -606,14 +606,14 @@ class StudioModel:
             return None
         found = fit.overlays.get(photo_id)
         if found is None:
-            from photomodel.overlay import photo_overlay
+            from photomodel.modeling.overlay import photo_overlay
 
             found = fit.overlays[photo_id] = photo_overlay(fit.cameras[photo_id], fit.vertices, self.mesh.faces,
                                                            self.overlay_lines)
         return found
 
     def apply_fit(self, expression: str, result, elapsed_s: float | None = None, overlays: dict | None = None) -> None:
-        """Store a :class:`photomodel.fit.FitResult` as the expression's fit (GUI thread).
+        """Store a :class:`photomodel.modeling.fit.FitResult` as the expression's fit (GUI thread).
 
         ``overlays`` (:meth:`compute_overlays` of this result) fill the fit's overlay cache.
         """
@@ -804,7 +804,7 @@ class StudioModel:
             f = project.resolve(rel) if folder is None else (folder / rel).absolute()
             if f.is_file():
                 try:
-                    from photomodel.mesh_io import read_mesh
+                    from photomodel.exchange.mesh import read_mesh
 
                     v, _ = read_mesh(f)
                 except Exception:  # a broken result mesh loses the overlay, not the project
@@ -827,7 +827,7 @@ class StudioModel:
             path = self.project.path
         target = Path(path).absolute()
         old_path = self.project.path
-        from photomodel.mesh_io import write_mesh
+        from photomodel.exchange.mesh import write_mesh
 
         moved = old_path is None or target.parent != old_path.parent
         from photomodel.texturing.job import commit_texture, encode_texture_outputs

@@ -10,7 +10,7 @@ with the new mesh, is included): ``refit_ms``, the time until the new overlay is
 is also when the GUI thread is free again. The auto-refit debounce is set to 0 so that it is
 not counted.
 
-The overlay's lines are computed in the fit's worker right after the refit (:mod:`app.workers`),
+The overlay's lines are computed in the fit's worker right after the refit (:mod:`app.qt.workers`),
 so the GUI thread only paints them. ``gui_busy_ms`` is the GUI thread's share of an edit: the
 edit itself (the undo-stack push and its observers) plus the time from the fit's result
 arriving (``StudioModel.apply_fit``) to the window repainted; the rest of ``refit_ms`` the GUI
@@ -18,7 +18,7 @@ thread waits in its event loop, free for input. ``overlay_ms`` is the time compu
 overlay's lines (wherever it ran; ``overlay_in_worker`` says where), ``overlay_gui_ms`` the GUI
 thread's part of drawing it.
 
-What makes the refit fast (see :mod:`photomodel.refit`): the RBF weights for the constrained
+What makes the refit fast (see :mod:`photomodel.modeling.refit`): the RBF weights for the constrained
 vertex set are cached (a refit is one matrix product instead of three solves and kernel
 evaluations), and the previous fit warm-starts the curve parameterisation so one refinement
 pass replaces two. Pose recovery runs in full every time.
@@ -59,9 +59,9 @@ def main(argv=None) -> int:
     from PySide6.QtCore import QEventLoop, QSettings, QTimer
     from PySide6.QtWidgets import QApplication
 
-    from app.commands import SetPointCommand
-    from app.main_window import MainWindow
-    from photomodel.fit import fit_expression
+    from app.qt.commands import SetPointCommand
+    from app.qt.main_window import MainWindow
+    from photomodel.modeling.fit import fit_expression
 
     app = QApplication.instance() or QApplication([])
     tmp = Path(tempfile.mkdtemp(prefix="bench_gui_"))

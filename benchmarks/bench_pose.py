@@ -16,16 +16,16 @@ at 600 mm with a 50 mm lens — exactly what ``facestudio fit`` starts from.
 
 Methods, same data, same start:
 
-* ``ours`` — :func:`photomodel.camera_solve.solve_cameras`, what ``facestudio fit`` runs: cheap
+* ``ours`` — :func:`photomodel.modeling.camera_solve.solve_cameras`, what ``facestudio fit`` runs: cheap
   starts (presets, PnP), the paper's ALS (§5.1.1, App. A, 3 sweeps), robust polish, suspects
   left out, least-squares finish;
 * ``peer`` — full bundle adjustment, ``scipy.optimize.least_squares`` (trf, sparse analytic
   Jacobian; ``benchmarks/peer_bundle_adjust.py``), from the presets;
-* ``ours_als`` — the paper's plain ALS to convergence (:func:`photomodel.pose.recover_poses`
+* ``ours_als`` — the paper's plain ALS to convergence (:func:`photomodel.modeling.pose.recover_poses`
   with ``accelerate=False``), on the first draw of each variant only (it takes seconds).
 
 A method **fails** on a draw when it raises, when its result is implausible
-(:func:`photomodel.camera_solve.plausibility_problem`: a point behind a camera, a flattened or
+(:func:`photomodel.modeling.camera_solve.plausibility_problem`: a point behind a camera, a flattened or
 exploded face, an absurd focal length), or when its cameras are more than 5° off the truth
 on average. ``same_minimum``: draws on which our RMS over every click is within 2 % or 0.01 px
 of the peer's, or below it. Errors are measured after a similarity alignment onto the true
@@ -55,16 +55,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from peer_bundle_adjust import bundle_adjust  # noqa: E402
 from posebench import accuracy, synthetic_rig  # noqa: E402
 
-from photomodel import synthetic  # noqa: E402
 from photomodel.alignment import similarity_transform  # noqa: E402
 from photomodel.camera import focal_mm_to_px, preset_camera  # noqa: E402
-from photomodel.camera_solve import plausibility_problem, solve_cameras  # noqa: E402
 from photomodel.errors import FitError  # noqa: E402
-from photomodel.fit import fit_expression  # noqa: E402
-from photomodel.generic_mesh import load_generic_mesh  # noqa: E402
-from photomodel.pose import recover_poses  # noqa: E402
-from photomodel.project import load_project  # noqa: E402
-from photomodel.sample_data import load_james_scan  # noqa: E402
+from photomodel.modeling.camera_solve import plausibility_problem, solve_cameras  # noqa: E402
+from photomodel.modeling.fit import fit_expression  # noqa: E402
+from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
+from photomodel.modeling.pose import recover_poses  # noqa: E402
+from photomodel.project.format import load_project  # noqa: E402
+from photomodel.samples import synthetic  # noqa: E402
+from photomodel.samples.sample_data import load_james_scan  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 SEED = 2026

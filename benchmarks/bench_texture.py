@@ -8,7 +8,7 @@ the real james scan), the model is textured from the *other four* photos and ren
 the held-out photo's camera; the render is compared with the held-out photo inside the face:
 
 * ``fitted``        — the fitted generic mesh and the recovered cameras
-  (:func:`photomodel.fit.fit_expression`; the held-out camera is the recovered one);
+  (:func:`photomodel.modeling.fit.fit_expression`; the held-out camera is the recovered one);
 * ``true_geometry`` — the scan's own (welded) surface and the true cameras, textured with
   the same cylindrical method (the scan's own UVs and texture are not used). This separates
   texturing error from modeling error.
@@ -63,12 +63,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from photomodel.fit import fit_expression  # noqa: E402
-from photomodel.generic_mesh import load_generic_mesh  # noqa: E402
-from photomodel.project import load_project  # noqa: E402
-from photomodel.render import get_renderer, write_png  # noqa: E402
-from photomodel.sample_data import load_james_scan  # noqa: E402
-from photomodel.synthetic import load_ground_truth, true_correspondence  # noqa: E402
+from photomodel.modeling.fit import fit_expression  # noqa: E402
+from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
+from photomodel.project.format import load_project  # noqa: E402
+from photomodel.rendering.renderer import get_renderer, write_png  # noqa: E402
+from photomodel.samples.sample_data import load_james_scan  # noqa: E402
+from photomodel.samples.synthetic import load_ground_truth, true_correspondence  # noqa: E402
 from photomodel.texturing.cylindrical import cylindrical_texture, render_cylindrical, single_view_weights  # noqa: E402
 from photomodel.texturing.view_dependent import ViewDependentTexture  # noqa: E402
 from photomodel.texturing.weights import FEATHER_WIDTH_MM  # noqa: E402

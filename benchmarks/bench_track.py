@@ -2,9 +2,9 @@
 tracking at 300×300 on synthetic sequences with known truth.
 
 The tracked face model is the one a user of the sample gets: the sample project's expressions
-fitted and textured from their photos (:func:`tracking.samples.fitted_sample_model`, built by
+fitted and textured from their photos (:func:`tracking.samples.ground_truth.fitted_sample_model`, built by
 :func:`tracking.project_model.face_model_from_project`). Sequences (same head motion and region
-weights, :func:`tracking.samples.video_truth`):
+weights, :func:`tracking.samples.ground_truth.video_truth`):
 
 * ``a`` — frames rendered from that fitted face model itself (the paper's synthetic test);
 * ``b`` — the sample video: the scan deformed per region and rendered (end to end);
@@ -12,10 +12,10 @@ weights, :func:`tracking.samples.video_truth`):
 * ``d`` — (b) plus Gaussian noise (σ = 0.03 per channel, intensities in [0, 1]);
 * ``e`` — (b) tracked with a model holding one expression more (``frown``) than the video uses.
 
-The first frame starts from :func:`tracking.fit.pose_from_clicks` on the 13 initial features clicked
+The first frame starts from :func:`tracking.frame_fit.pose_from_clicks` on the 13 initial features clicked
 with 0.5 px noise (the user's clicks), a neutral face. A model from photos has its own head frame
 and scale (1/1.13 of the real head on the sample): for (b)–(e) the tracked pose is compared with the
-truth through one fixed similarity (:func:`tracking.samples.model_gauge`: the model's neutral
+truth through one fixed similarity (:func:`tracking.samples.ground_truth.model_gauge`: the model's neutral
 registered onto the scan's surface) and camera-space positions are scaled by it. Metrics per
 sequence (means over frames): rotation error (deg), translation error of the model centre (mm),
 geometry error ``geom_err_mm`` (the issue's measure: mean surface distance from the tracked mesh's
@@ -23,11 +23,11 @@ face-region vertices, every :data:`GEOM_SUBSAMPLE`-th, to the frame's true surfa
 own mesh at the true weights for (a), the deformed scan the video shows for (b)–(e) — both in the
 true head frame), and, as ``geom_vertex_err_mm``, the vertex-to-vertex distance to the generic
 mesh's true positions (an upper bound: it also counts sliding along the surface), image RMS
-(intensity in [0, 1]), frames flagged diverged (RMS over :data:`tracking.fit.DIVERGED_RMS`, or
+(intensity in [0, 1]), frames flagged diverged (RMS over :data:`tracking.frame_fit.DIVERGED_RMS`, or
 rotation error > 5°, or translation error > 20 mm), renderings per frame and frames per second of
 the fitting alone (``fps``: all frames; ``fps_tracked``: after the first, which is fitted from the
 user's pose in several rounds; rendering of the synthetic frames excluded). ``--outside-weight``
-sets :attr:`tracking.fit.TrackOptions.outside_weight` (1.0: the paper's ε).
+sets :attr:`tracking.frame_fit.TrackOptions.outside_weight` (1.0: the paper's ε).
 
 ``--jacobians`` tracks (b) with each combination of analytic / finite-difference Jacobians for the
 pose and expression phases, and compares the two Jacobians directly at the true
@@ -56,10 +56,10 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 from photomodel.camera import rotation_angle_deg  # noqa: E402
-from tracking.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS  # noqa: E402
 from tracking.facemodel import render_model  # noqa: E402
-from tracking.fit import FrameFitter, FrameState, TrackOptions, pose_from_clicks, track_frames  # noqa: E402
-from tracking.samples import (  # noqa: E402
+from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, pose_from_clicks, track_frames  # noqa: E402
+from tracking.samples.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS  # noqa: E402
+from tracking.samples.ground_truth import (  # noqa: E402
     BACKGROUND_RGB,
     fitted_sample_model,
     model_gauge,
@@ -71,7 +71,7 @@ from tracking.samples import (  # noqa: E402
 
 def _device() -> str:
     try:
-        from photomodel.render import get_renderer
+        from photomodel.rendering.renderer import get_renderer
 
         r = get_renderer()
         return f"{platform.processor() or platform.machine()}; GL: {r.ctx.info.get('GL_RENDERER', '?')}"
@@ -80,7 +80,7 @@ def _device() -> str:
 
 
 def frames_for(name: str, truth, model) -> list[np.ndarray]:
-    from photomodel.render import get_renderer
+    from photomodel.rendering.renderer import get_renderer
 
     out = []
     rng = np.random.default_rng(1)
@@ -107,8 +107,8 @@ GEOM_SUBSAMPLE = 4
 def true_surface(name: str, truth, model, i: int):
     """ScanSurface of frame ``i``'s true geometry (head frame): the model's own mesh for (a), the
     deformed scan that the video shows for (b)–(e)."""
-    from photomodel.synthetic import ScanSurface
-    from tracking.samples import true_scan_vertices
+    from photomodel.samples.synthetic import ScanSurface
+    from tracking.samples.ground_truth import true_scan_vertices
 
     if name == "a":
         return ScanSurface(model.blend_geometry(model.vertex_weights(truth.weights[i])), model.faces)
@@ -117,7 +117,7 @@ def true_surface(name: str, truth, model, i: int):
 
 def first_pose(model, true_model, truth):
     """The first frame's pose from the 13 initial features clicked with 0.5 px noise."""
-    from photomodel.generic_mesh import load_generic_mesh
+    from photomodel.modeling.generic_mesh import load_generic_mesh
 
     mesh = load_generic_mesh()
     ids = np.array([mesh.features[n] for n in mesh.initial_features])

@@ -1,4 +1,4 @@
-"""Peer for :func:`photomodel.pose.recover_poses`: a full bundle adjustment with SciPy.
+"""Peer for :func:`photomodel.modeling.pose.recover_poses`: a full bundle adjustment with SciPy.
 
 This is the method the paper contrasts its alternation with (§5.1.1: "the Levenberg–Marquardt
 algorithm to perform a complete iterative minimization over all of the unknowns

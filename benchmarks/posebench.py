@@ -29,7 +29,7 @@ from photomodel.camera import (
     preset_camera,
     rotation_angle_deg,
 )
-from photomodel.pose import recover_poses, reprojection_residuals
+from photomodel.modeling.pose import recover_poses, reprojection_residuals
 
 
 # ----------------------------------------------------------------------------------------------

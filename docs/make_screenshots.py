@@ -11,7 +11,7 @@ so the sample project itself is not modified, and grabs widgets with ``QWidget.g
   coloured by reprojection error, the worst clicks and the per-photo RMS;
 * ``photo_closeup.png`` — a zoomed photo: markers, the active feature's label, drawn curves
   (pink), the fitted mesh's grid (blue) and curves (yellow);
-* ``view3d.png`` — the fitted mesh in the 3D view, rendered by ``photomodel.render``;
+* ``view3d.png`` — the fitted mesh in the 3D view, rendered by ``photomodel.rendering.renderer``;
 * ``view3d_textured.png`` — after *Texture → Extract texture*: the cylindrical texture (left) and
   the view-dependent rendering (right) of the same view;
 * ``studio_textured.png`` — the window with the textured model and the weight-map panel;
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     from PySide6.QtGui import QColor, QImage, QPainter
     from PySide6.QtWidgets import QApplication
 
-    from app.main_window import MainWindow
+    from app.qt.main_window import MainWindow
 
     app = QApplication.instance() or QApplication([])
     args.out.mkdir(parents=True, exist_ok=True)
@@ -95,7 +95,7 @@ def main(argv=None) -> int:
 
     try:
         if args.only == "tracking":  # the sample fitted and textured (cached), and its video
-            from tracking.samples import fitted_sample_project
+            from tracking.samples.ground_truth import fitted_sample_project
 
             shutil.copytree(fitted_sample_project().parent, tmp / "james")
             shutil.copytree(REPO / "sample_projects" / "james" / "video", tmp / "james" / "video")

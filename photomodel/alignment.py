@@ -1,6 +1,6 @@
 """Similarity transforms between reconstructions (structure from motion is defined up to one).
 
-Used to fix the gauge of a fit (:mod:`photomodel.fit`) and to compare a reconstruction with
+Used to fix the gauge of a fit (:mod:`photomodel.modeling.fit`) and to compare a reconstruction with
 ground truth (tests, benchmarks).
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camera import Camera, rotation_angle_deg
+from photomodel.camera import Camera, rotation_angle_deg
 
 
 def similarity_transform(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:

@@ -8,16 +8,16 @@ Run from the repository root::
 
 It writes, into ``--out``:
 
-* ``photos/neutral_<id>.png`` — the textured james scan (:mod:`photomodel.sample_data`)
-  rendered by :mod:`photomodel.render` from the 5-camera rig of
-  :func:`photomodel.synthetic.rig` at 1000×1000 on a light grey background;
+* ``photos/neutral_<id>.png`` — the textured james scan (:mod:`photomodel.samples.sample_data`)
+  rendered by :mod:`photomodel.rendering.renderer` from the 5-camera rig of
+  :func:`photomodel.samples.synthetic.rig` at 1000×1000 on a light grey background;
 * ``photos/<expression>_<id>.jpg`` for ``smile``, ``open_mouth``, ``brows_raised`` and
-  ``frown`` — the scan deformed by that expression's smooth field (:mod:`tracking.expressions`;
+  ``frown`` — the scan deformed by that expression's smooth field (:mod:`tracking.samples.expressions`;
   ``frown`` is the extra expression the sample video never uses) and photographed by the same
   rig, the same cameras photo for photo. JPEG (quality :data:`JPEG_QUALITY`), as real cameras
   write, to keep the repository small (2.7 MB for the 20; the neutral's PNGs predate them and
   are kept byte for byte);
-* ``james.facestudio.json`` — the project (:mod:`photomodel.project`): the 13 initial
+* ``james.facestudio.json`` — the project (:mod:`photomodel.project.format`): the 13 initial
   features (``pose: true``), the other 55 iBUG landmarks and 100 extra correspondences
   (``pose: false``), the generic mesh's curves, and five expressions whose photos carry the
   nearest preset as the artist's rough guess, no focal guess, noisy clicks (σ = 1 px) where
@@ -26,7 +26,7 @@ It writes, into ``--out``:
 * ``ground_truth.json`` — per expression: true cameras (the same rig), noise-free projections,
   visibility and true 3D feature positions (``features_3d``: the generic vertices' true positions
   on the neutral scan plus the expression's displacement, the rows of
-  :func:`tracking.expressions.true_expression_geometry`); the top-level ``features_3d`` is the
+  :func:`tracking.samples.expressions.true_expression_geometry`); the top-level ``features_3d`` is the
   neutral's; the seed and the scan alignment. The fit never reads it.
 
 Everything is deterministic. The neutral's clicks and curves come from ``default_rng(SEED)``,
@@ -50,13 +50,13 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from photomodel import synthetic  # noqa: E402
 from photomodel.exchange.files import atomic_write_bytes  # noqa: E402
-from photomodel.generic_mesh import IBUG68_NAMES, load_generic_mesh  # noqa: E402
-from photomodel.project import CurveDef, Expression, Feature, Photo, new_project, save_project  # noqa: E402
-from photomodel.render import write_png  # noqa: E402
-from photomodel.sample_data import load_james_scan  # noqa: E402
-from tracking.expressions import (  # noqa: E402
+from photomodel.modeling.generic_mesh import IBUG68_NAMES, load_generic_mesh  # noqa: E402
+from photomodel.project.format import CurveDef, Expression, Feature, Photo, new_project, save_project  # noqa: E402
+from photomodel.rendering.renderer import write_png  # noqa: E402
+from photomodel.samples import synthetic  # noqa: E402
+from photomodel.samples.sample_data import load_james_scan  # noqa: E402
+from tracking.samples.expressions import (  # noqa: E402
     deformed_scan_vertices,
     expression_displacement,
     true_expression_geometry,
@@ -78,7 +78,7 @@ CLICK_TOL_MM = synthetic.CLICK_TOL_MM
 #: visibility accepts surfaces seen edge-on (n·view > 0 rather than the clicks' 0.1).
 CURVE_MIN_COS = 0.0
 #: The expressions photographed, neutral first; the others are the smooth deformations of the
-#: scan of :mod:`tracking.expressions` (its basic expressions and its extra one).
+#: scan of :mod:`tracking.samples.expressions` (its basic expressions and its extra one).
 NEUTRAL = "neutral"
 EXPRESSIONS = (NEUTRAL, "smile", "open_mouth", "brows_raised", "frown")
 #: JPEG quality of the expression photos (the neutral's are PNG, kept as first published).
@@ -101,8 +101,8 @@ def feature_list(mesh, extras: dict[str, int]) -> list:
 
 
 def expression_scan(scan, name: str):
-    """The james scan in expression ``name`` (:mod:`tracking.expressions`): a new
-    :class:`~photomodel.sample_data.Scan` with the deformed vertices and landmarks (its own
+    """The james scan in expression ``name`` (:mod:`tracking.samples.expressions`): a new
+    :class:`~photomodel.samples.sample_data.Scan` with the deformed vertices and landmarks (its own
     welded surface for visibility and surface distances); the scan itself for ``neutral``."""
     if name == NEUTRAL:
         return scan
@@ -246,7 +246,7 @@ def build(out: Path, overlays: Path | None = None, expressions=EXPRESSIONS) -> d
             Expression(expression, photos, cameras_from=None if expression == NEUTRAL else NEUTRAL)
         )
         gt_expressions[expression] = {
-            "deformation": "none" if expression == NEUTRAL else f"tracking.expressions, {expression!r}",
+            "deformation": "none" if expression == NEUTRAL else f"tracking.samples.expressions, {expression!r}",
             "features_3d": {n: np.round(points3d[j], 5).tolist() for j, n in enumerate(names)},
             "photos": gt_photos,
         }
@@ -266,7 +266,7 @@ def build(out: Path, overlays: Path | None = None, expressions=EXPRESSIONS) -> d
         "seed": SEED,
         "noise_px": NOISE_PX,
         "rig": "sample",
-        "scan": "menpo3d 0.8.6 james.obj, see photomodel.sample_data",
+        "scan": "menpo3d 0.8.6 james.obj, see photomodel.samples.sample_data",
         "scan_alignment": {
             "description": "x_head = R @ x_obj + t (mm), rigid, james.obj coordinates -> head frame",
             "rotation": np.asarray(R).tolist(),

@@ -1,5 +1,5 @@
 """Build the sample tracking video of the ``james`` project: frames of the scan blended per region with
-smoothly varying expression weights under smooth head motion (:mod:`tracking.samples`).
+smoothly varying expression weights under smooth head motion (:mod:`tracking.samples.ground_truth`).
 
 Run from the repository root::
 
@@ -28,8 +28,8 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from photomodel.project import load_project  # noqa: E402
-from tracking.samples import render_video_frame, sample_face_model, video_truth  # noqa: E402
+from photomodel.project.format import load_project  # noqa: E402
+from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth  # noqa: E402
 
 FPS = 10
 PROJECT = REPO / "sample_projects" / "james" / "james.facestudio.json"

@@ -27,8 +27,8 @@ def project_copy(tmp_path):
 @pytest.fixture(scope="session")
 def fitted_sample():
     """The sample project with every expression fitted and textured (made once, cached:
-    :func:`tracking.samples.fitted_sample_project`); read it, do not change it."""
-    from tracking.samples import fitted_sample_project
+    :func:`tracking.samples.ground_truth.fitted_sample_project`); read it, do not change it."""
+    from tracking.samples.ground_truth import fitted_sample_project
 
     return fitted_sample_project()
 
@@ -50,34 +50,34 @@ def fitted_project_copy(tmp_path, fitted_sample):
 
 @pytest.fixture(scope="session")
 def template():
-    """The menpo3d template (:func:`photomodel.sample_data.load_template`); read it, do not change it."""
-    from photomodel.sample_data import load_template
+    """The menpo3d template (:func:`photomodel.samples.sample_data.load_template`); read it, do not change it."""
+    from photomodel.samples.sample_data import load_template
 
     return load_template()
 
 
 @pytest.fixture(scope="session")
 def mesh():
-    """The generic face mesh (:func:`photomodel.generic_mesh.load_generic_mesh`); read it, do not change it."""
-    from photomodel.generic_mesh import load_generic_mesh
+    """The generic face mesh (:func:`photomodel.modeling.generic_mesh.load_generic_mesh`); read it, do not change it."""
+    from photomodel.modeling.generic_mesh import load_generic_mesh
 
     return load_generic_mesh()
 
 
 @pytest.fixture(scope="session")
 def scan():
-    """The james scan in the head frame (:func:`photomodel.sample_data.load_james_scan`); read it,
+    """The james scan in the head frame (:func:`photomodel.samples.sample_data.load_james_scan`); read it,
     do not change it."""
-    from photomodel.sample_data import load_james_scan
+    from photomodel.samples.sample_data import load_james_scan
 
     return load_james_scan()
 
 
 @pytest.fixture(scope="session")
 def sample_truth():
-    """The sample project's ``ground_truth.json`` as a :class:`photomodel.synthetic.GroundTruth`;
+    """The sample project's ``ground_truth.json`` as a :class:`photomodel.samples.synthetic.GroundTruth`;
     read it, do not change it."""
-    from photomodel.synthetic import load_ground_truth
+    from photomodel.samples.synthetic import load_ground_truth
 
     return load_ground_truth(SAMPLE_PROJECT / "ground_truth.json")
 
@@ -117,11 +117,11 @@ def messages(monkeypatch):
 
 @pytest.fixture
 def studio_window(qtbot, tmp_path, messages):
-    """A shown studio :class:`app.main_window.MainWindow` with its own settings file and no
+    """A shown studio :class:`app.qt.main_window.MainWindow` with its own settings file and no
     autosave timer, no project open; its message boxes go to ``messages``."""
     from PySide6.QtCore import QSettings
 
-    from app.main_window import MainWindow
+    from app.qt.main_window import MainWindow
 
     w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
                    autosave_interval_ms=0)  # fmt: skip

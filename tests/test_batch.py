@@ -19,7 +19,7 @@ from app.cli import main
 from photomodel.camera import rotation_angle_deg
 from photomodel.errors import FaceStudioError, FitError, ProjectError
 from photomodel.exchange.files import decode_png
-from photomodel.project import load_project, new_project
+from photomodel.project.format import load_project, new_project
 from tracking.batch import (
     CSV_COLUMNS,
     VideoError,
@@ -29,7 +29,7 @@ from tracking.batch import (
     project_face_model,
     track_video,
 )
-from tracking.samples import VideoTruth, fitted_sample_model, model_gauge, sample_face_model
+from tracking.samples.ground_truth import VideoTruth, fitted_sample_model, model_gauge, sample_face_model
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 PROJECT = SAMPLE / "james.facestudio.json"

@@ -1,4 +1,4 @@
-"""The robust joint polish (photomodel.bundle.BundleProblem) on synthetic rigs with known truth.
+"""The robust joint polish (photomodel.modeling.bundle.BundleProblem) on synthetic rigs with known truth.
 
 The truth (cameras, points, clicks) is made in :mod:`camera_rigs`; the peer is the SciPy full
 bundle adjustment of ``benchmarks/peer_bundle_adjust.py`` (benchmarks/ is on sys.path, conftest).
@@ -25,8 +25,8 @@ from camera_rigs import (
 from peer_bundle_adjust import bundle_adjust  # benchmarks/ is on sys.path (conftest)
 
 from photomodel.alignment import transform_cameras
-from photomodel.bundle import BundleProblem, BundleState
 from photomodel.camera import rodrigues
+from photomodel.modeling.bundle import BundleProblem, BundleState
 
 AZ5 = [-70.0, -35.0, 0.0, 35.0, 70.0]
 TRUTH = face_points(68)

@@ -1,4 +1,4 @@
-"""Robust camera recovery (photomodel.camera_solve.solve_cameras) on synthetic heads and rigs.
+"""Robust camera recovery (photomodel.modeling.camera_solve.solve_cameras) on synthetic heads and rigs.
 
 The truth is made in :mod:`camera_rigs`: 68 face-like points (the first 13 play the paper's pose
 features), true cameras on an arc, clicks with σ = 1 px per axis, and a "generic head" that is the
@@ -28,9 +28,9 @@ from peer_bundle_adjust import bundle_adjust  # benchmarks/ is on sys.path (conf
 
 from photomodel.alignment import transform_cameras
 from photomodel.camera import Camera, preset_camera, rodrigues
-from photomodel.camera_solve import CameraSolution, plausibility_problem, solve_cameras
 from photomodel.errors import FitError
-from photomodel.pose import recover_poses
+from photomodel.modeling.camera_solve import CameraSolution, plausibility_problem, solve_cameras
+from photomodel.modeling.pose import recover_poses
 
 TRUTH = face_points(68)
 GENERIC = generic_head(TRUTH)

@@ -273,7 +273,7 @@ def test_glb_from_encoded_png_bytes_is_the_same_file(sphere, texture):
 def test_reopened_glb_and_obj_render_like_the_original(tmp_path, sphere, texture):
     """The exported files, reopened and drawn by our renderer, look like the mesh we exported."""
     from photomodel.camera import orbit_camera
-    from photomodel.render import get_renderer
+    from photomodel.rendering.renderer import get_renderer
 
     v, f, uv = sphere
     c, _ = seam_corners(f, uv)

@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 
 from app.model import StudioModel
-from photomodel.exif import (
+from photomodel.photos.exif import (
     EXIF_IFD,
     TAG_EXIF_IMAGE_HEIGHT,
     TAG_EXIF_IMAGE_WIDTH,
@@ -25,7 +25,7 @@ from photomodel.exif import (
     focal_mm_36_from_exif,
     focal_mm_guess_from_exif,
 )
-from photomodel.project import load_project
+from photomodel.project.format import load_project
 
 
 def write_jpeg(path: Path, tags: dict | None = None, size=(60, 40)) -> Path:

@@ -14,9 +14,9 @@ import pytest
 
 from photomodel.alignment import align_to_truth, camera_errors
 from photomodel.errors import FitError
-from photomodel.fit import FitOptions, fit_expression
-from photomodel.project import load_project
-from photomodel.synthetic import surface_distance, true_correspondence
+from photomodel.modeling.fit import FitOptions, fit_expression
+from photomodel.project.format import load_project
+from photomodel.samples.synthetic import surface_distance, true_correspondence
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 PROJECT = SAMPLE / "james.facestudio.json"
@@ -130,7 +130,7 @@ def test_one_photo_is_a_fit_error(mesh):
 
 
 def test_fit_can_be_cancelled(mesh):
-    from photomodel.fit import Cancelled
+    from photomodel.modeling.fit import Cancelled
 
     project = load_project(PROJECT)
     with pytest.raises(Cancelled):

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from photomodel.alignment import align_to_truth, camera_errors
-from photomodel.fit import fit_expression
-from photomodel.project import load_project
+from photomodel.modeling.fit import fit_expression
+from photomodel.project.format import load_project
 
 PROJECT = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 

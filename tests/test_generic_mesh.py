@@ -1,11 +1,11 @@
-"""Tests of photomodel.generic_mesh against the template it is built from."""
+"""Tests of photomodel.modeling.generic_mesh against the template it is built from."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from photomodel.generic_mesh import (
+from photomodel.modeling.generic_mesh import (
     CURVE_LANDMARKS,
     FEATURE_ALIASES,
     IBUG68_NAMES,

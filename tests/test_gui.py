@@ -21,11 +21,11 @@ pytest.importorskip("pytestqt")
 from PySide6.QtCore import QPoint, QPointF, QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
-from app.main_window import MainWindow, guess_preset  # noqa: E402
 from app.model import autosave_path  # noqa: E402
+from app.qt.main_window import MainWindow, guess_preset  # noqa: E402
 from photomodel.alignment import align_to_truth, camera_errors  # noqa: E402
-from photomodel.project import load_project  # noqa: E402
-from photomodel.synthetic import load_ground_truth  # noqa: E402
+from photomodel.project.format import load_project  # noqa: E402
+from photomodel.samples.synthetic import load_ground_truth  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
@@ -339,7 +339,7 @@ def test_studio_command_opens_the_project(qtbot, qapp, project_copy, monkeypatch
     from app.cli import main
 
     monkeypatch.setattr(sys, "excepthook", sys.excepthook)  # run_studio installs its own
-    monkeypatch.setattr("app.main_window.QSettings", lambda *a: QSettings(str(project_copy.parent / "s.ini"),
+    monkeypatch.setattr("app.qt.main_window.QSettings", lambda *a: QSettings(str(project_copy.parent / "s.ini"),
                                                                          QSettings.Format.IniFormat))
     seen = {}
 

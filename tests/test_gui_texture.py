@@ -23,8 +23,8 @@ pytest.importorskip("pytestqt")
 from PySide6.QtCore import QSettings  # noqa: E402
 from PySide6.QtWidgets import QInputDialog, QMessageBox  # noqa: E402
 
-from app.main_window import MainWindow  # noqa: E402
-from photomodel.project import load_project  # noqa: E402
+from app.qt.main_window import MainWindow  # noqa: E402
+from photomodel.project.format import load_project  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
@@ -121,7 +121,7 @@ def test_texture_action_shows_textures_and_weight_maps(qtbot, window, project_co
     assert "view-dependent" in window.view3d.vertices()[1]
     # what the view shows is the registered fragment-shader frame (ViewDependentTexture.render's
     # default), not a plain-blend stand-in
-    from app.view3d import BACKGROUND
+    from app.qt.view3d import BACKGROUND
 
     v3 = window.view3d
     shown_rgb = qimage_rgb(v3.render_image(200, 160))

@@ -20,7 +20,7 @@ from photomodel.camera import (
     rotation_angle_deg,
 )
 from photomodel.errors import FitError
-from photomodel.pose import _rodrigues_batch, recover_poses, reprojection_residuals
+from photomodel.modeling.pose import _rodrigues_batch, recover_poses, reprojection_residuals
 
 W, H = 1000, 1333
 

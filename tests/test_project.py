@@ -1,4 +1,4 @@
-"""Tests of photomodel.project: the project format (version 2, reading 1), its validation and atomic saving."""
+"""Tests of photomodel.project.format: the project format (version 2, reading 1), its validation and atomic saving."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import pytest
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, orbit_camera
 from photomodel.errors import ProjectError
-from photomodel.project import (
+from photomodel.project.format import (
     CurveDef,
     Expression,
     ExpressionResult,
@@ -395,7 +395,7 @@ def test_other_unreadable_files(tmp_path):
 def test_schema_is_shipped_and_valid():
     import jsonschema
 
-    assert resources.files("photomodel").joinpath("project_schema.json").is_file()
+    assert resources.files("photomodel.project").joinpath("schema.json").is_file()
     jsonschema.Draft202012Validator.check_schema(project_schema())
 
 
@@ -540,7 +540,7 @@ def test_fast_leaf_checks_agree_with_the_shipped_schema(saved, kind):
     schema, read by a standard validator, must accept and reject exactly the same values."""
     import jsonschema
 
-    from photomodel.project import _validator
+    from photomodel.project.format import _validator
 
     standard = jsonschema.Draft202012Validator(project_schema())
     _, d = saved
@@ -561,7 +561,7 @@ def test_fast_leaf_checks_agree_with_the_shipped_schema(saved, kind):
 # result.texture (written by `facestudio texture`; optional, absent from files without one)
 # ---------------------------------------------------------------------------------------
 def _textured(tmp_path: Path) -> Project:
-    from photomodel.project import TextureResult
+    from photomodel.project.format import TextureResult
 
     p = _project(tmp_path)
     p.expression("neutral").result.texture = TextureResult(

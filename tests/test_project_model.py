@@ -10,10 +10,16 @@ import pytest
 
 from photomodel.camera import Camera, rodrigues
 from photomodel.errors import FitError, ProjectError
-from photomodel.project import load_project, save_project
+from photomodel.project.format import load_project, save_project
 from tracking.facemodel import CONTROL_REGIONS, render_model
 from tracking.project_model import face_model_from_project, model_expressions, register_expression
-from tracking.samples import fitted_sample_model, model_gauge, render_video_frame, sample_face_model, video_truth
+from tracking.samples.ground_truth import (
+    fitted_sample_model,
+    model_gauge,
+    render_video_frame,
+    sample_face_model,
+    video_truth,
+)
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +55,7 @@ def test_the_sample_model_is_its_expressions_modeled_from_photos(built):
 
 
 def test_blend_shapes_move_the_face_as_the_true_expressions_do(built):
-    from photomodel.synthetic import ScanSurface
+    from photomodel.samples.synthetic import ScanSurface
 
     model, _ = built
     true = sample_face_model(model.names)
@@ -72,7 +78,7 @@ def test_blend_shapes_move_the_face_as_the_true_expressions_do(built):
 def test_rendering_the_model_looks_like_the_video(built):
     """Eq. (5) with per-expression textures and cylinders: the fitted model at the true pose and
     weights of a sample-video frame reproduces the frame."""
-    from photomodel.render import get_renderer
+    from photomodel.rendering.renderer import get_renderer
 
     model, _ = built
     truth = video_truth(40)

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from photomodel import rbf
 from photomodel.errors import FitError
-from photomodel.rbf import MM_PER_INCH, RBFInterpolant, deform_vertices
+from photomodel.modeling import rbf
+from photomodel.modeling.rbf import MM_PER_INCH, RBFInterpolant, deform_vertices
 
 
 def face_surface(n, rng):

@@ -5,7 +5,7 @@ import pytest
 
 from photomodel.camera import orbit_camera
 from photomodel.errors import FitError
-from photomodel.refine import curve_observations, refine_points, triangulate
+from photomodel.modeling.refine import curve_observations, refine_points, triangulate
 
 AXES = np.array([75.0, 100.0, 90.0])  # head-sized ellipsoid, mm
 

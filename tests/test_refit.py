@@ -1,4 +1,4 @@
-"""Interactive refits (photomodel.refit): the same answers as the plain pipeline, from caches."""
+"""Interactive refits (photomodel.modeling.refit): the same answers as the plain pipeline, from caches."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from photomodel.errors import FitError
-from photomodel.fit import FitOptions, fit_expression
-from photomodel.generic_mesh import load_generic_mesh
-from photomodel.project import load_project
-from photomodel.rbf import deform_vertices
-from photomodel.refit import CachedDeformer, Refitter
+from photomodel.modeling.fit import FitOptions, fit_expression
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.modeling.rbf import deform_vertices
+from photomodel.modeling.refit import CachedDeformer, Refitter
+from photomodel.project.format import load_project
 
 PROJECT = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 

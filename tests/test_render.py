@@ -1,4 +1,4 @@
-"""Tests of photomodel.render against analytic projection (photomodel.camera is the ground truth).
+"""Tests of photomodel.rendering.renderer against analytic projection (photomodel.camera is the ground truth).
 
 Every expectation is computed without GL: pixel coverage from the projected triangle's edge
 functions, depth and texture coordinates from ray–plane intersections, visibility from an
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from photomodel.camera import Camera, orbit_camera
-from photomodel.render import (
+from photomodel.rendering.renderer import (
     GLTexture,
     RenderResult,
     get_renderer,
@@ -23,7 +23,7 @@ from photomodel.render import (
     vertex_normals,
     write_png,
 )
-from photomodel.sample_data import load_james_scan
+from photomodel.samples.sample_data import load_james_scan
 
 # GL snaps window coordinates to 1/256 px, which moves an edge by at most ~0.006 px; pixel
 # centres closer than this to an analytic edge may fall either way and are not judged.
@@ -426,7 +426,7 @@ def test_write_png_round_trip(tmp_path):
 
 def test_james_scan_front_view_is_upright_and_not_mirrored(renderer):
     """The textured scan from the front: subject's left (+x) on the image right, +y up, and the
-    landmarks land on the rendered surface. (The picture itself: python -m photomodel.render.)"""
+    landmarks land on the rendered surface. (The picture itself: python -m photomodel.rendering.renderer.)"""
     scan = load_james_scan()
     cam = orbit_camera(0.0, 200, 250, distance_mm=900.0, target=(0.0, 10.0, 0.0))
     res = renderer.render(cam, scan.vertices, scan.faces, colors=scan.vertices)

@@ -1,4 +1,4 @@
-"""Tests of photomodel.sample_data: checksums, the offline failure paths, units, frames and the
+"""Tests of photomodel.samples.sample_data: checksums, the offline failure paths, units, frames and the
 james → iBUG-68 landmark order (checked against the template's geometry, not against itself)."""
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
 
-from photomodel import sample_data
 from photomodel.errors import SampleDataError
-from photomodel.sample_data import (
+from photomodel.samples import sample_data
+from photomodel.samples.sample_data import (
     FILE_SHA256,
     JAMES_TO_IBUG68,
     rigid_transform,

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from photomodel.camera import Camera, orbit_camera
-from photomodel.generic_mesh import load_generic_mesh
-from photomodel.render import get_renderer, vertex_normals
-from photomodel.sample_data import load_james_scan
-from photomodel.synthetic import load_ground_truth, true_correspondence
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.rendering.renderer import get_renderer, vertex_normals
+from photomodel.samples.sample_data import load_james_scan
+from photomodel.samples.synthetic import load_ground_truth, true_correspondence
 from photomodel.texturing.cylindrical import (
     CylindricalTexture,
     cylinder_map_for,

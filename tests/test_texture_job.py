@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from photomodel.errors import FitError, ProjectError
-from photomodel.fit import Cancelled, fit_expression, store_fit_result
-from photomodel.generic_mesh import load_generic_mesh
-from photomodel.mesh_io import read_mesh
-from photomodel.project import load_project, save_project
+from photomodel.exchange.mesh import read_mesh
+from photomodel.modeling.fit import Cancelled, fit_expression, store_fit_result
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.project.format import load_project, save_project
 from photomodel.texturing.job import (
     commit_texture,
     encode_texture_outputs,

@@ -1,4 +1,4 @@
-"""Tests of tracking.fit: Jacobians (§6.1.3, App. B), LM fitting (§6.1.2), prediction, first pose."""
+"""Tests of tracking.frame_fit: Jacobians (§6.1.3, App. B), LM fitting (§6.1.2), prediction, first pose."""
 
 import dataclasses
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from photomodel.camera import rodrigues, rotation_angle_deg
-from tracking.fit import FrameFitter, FrameState, TrackOptions, nearest_rotation, pose_from_clicks, predict
-from tracking.samples import render_video_frame, sample_face_model, video_truth
+from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, nearest_rotation, pose_from_clicks, predict
+from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +144,7 @@ def test_fit_follows_a_fast_head_movement(setup):
 
 def test_first_pose_from_clicks(setup):
     model, truth = setup
-    from photomodel.generic_mesh import load_generic_mesh
+    from photomodel.modeling.generic_mesh import load_generic_mesh
 
     mesh = load_generic_mesh()
     ids = np.array([mesh.features[n] for n in mesh.initial_features])

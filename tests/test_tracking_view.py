@@ -18,8 +18,8 @@ pytest.importorskip("pytestqt")
 from PySide6.QtCore import QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QFileDialog, QMessageBox  # noqa: E402
 
-from app.main_window import MainWindow  # noqa: E402
-from app.tracking_view import MARKER_COLOR, plot_with_marker  # noqa: E402
+from app.qt.main_window import MainWindow  # noqa: E402
+from app.qt.tracking_view import MARKER_COLOR, plot_with_marker  # noqa: E402
 from tracking.batch import default_out_dir, load_track_results  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -190,7 +190,7 @@ def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, 
     import json
 
     from tracking.batch import VideoFrames
-    from tracking.samples import VideoTruth, sample_face_model
+    from tracking.samples.ground_truth import VideoTruth, sample_face_model
 
     view = window.tracking_view
     assert not view.correct_button.isEnabled()

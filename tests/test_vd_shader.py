@@ -1,4 +1,4 @@
-"""The fragment-shader path of view-dependent texturing (photomodel.render_vd) against the numpy
+"""The fragment-shader path of view-dependent texturing (photomodel.rendering.view_dependent) against the numpy
 path and against a synthetic scene whose answer is known (Pighin et al. 2002, §5.2.3).
 
 * On the sample project (fitted mesh, recovered cameras, the five 1000×1000 photos) the shader
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from photomodel.camera import orbit_camera, rodrigues
-from photomodel.render import get_renderer
+from photomodel.rendering.renderer import get_renderer
 from photomodel.texturing.view_dependent import ViewDependentTexture, render_view_dependent
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -38,9 +38,9 @@ def psnr(a, b, mask) -> float:
 @pytest.fixture(scope="module")
 def sample():
     """The fitted sample model, its photos and a new view 20° from the front photo."""
-    from photomodel.fit import fit_expression
-    from photomodel.generic_mesh import load_generic_mesh
-    from photomodel.project import load_project
+    from photomodel.modeling.fit import fit_expression
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.project.format import load_project
     from photomodel.texturing.cylindrical import single_view_weights
 
     project = load_project(SAMPLE / "james.facestudio.json")
@@ -266,7 +266,7 @@ def test_an_occluder_hides_a_photo_behind_it(quad):
 
 
 def test_gl_state_is_made_once_and_released(quad):
-    from photomodel.render_vd import ViewDependentGL
+    from photomodel.rendering.view_dependent import ViewDependentGL
 
     vdt = ViewDependentTexture(quad["V"], quad["F"], quad["cams"], quad["photos"], centre=np.zeros(3))
     cam = orbit_camera(5.0, 160, 120, distance_mm=700.0)

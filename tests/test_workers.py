@@ -1,4 +1,4 @@
-"""Fits off the GUI thread (app.workers): the overlay of the photo on screen is computed by the fit's
+"""Fits off the GUI thread (app.qt.workers): the overlay of the photo on screen is computed by the fit's
 worker and travels with its result, so the GUI thread only paints it, and a dropped result drops
 its overlay too (pytest-qt, offscreen)."""
 
@@ -12,15 +12,15 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
-from app.commands import SetPointCommand  # noqa: E402
 from app.model import StudioModel  # noqa: E402
-from app.workers import FitController  # noqa: E402
-from photomodel import overlay as overlay_module  # noqa: E402
+from app.qt.commands import SetPointCommand  # noqa: E402
+from app.qt.workers import FitController  # noqa: E402
+from photomodel.modeling import overlay as overlay_module  # noqa: E402
 
 
 @pytest.fixture
 def overlay_threads(monkeypatch):
-    """The thread of every :func:`photomodel.overlay.photo_overlay` call, in order."""
+    """The thread of every :func:`photomodel.modeling.overlay.photo_overlay` call, in order."""
     calls = []
     original = overlay_module.photo_overlay
 

@@ -1,7 +1,7 @@
 """Tracking a video driven by project files: ``facestudio track`` (Pighin et al. 2002, §6.2).
 
 :func:`track_video` reads the footage, fits the face model to every frame with
-:class:`tracking.fit.FrameFitter` (pose, then expression; each frame predicted from the two before,
+:class:`tracking.frame_fit.FrameFitter` (pose, then expression; each frame predicted from the two before,
 §6.2) and writes into an output folder:
 
 * ``track.json`` — everything: the run's settings (video, camera, model and its source, first pose,
@@ -34,7 +34,7 @@ Where the pieces come from
   with a ``model_source``.
 * **First frame's pose** (the user's part, §6.2): a JSON file (:func:`load_first_pose`) with the
   video camera's focal length and either a pose or the image positions of at least six of the
-  project's features in frame 0 (solved by :func:`tracking.fit.pose_from_clicks`). By default it is
+  project's features in frame 0 (solved by :func:`tracking.frame_fit.pose_from_clicks`). By default it is
   ``<video stem>.first_pose.json`` beside a video file, or ``first_pose.json`` in a frame folder;
   the sample video ships one (13 clicks with 0.5 px noise).
 """
@@ -60,7 +60,7 @@ from photomodel.camera import focal_mm_to_px, rodrigues, rotation_vector
 from photomodel.errors import FaceStudioError, FitError
 from photomodel.exchange.files import atomic_write_bytes, encode_png
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, render_model
-from tracking.fit import DIVERGED_RMS, FrameFitter, FrameState, TrackOptions, pose_from_clicks, track_frames
+from tracking.frame_fit import DIVERGED_RMS, FrameFitter, FrameState, TrackOptions, pose_from_clicks, track_frames
 from tracking.plots import track_plots
 
 __all__ = [
@@ -220,7 +220,7 @@ class FirstPose:
 
     Attributes
     ----------
-    state : FrameState, model pose (centre convention of :mod:`tracking.fit`) and expression.
+    state : FrameState, model pose (centre convention of :mod:`tracking.frame_fit`) and expression.
     focal_px : float, the video camera's focal length in pixels.
     source : str, where it came from (file and kind), for the record.
     spec : dict, the JSON it was read from (compared when a run continues).
@@ -334,7 +334,7 @@ def _pose_from_spec(spec: dict, where: str, project, model: FaceModel, width: in
             state = pose_from_clicks(model, vertices, uv, focal_px, width, height)
         except FitError as exc:
             raise FitError(f"{where}: {exc} (clicks of frame {frame})") from exc
-        source = f"{where}: {len(names)} clicked features, pose by tracking.fit.pose_from_clicks"
+        source = f"{where}: {len(names)} clicked features, pose by tracking.frame_fit.pose_from_clicks"
     elif "R" in spec or "rotation_vector" in spec:
         R = _vector(spec, "R", (3, 3), where) if "R" in spec else rodrigues(_vector(spec, "rotation_vector", (3,),
                                                                                       where))  # fmt: skip
@@ -632,7 +632,7 @@ def track_video(
         :func:`default_first_pose_path`.
     focal_px : the video camera's focal length in pixels, overriding the first-pose file's.
     max_frames : track frames 0 .. max_frames − 1 only (a later run may raise it and continue).
-    options : :class:`tracking.fit.TrackOptions`.
+    options : :class:`tracking.frame_fit.TrackOptions`.
     save_every : write the results after every this many frames.
     restart : discard results of other settings in ``out_dir`` instead of refusing to continue.
     correct_frame, correct_pose : the user's correction of a tracked frame N = ``correct_frame``
@@ -640,7 +640,7 @@ def track_video(
         parsed dict, :func:`load_first_pose`: usually ≥ 6 features clicked in frame N; its focal
         length, if given, must be the run's). The results in ``out_dir`` (same settings) keep frames
         0 .. N−1 unchanged; frame N is fitted from that pose in several rounds, like frame 0
-        (:func:`tracking.fit.track_frames`' ``first_rounds``), and recorded with ``start: "user"``;
+        (:func:`tracking.frame_fit.track_frames`' ``first_rounds``), and recorded with ``start: "user"``;
         the frames after it are tracked from there as usual. ``track.json`` keeps the list of
         corrections (``corrections``: frame, source, spec); corrections of frames ≥ N are dropped
         with those frames. Prediction does not reach back across a corrected frame (frame N + 1
@@ -660,7 +660,7 @@ def track_video(
     results to correct, the frame out of range or beyond the tracked frames, a malformed pose file);
     KeyboardInterrupt after saving the frames tracked so far.
     """
-    from photomodel.project import load_project
+    from photomodel.project.format import load_project
 
     if (correct_frame is None) != (correct_pose is None):
         raise FaceStudioError("a correction needs both the frame (--correct) and its pose (--pose)")

@@ -192,7 +192,7 @@ class FaceModel:
 
 def control_regions(mesh_regions: np.ndarray, vertices: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
     """(n,) control region of each vertex: the generic mesh's labels (:data:`CONTROL_REGIONS` order,
-    the same as :data:`photomodel.generic_mesh.REGION_NAMES`), with the jaw below the mouth corners
+    the same as :data:`photomodel.modeling.generic_mesh.REGION_NAMES`), with the jaw below the mouth corners
     (between iBUG 3 and 13) joined to the mouth: the jaw moves with the mouth when it opens.
 
     Parameters
@@ -395,7 +395,7 @@ def render_model(
 
     Parameters
     ----------
-    renderer : photomodel.render.Renderer
+    renderer : photomodel.rendering.renderer.Renderer
     camera : Camera, the model's pose as a camera (``X_cam = R X + t``).
     model : FaceModel
     vertices : (n, 3) float mm, consensus geometry (:meth:`FaceModel.blend_geometry`).
@@ -540,7 +540,7 @@ class _BaryRasterizer:
         its (h, w, 4) float32 image of (b1, b2, id + 1, 0)."""
         import moderngl
 
-        from photomodel.render import auto_near_far, gl_projection
+        from photomodel.rendering.renderer import auto_near_far, gl_projection
 
         self.renderer._check_usable()
         W, H = camera.width, camera.height

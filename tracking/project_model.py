@@ -105,7 +105,7 @@ def model_expressions(project, names: Sequence[str] | None = None) -> list[str]:
 
 
 def _read_mesh(project, name: str) -> tuple[np.ndarray, np.ndarray]:
-    from photomodel.mesh_io import read_mesh
+    from photomodel.exchange.mesh import read_mesh
 
     rel = project.expression(name).result.mesh_obj
     if rel is None:
@@ -208,7 +208,7 @@ def face_model_from_project(project, names: Sequence[str] | None = None, *, text
 
     Parameters
     ----------
-    project : photomodel.project.Project (saved: meshes and textures are read next to it)
+    project : photomodel.project.format.Project (saved: meshes and textures are read next to it)
     names : expressions to use, E_1 first (default: :func:`model_expressions`).
     texture_size : texels per side of the model's textures.
     basis : ``"gram_schmidt"`` or ``"pca"``.
@@ -224,7 +224,7 @@ def face_model_from_project(project, names: Sequence[str] | None = None, *, text
     FitError, ProjectError
         naming the expression and file that is missing, unreadable or inconsistent.
     """
-    from photomodel.generic_mesh import load_generic_mesh
+    from photomodel.modeling.generic_mesh import load_generic_mesh
 
     names = model_expressions(project, names)
     mesh = load_generic_mesh()

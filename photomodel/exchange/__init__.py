@@ -10,5 +10,5 @@
 
 Every writer has an ``encode_*`` twin that returns bytes without touching the disk, so a command
 can prepare all its outputs first and write them only once nothing can fail any more. Plain
-(untextured) OBJ/PLY files of a fitted mesh are :mod:`photomodel.mesh_io`'s job.
+(untextured) OBJ/PLY files of a fitted mesh are :mod:`photomodel.exchange.mesh`'s job.
 """

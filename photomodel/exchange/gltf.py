@@ -19,7 +19,7 @@ Conventions converted on the way out
   (the seam of a cylindrical texture) is duplicated (:func:`~photomodel.exchange.uv.split_uv_seams`);
   vertices ``0 … n−1`` of the file are the mesh's vertices in order and the copies follow.
   Normals are computed on the unsplit mesh, so the copies shade exactly like their originals.
-  The sampler is bilinear, mip-mapped and clamps to the edge, as :mod:`photomodel.render`
+  The sampler is bilinear, mip-mapped and clamps to the edge, as :mod:`photomodel.rendering.renderer`
   samples, so viewers show what Face Studio renders.
 
 The material is metallic-roughness PBR with the texture as base colour, metallic 0 and
@@ -51,7 +51,7 @@ import pygltflib as gl
 
 from photomodel.exchange.files import atomic_write_bytes, encode_png
 from photomodel.exchange.uv import check_mesh, check_texture, check_uv, split_uv_seams
-from photomodel.render import vertex_normals
+from photomodel.rendering.renderer import vertex_normals
 
 #: glTF positions are in metres; Face Studio's in millimetres.
 METRES_PER_MM = 0.001

@@ -12,7 +12,7 @@ bare or relative file name, so the three files can be moved together.
   (vertex ``i`` of the file is vertex ``i`` of the mesh, which later blend shapes rely on) and
   a seam is expressed by corners of the same vertex using different ``vt`` rows. (Importers
   with one index per vertex — trimesh, game engines — duplicate those vertices on load.)
-* ``vn`` are area-weighted vertex normals (:func:`photomodel.render.vertex_normals`), one per
+* ``vn`` are area-weighted vertex normals (:func:`photomodel.rendering.renderer.vertex_normals`), one per
   vertex, so importers that use them shade the face smoothly across texture seams.
 
 Written by hand rather than with trimesh's exporter: the format is a few lines of text, and
@@ -31,7 +31,7 @@ import numpy as np
 
 from photomodel.exchange.files import encode_png, write_files
 from photomodel.exchange.uv import check_mesh, check_texture, check_uv
-from photomodel.render import vertex_normals
+from photomodel.rendering.renderer import vertex_normals
 
 #: Name of the single material.
 MATERIAL_NAME = "face"

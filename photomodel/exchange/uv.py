@@ -1,6 +1,6 @@
 """Texture coordinates for export: checks, splitting and merging seams, texture sampling.
 
-Conventions (as :mod:`photomodel.render` and OBJ): ``uv = (0, 0)`` is the bottom-left corner of
+Conventions (as :mod:`photomodel.rendering.renderer` and OBJ): ``uv = (0, 0)`` is the bottom-left corner of
 the texture image, ``(0, 1)`` its top-left (image row 0), so ``v`` points up; texel ``(row r,
 column c)`` of an ``H × W`` image has its centre at ``u = (c + 0.5) / W``, ``v = 1 − (r + 0.5) / H``.
 
@@ -12,7 +12,7 @@ Formats with a single index per vertex (glTF, and what trimesh builds from an OB
 the vertex duplicated, one copy per distinct ``uv`` (:func:`split_uv_seams`);
 :func:`merge_uv_seams` goes back, e.g. from :class:`photomodel.texturing.cylindrical.CylindricalTexture`'s
 seam-split rendering mesh to per-corner coordinates. Textures are sampled clamped to the edge
-(as :mod:`photomodel.render` does and as the glTF export declares), so ``uv`` should lie in
+(as :mod:`photomodel.rendering.renderer` does and as the glTF export declares), so ``uv`` should lie in
 ``[0, 1]``.
 """
 
@@ -142,7 +142,7 @@ def merge_uv_seams(faces: np.ndarray, source: np.ndarray, split_faces: np.ndarra
 
 
 def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear texture look-up at ``uv``, clamped to the edge (as :mod:`photomodel.render`).
+    """Bilinear texture look-up at ``uv``, clamped to the edge (as :mod:`photomodel.rendering.renderer`).
 
     Parameters
     ----------

@@ -24,7 +24,7 @@ The (u, v) ↔ surface mapping: rasterised, equal to ray casting
 ---------------------------------------------------------------
 Casting one ray per texel (§5.2.2 step 2) is replaced by an equivalent, faster route:
 the mesh is **rasterised in cylindrical coordinates** by the one renderer
-(:mod:`photomodel.render`). Each vertex is placed at its texel position ``(u, v)`` with a
+(:mod:`photomodel.rendering.renderer`). Each vertex is placed at its texel position ``(u, v)`` with a
 depth that *decreases* with its distance ``r`` from the axis, so the z-buffer keeps, at
 every texel, the triangle with the largest ``r`` on the texel's ray — the first triangle
 a ray cast from the cylinder towards the axis meets. The texel's 3D point is then the
@@ -327,7 +327,7 @@ def _render_cylinder(cmap: CylinderMap, V: np.ndarray, F: np.ndarray, size: int,
     """The seam-split mesh drawn at its texel positions (see the module notes): the renderer's
     ``RenderResult`` (mask, depth ``Z_0 − r``, interpolated attributes, face ids of the split
     mesh) and ``face_index`` (F',), the mesh face of each split face."""
-    from photomodel.render import get_renderer
+    from photomodel.rendering.renderer import get_renderer
 
     vidx, sfaces, phi, face_index = _seam_mesh(cmap, V, F, both=True)
     y0, y1 = cmap.y_range
@@ -534,7 +534,7 @@ def single_view_weights(
     ----------
     vertices : (N, 3) float, mm (the fitted mesh).
     face_mask : (N,) bool
-        the face (e.g. :attr:`photomodel.generic_mesh.GenericMesh.face_mask`).
+        the face (e.g. :attr:`photomodel.modeling.generic_mesh.GenericMesh.face_mask`).
     offset_mm, ramp_mm : float
         ``s = cubic_ramp((dist − (offset − ramp)) / ramp)`` with ``dist`` the 3D distance
         to the nearest face-mask vertex: 0 up to ``offset − ramp`` from the face, 1 from
@@ -683,7 +683,7 @@ def cylindrical_texture(
     progress : callable ``(stage: str, fraction: float)``, optional
         called before the raster, each photograph and the hole filling (fraction in [0, 1]).
     cancel : callable returning bool, optional
-        polled at the same points; when it returns True, :class:`photomodel.fit.Cancelled` is
+        polled at the same points; when it returns True, :class:`photomodel.modeling.fit.Cancelled` is
         raised (the studio's Cancel button).
 
     Returns
@@ -692,11 +692,11 @@ def cylindrical_texture(
 
     Raises
     ------
-    photomodel.fit.Cancelled
+    photomodel.modeling.fit.Cancelled
         ``cancel()`` returned True.
     """
     from photomodel.exchange.uv import check_mesh
-    from photomodel.render import vertex_normals
+    from photomodel.rendering.renderer import vertex_normals
 
     V, F = check_mesh(vertices, faces)
     size = int(size)
@@ -713,7 +713,7 @@ def cylindrical_texture(
 
     def step(stage: str, fraction: float) -> None:
         if cancel is not None and cancel():
-            from photomodel.fit import Cancelled
+            from photomodel.modeling.fit import Cancelled
 
             raise Cancelled(f"texture extraction cancelled ({stage})")
         if progress is not None:
@@ -788,7 +788,7 @@ def render_cylindrical(
     texture,
     **kwargs,
 ):
-    """Render the mesh with its cylindrical texture: :meth:`photomodel.render.Renderer.render`
+    """Render the mesh with its cylindrical texture: :meth:`photomodel.rendering.renderer.Renderer.render`
     with ``uv`` and ``texture`` (a (S, S, 3) uint8 image or an uploaded ``GLTexture``).
 
     For a mesh with triangles across the seam pass :meth:`CylindricalTexture.render_mesh`'s
@@ -797,9 +797,9 @@ def render_cylindrical(
 
     Returns
     -------
-    photomodel.render.RenderResult
+    photomodel.rendering.renderer.RenderResult
         ``color`` (H, W, 3) float32 in [0, 1].
     """
-    from photomodel.render import get_renderer
+    from photomodel.rendering.renderer import get_renderer
 
     return get_renderer().render(camera, vertices, faces, uv=uv, texture=texture, **kwargs)

@@ -12,7 +12,7 @@ the slow one in a worker and commit on its own thread:
 3. :func:`encode_texture_outputs` — every file in memory: the texture PNG, one weight-map PNG per
    photo (black 0 … white 1), textured OBJ+MTL, glb and coloured PLY;
 4. :func:`commit_texture` — writes the files atomically and records a
-   :class:`~photomodel.project.TextureResult` in the expression's result (the caller saves the
+   :class:`~photomodel.project.format.TextureResult` in the expression's result (the caller saves the
    project file).
 
 The way back, when the studio opens a textured project: :func:`load_stored_texture` rebuilds the
@@ -134,7 +134,7 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
     if result is None:
         raise FitError(f"expression {name!r} has not been fitted yet")
     if vertices is None or faces is None:
-        from photomodel.mesh_io import read_mesh
+        from photomodel.exchange.mesh import read_mesh
 
         if result.mesh_obj is None:
             raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
@@ -194,7 +194,7 @@ def extract_texture(inputs: TextureInputs, size: int = 1024, *, face_mask: np.nd
         the generic mesh's face (:attr:`GenericMesh.face_mask`); when given and the fitted mesh
         has as many vertices, vertices away from it are textured from the single best photo.
     progress, cancel : see :func:`photomodel.texturing.cylindrical.cylindrical_texture` (``cancel`` raises
-        :class:`photomodel.fit.Cancelled`).
+        :class:`photomodel.modeling.fit.Cancelled`).
 
     Raises
     ------
@@ -260,7 +260,7 @@ def commit_texture(project, job: TextureJob, files: dict, rel: dict) -> None:
     The project file itself is not written: the caller saves it (``save_project`` or the studio).
     """
     from photomodel.exchange.files import write_files
-    from photomodel.project import TextureResult
+    from photomodel.project.format import TextureResult
 
     result = project.expression(job.expression).result
     if result is None:
@@ -273,7 +273,7 @@ def commit_texture(project, job: TextureJob, files: dict, rel: dict) -> None:
 
 def stored_cylinder(texture, vertices: np.ndarray, faces: np.ndarray):
     """The :class:`~photomodel.texturing.cylindrical.CylinderMap` of a stored texture (a
-    :class:`~photomodel.project.TextureResult`): its ``report["cylinder"]``, or for a texture
+    :class:`~photomodel.project.format.TextureResult`): its ``report["cylinder"]``, or for a texture
     recorded before the cylinder was, :func:`~photomodel.texturing.cylindrical.cylinder_map_for` the fitted mesh
     at the texture's size (what its extraction used: the cylinder is a function of the mesh).
     """
@@ -378,7 +378,7 @@ def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndar
     coverage = weights.max(axis=0, initial=0.0) > 0.0
     try:
         surface = cylinder_surface(cmap, V, F, S)
-    except RuntimeError:  # no OpenGL context (photomodel.render.get_renderer): statistics only, see above
+    except RuntimeError:  # no OpenGL context (photomodel.rendering.renderer.get_renderer): statistics only, see above
         surface = coverage.copy()
     vidx, sfaces, seam_uv = seam_render_mesh(cmap, V, F)
     report = dict(stored.report) if isinstance(stored.report, dict) else {}
@@ -411,7 +411,7 @@ def texture_expression(project, name: str, size: int = 1024, *, face_mask: np.nd
 
     stage("loading photos", 0.0)
     if cancel is not None and cancel():
-        from photomodel.fit import Cancelled
+        from photomodel.modeling.fit import Cancelled
 
         raise Cancelled("texture extraction cancelled")
     inputs = load_texture_inputs(project, name, vertices, faces)

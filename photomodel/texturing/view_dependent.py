@@ -17,7 +17,7 @@ with bilinear colour lookups, depth-map visibility (§5.2.1), the image-space fe
 ``F_k(x_k, y_k)``, ``P_k = n · d_k`` and ``V_k`` at that pixel.
 
 * ``method="shader"`` (the default) does this in fragment shaders
-  (:mod:`photomodel.render_vd`, on the one renderer's GL context): the photographs, their depth
+  (:mod:`photomodel.rendering.view_dependent`, on the one renderer's GL context): the photographs, their depth
   maps and feather maps are textures uploaded once; a frame is a G-buffer pass of the mesh and
   full-screen passes that compute the weights, visibility and blend per pixel, exactly as the
   numpy path does. Pixels that neither selected photograph sees (a few hundred in a
@@ -171,7 +171,7 @@ class ViewDependentTexture:
         centre: np.ndarray | None = None,
     ):
         from photomodel.exchange.uv import check_mesh
-        from photomodel.render import vertex_normals
+        from photomodel.rendering.renderer import vertex_normals
 
         V, F = check_mesh(vertices, faces)
         self.photos = check_photos(cameras, photos)
@@ -199,7 +199,7 @@ class ViewDependentTexture:
         self.centre = V.mean(axis=0) if centre is None else np.asarray(centre, dtype=float).reshape(3)
         self.directions = view_directions(self.cameras, self.centre)
         self._gl_textures = None
-        self._gl = None  # photomodel.render_vd.ViewDependentGL of this thread's renderer
+        self._gl = None  # photomodel.rendering.view_dependent.ViewDependentGL of this thread's renderer
 
     # -------------------------------------------------------------------------------------
     def view_weights(self, camera: Camera) -> tuple[tuple[int, int], np.ndarray]:
@@ -263,7 +263,7 @@ class ViewDependentTexture:
             return self._render_per_vertex(camera, views, V, background)
         if method == "shader":
             return self._render_shader(camera, views, V, background, align)
-        from photomodel.render import get_renderer
+        from photomodel.rendering.renderer import get_renderer
 
         sv = np.zeros(len(self.vertices), np.float32) if self.single_view is None else self.single_view
         attr = np.column_stack([self.normals, sv]).astype(np.float32)
@@ -320,9 +320,9 @@ class ViewDependentTexture:
 
     def gl_state(self):
         """The GPU copy of the photographs, maps and mesh for this thread's renderer
-        (:class:`photomodel.render_vd.ViewDependentGL`), made on first use."""
-        from photomodel.render import get_renderer
-        from photomodel.render_vd import ViewDependentGL
+        (:class:`photomodel.rendering.view_dependent.ViewDependentGL`), made on first use."""
+        from photomodel.rendering.renderer import get_renderer
+        from photomodel.rendering.view_dependent import ViewDependentGL
 
         renderer = get_renderer()
         gl = self._gl
@@ -335,7 +335,7 @@ class ViewDependentTexture:
         return gl
 
     def _render_shader(self, camera, views, V, background, align) -> ViewDependentRender:
-        """The per-pixel weights and blend in a fragment shader (:mod:`photomodel.render_vd`)."""
+        """The per-pixel weights and blend in a fragment shader (:mod:`photomodel.rendering.view_dependent`)."""
         selected = [k for k in range(len(V)) if V[k] > 0]  # the two of §5.2.3 (or one)
         frame = self.gl_state().render(
             camera, selected, [V[k] for k in selected], background=background,
@@ -356,7 +356,7 @@ class ViewDependentTexture:
         """The paper's multi-pass rendering: one textured pass per selected photograph
         (texture coordinates = the vertices' projections) and one pass for the per-vertex
         weights ``F_k P_k V_k``; blended per pixel."""
-        from photomodel.render import get_renderer
+        from photomodel.rendering.renderer import get_renderer
 
         renderer = get_renderer()
         if self._gl_textures is None or self._gl_textures[0].renderer is not renderer:
@@ -495,7 +495,7 @@ def _dis_flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     preset on full-resolution images stops at a quarter of their resolution (finest scale 2),
     so on images reduced 4× this is the same resolution of flow. "Ultrafast" patch search with
     one variational refinement iteration (the "fast" preset does 5), and one flow, not both
-    ways (:data:`photomodel.render_vd.FlowFunction`): on the sample's held-out views this is
+    ways (:data:`photomodel.rendering.view_dependent.FlowFunction`): on the sample's held-out views this is
     within 0.03 dB of the numpy path's registration at ~9 ms instead of ~30 ms.
     """
     import cv2

@@ -8,7 +8,7 @@ map." Consideration 1 of §5.2.1 adds that a point must also be *front-facing*
 (``n · d_k > 0``).
 
 * :func:`render_depth` — the depth map (``Z_cam`` in mm, ``inf`` off the mesh) of a mesh
-  seen by a camera, drawn by the one renderer (:mod:`photomodel.render`).
+  seen by a camera, drawn by the one renderer (:mod:`photomodel.rendering.renderer`).
 * :func:`sample_image` — bilinear samples of an image at many sub-pixel positions
   (``cv2.remap``), the primitive texturing uses for colours, depths and feather maps.
 * :func:`depth_visible` — inside the image, in front of the camera, and not behind the
@@ -80,7 +80,7 @@ def render_depth(camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> np.
     (H, W) float32
         ``Z_cam`` in mm of the nearest surface at each pixel centre, ``inf`` on the background.
     """
-    from photomodel.render import get_renderer
+    from photomodel.rendering.renderer import get_renderer
 
     return get_renderer().render(camera, vertices, faces).depth
 
@@ -271,7 +271,7 @@ def vertex_visibility(
     -------
     (k, N) bool
     """
-    from photomodel.render import vertex_normals
+    from photomodel.rendering.renderer import vertex_normals
 
     V = np.asarray(vertices, dtype=float)
     normals = vertex_normals(V, faces)

@@ -242,7 +242,7 @@ def pose_from_clicks(
 ) -> FrameState:
     """Head pose of the first frame from a few clicked points (neutral expression assumed).
 
-    The modeling core's :func:`photomodel.pose.recover_poses` solves several photos and the 3D
+    The modeling core's :func:`photomodel.modeling.pose.recover_poses` solves several photos and the 3D
     points together; here the 3D points are the model's and there is a single view, a
     perspective-n-point problem, solved with OpenCV's ``solvePnP`` (iterative LM from the EPnP
     estimate; a kept implementation).
@@ -293,12 +293,12 @@ class FrameFitter:
     focal_px : float, the video camera's focal length (pixels).
     width, height : int, frame size.
     options : TrackOptions, optional.
-    renderer : photomodel.render.Renderer, optional (default: this thread's).
+    renderer : photomodel.rendering.renderer.Renderer, optional (default: this thread's).
     """
 
     def __init__(self, model: FaceModel, focal_px: float, width: int, height: int,
                  options: TrackOptions | None = None, renderer=None):  # fmt: skip
-        from photomodel.render import get_renderer
+        from photomodel.rendering.renderer import get_renderer
 
         self.model = model
         self.f, self.W, self.H = float(focal_px), int(width), int(height)

@@ -19,7 +19,7 @@ placed by the scan's iBUG-68 landmarks:
   down and towards the midline with the same falloff.
 
 The same field deforms the scan (for the photos and the video) and the generic mesh's true
-position on the scan (:func:`photomodel.synthetic.true_correspondence`) — so the ground-truth
+position on the scan (:func:`photomodel.samples.synthetic.true_correspondence`) — so the ground-truth
 geometry of every expression on the generic mesh is known exactly. Tests, benchmarks and the
 sample generators use this module; the tracker never does.
 """
@@ -173,7 +173,7 @@ def deformed_scan_vertices(scan, weights: np.ndarray, names=EXPRESSION_NAMES) ->
 
     Parameters
     ----------
-    scan : photomodel.sample_data.Scan
+    scan : photomodel.samples.sample_data.Scan
     weights : (m,) or (n, m) float
         blending weights of ``names`` (sum 1), one row per scan vertex or shared by all.
 
@@ -190,9 +190,9 @@ def true_expression_geometry(mesh, scan, names=EXPRESSION_NAMES) -> np.ndarray:
     """(m, n, 3) float mm: each basic expression's true geometry on the generic mesh.
 
     Row ``k`` is ``C + d_k(C)`` with ``C`` the generic vertices' true positions on the neutral
-    scan (:func:`photomodel.synthetic.true_correspondence`).
+    scan (:func:`photomodel.samples.synthetic.true_correspondence`).
     """
-    from photomodel.synthetic import true_correspondence
+    from photomodel.samples.synthetic import true_correspondence
 
     C = true_correspondence(mesh, scan)
     return C[None] + expression_displacements(C, scan.landmarks, names)

@@ -10,14 +10,14 @@ the six files it needs into a cache folder:
   ground truth of tests and benchmarks (synthetic photographs are rendered from it).
 * ``template.ply`` / ``template.ljson`` — a 53k-vertex generic head surface (face,
   ears, neck; open at the back) in *micrometres* with the 68 iBUG landmarks;
-  :mod:`photomodel.generic_mesh` simplifies it into the generic mesh that the fit of
+  :mod:`photomodel.modeling.generic_mesh` simplifies it into the generic mesh that the fit of
   Pighin et al. (2002), §5.1, deforms.
 
 Cache folder: ``$FACESTUDIO_CACHE``, else ``$XDG_CACHE_HOME/facestudio``, else
 ``~/.cache/facestudio``; the files land in ``<cache>/menpo3d-0.8.6/``. Offline, set
 ``FACESTUDIO_MENPO3D_SDIST`` to a local copy of ``menpo3d-0.8.6.tar.gz``.
 
-Run ``python -m photomodel.sample_data`` to fetch the data ahead of time; it prints
+Run ``python -m photomodel.samples.sample_data`` to fetch the data ahead of time; it prints
 the folder.
 
 Frames and units
@@ -433,7 +433,7 @@ def load_james_scan() -> Scan:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m photomodel.sample_data``: fetch and verify the sample data, print its folder."""
+    """``python -m photomodel.samples.sample_data``: fetch and verify the sample data, print its folder."""
     del argv
     try:
         print(sample_data_dir())

@@ -4,7 +4,7 @@
 (:meth:`StudioModel.fit_snapshot`), fits the snapshot in the worker
 (:meth:`StudioModel.compute_fit`) and hands the result back to the GUI thread through a
 queued Qt signal, where it is applied to the model — unless the project was replaced in the
-meantime (then it is dropped). Cancelling sets a flag that :func:`photomodel.fit.fit_expression`
+meantime (then it is dropped). Cancelling sets a flag that :func:`photomodel.modeling.fit.fit_expression`
 polls between its stages (``cancel=``).
 
 The wireframe overlay of the photos on screen (:attr:`FitController.overlay_photos`) is
@@ -13,7 +13,7 @@ and travels with the result, so the GUI thread only paints it; a result that is 
 older edit's, a replaced project's) drops its overlays with it, so a stale overlay never shows.
 
 Auto-refit: after each edit, :meth:`FitController.schedule_refit` starts a warm refit
-(:mod:`photomodel.refit`) after a short debounce, when the last warm refit of the project took
+(:mod:`photomodel.modeling.refit`) after a short debounce, when the last warm refit of the project took
 less than :data:`AUTO_REFIT_MAX_S`; edits made while a refit runs are picked up by one more
 refit when it finishes.
 """
@@ -25,10 +25,9 @@ import traceback
 
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
+from app.model import StudioModel
 from photomodel.errors import FaceStudioError
-from photomodel.fit import Cancelled
-
-from .model import StudioModel
+from photomodel.modeling.fit import Cancelled
 
 #: Refit automatically after an edit only when the last warm refit was at least this fast (s).
 AUTO_REFIT_MAX_S = 0.3
@@ -269,7 +268,7 @@ class JobTask(_CancellableTask):
     """Any slow computation ``function(progress=, cancel=)`` run by a :class:`QThreadPool`.
 
     ``function`` must only read what it was given (snapshots taken on the GUI thread); it polls
-    ``cancel()`` and may raise :class:`photomodel.fit.Cancelled`.
+    ``cancel()`` and may raise :class:`photomodel.modeling.fit.Cancelled`.
     """
 
     def __init__(self, function, generation: int):

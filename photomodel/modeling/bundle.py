@@ -1,14 +1,14 @@
 """Robust joint polish of cameras and feature points (beyond the paper).
 
-:func:`photomodel.pose.recover_poses` is the paper's alternation (§5.1.1, App. A) finished by a
-least-squares polish. This module is the polish that :mod:`photomodel.camera_solve` runs on real
+:func:`photomodel.modeling.pose.recover_poses` is the paper's alternation (§5.1.1, App. A) finished by a
+least-squares polish. This module is the polish that :mod:`photomodel.modeling.camera_solve` runs on real
 input, where three things the paper does not treat happen every day:
 
 * **Wrong clicks.** The reprojection error of each click enters through the Huber loss
   ``ρ(e) = e²`` for ``e ≤ c``, ``2 c e − c²`` beyond (``e`` = length of the 2D residual, px), so a
   click placed 80 px off pulls like one placed ``c`` px off. The loss is minimised by
   Levenberg–Marquardt on iteratively re-weighted normal equations (weight ``min(1, c / e)``);
-  ``c`` comes from the data (see :mod:`photomodel.camera_solve`). ``c = inf`` is plain least
+  ``c`` comes from the data (see :mod:`photomodel.modeling.camera_solve`). ``c = inf`` is plain least
   squares.
 * **One camera, one lens.** Photos of a ``camera group`` share one focal length: the unknowns
   are, per photo, the incremental rotation ``v`` (3), ``t_x``, ``t_y`` and the image scale
@@ -19,7 +19,7 @@ input, where three things the paper does not treat happen every day:
   the focal length almost freely. An optional prior pulls each point towards the generic head's
   feature positions *up to a similarity* (re-aligned by Umeyama after every step, so the prior
   never fights the gauge): ``β Σ_i ‖m_i − (σ R g_i + t)‖²``. Its weight ``β`` (px² per mm²) is
-  chosen by the caller (:data:`photomodel.camera_solve.PRIOR_SIGMA_MM`).
+  chosen by the caller (:data:`photomodel.modeling.camera_solve.PRIOR_SIGMA_MM`).
 
 The point blocks are eliminated by a Schur complement, leaving one dense solve of size
 ``6 k + G`` (k photos, G free group focal lengths) per iteration. Projection and conventions are
@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .alignment import similarity_transform
-from .camera import Camera
+from photomodel.alignment import similarity_transform
+from photomodel.camera import Camera
 
 __all__ = ["BundleState", "BundleProblem", "rodrigues_batch"]
 

@@ -69,7 +69,7 @@ the m's and t's up by the same amount, the answer is the same"). Every sub-probl
 alternation is well posed with the other unknowns held fixed, so it needs no gauge constraint;
 the polish's damping keeps its normal equations regular along the 7 flat gauge directions. The
 result lives near the frame and size of the initial guess; callers that need a fixed frame
-align the recovered points onto a reference afterwards (``photomodel.fit`` does).
+align the recovered points onto a reference afterwards (``photomodel.modeling.fit`` does).
 
 Input rules (:class:`~photomodel.errors.FitError` otherwise, naming the photo or feature):
 at least 2 photos; every feature clicked in at least 2 photos; every photo with at least
@@ -87,8 +87,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-from .camera import Camera
-from .errors import FitError
+from photomodel.camera import Camera
+from photomodel.errors import FitError
 
 #: A photo needs this many clicked features: a camera with unknown focal length has 7 degrees
 #: of freedom and each click gives 2 equations, so 4 non-collinear clicks determine it

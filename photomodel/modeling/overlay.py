@@ -14,7 +14,7 @@ recovered camera (Pighin et al. 2002, Fig. 4 shows exactly this). Drawing every 
 
 Lines are defined once on the generic mesh (:func:`mesh_lines`) as points on edges
 ``(1 − t) V[a] + t V[b]`` and re-evaluated on any deformation of it (:func:`line_points`).
-Hidden lines are removed with the depth map of :mod:`photomodel.render` (the z-buffer test of
+Hidden lines are removed with the depth map of :mod:`photomodel.rendering.renderer` (the z-buffer test of
 §5.2.1): a segment is drawn when its midpoint is no deeper than the visible surface plus a
 tolerance (:func:`project_lines`).
 """
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Camera
+from photomodel.camera import Camera
 
 #: Segment kinds of :class:`MeshLines`.
 GRID, OUTLINE, CURVE = 0, 1, 2
@@ -229,8 +229,8 @@ def project_lines(
         The mesh the lines are drawn on (same topology as the one :func:`mesh_lines` saw).
     faces : (m, 3) int
     lines : MeshLines
-    renderer : photomodel.render.Renderer, optional
-        Default :func:`photomodel.render.get_renderer` (this thread's).
+    renderer : photomodel.rendering.renderer.Renderer, optional
+        Default :func:`photomodel.rendering.renderer.get_renderer` (this thread's).
     depth_scale : float in (0, 1]
         Resolution of the visibility depth map relative to the photo (0.5: a quarter of the
         pixels, ~25 ms for a 1000×1000 photo on llvmpipe).
@@ -244,7 +244,7 @@ def project_lines(
     if not 0 < depth_scale <= 1:
         raise ValueError(f"depth_scale must be in (0, 1], got {depth_scale}")
     if renderer is None:
-        from .render import get_renderer
+        from photomodel.rendering.renderer import get_renderer
 
         renderer = get_renderer()
     P = line_points(lines, vertices)
@@ -284,7 +284,7 @@ def photo_overlay(camera: Camera, vertices: np.ndarray, faces: np.ndarray, lines
     """:func:`project_lines` reduced to what is drawn; without OpenGL, every line is drawn.
 
     Safe to call from a worker thread: the depth map comes from ``renderer`` (default this
-    thread's :func:`photomodel.render.get_renderer`), and nothing else is shared. Parameters
+    thread's :func:`photomodel.rendering.renderer.get_renderer`), and nothing else is shared. Parameters
     as :func:`project_lines`.
     """
     import time

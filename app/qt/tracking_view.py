@@ -1,7 +1,7 @@
 """The studio's tracking view: track a video in a worker, then scrub through the result (§6.2).
 
 :class:`TrackingView` (docked by the main window, *Tracking → Track video…* / *Open results…*)
-runs :func:`tracking.batch.track_video` in its own :class:`~app.workers.JobController` behind a
+runs :func:`tracking.batch.track_video` in its own :class:`~app.qt.workers.JobController` behind a
 cancellable progress dialog; the results land in :func:`tracking.batch.default_out_dir`
 (``<project folder>/results/track_<video stem>``), cancel-safe and resumable, exactly as
 ``facestudio track`` writes them. It then shows
@@ -20,7 +20,7 @@ that frame in the worker (:func:`tracking.batch.track_video`'s ``correct_frame``
 behind the same cancellable progress dialog as *Track video…*.
 
 Nothing here computes tracking itself: the view reads ``track.json`` (:func:`load_track_results`)
-and renders overlays on the GUI thread with a :class:`tracking.fit.FrameFitter` of the run's model
+and renders overlays on the GUI thread with a :class:`tracking.frame_fit.FrameFitter` of the run's model
 and camera (the renderer is per thread).
 """
 
@@ -57,13 +57,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.model import StudioModel
+from app.qt.progress import close_progress, open_progress, update_progress
+from app.qt.texture_views import to_qimage
+from app.qt.workers import JobController
 from photomodel.errors import FaceStudioError
 from tracking.plots import MARGINS
-
-from .model import StudioModel
-from .progress import close_progress, open_progress, update_progress
-from .texture_views import to_qimage
-from .workers import JobController
 
 __all__ = ["MARKER_COLOR", "plot_with_marker", "TrackingView", "ClickCanvas", "FirstPoseDialog"]
 
@@ -314,7 +313,7 @@ class TrackingView(QWidget):
         """{feature: (u, v)} image px: the project's pose features where the tracked model puts them
         in frame ``index`` (its pose and expression there, projected by the video camera; clamped to
         the image so that a model that left it still has markers to drag)."""
-        from tracking.fit import FrameState
+        from tracking.frame_fit import FrameState
 
         rec = self._records[index]
         fitter = self._overlay_fitter()
@@ -434,7 +433,7 @@ class TrackingView(QWidget):
     def load_results(self, out_dir: str | Path) -> bool:
         """Show the tracking results in ``out_dir`` (its ``track.json``); False (with a dialog) if none."""
         from tracking.batch import VideoFrames, load_track_results
-        from tracking.fit import DIVERGED_RMS
+        from tracking.frame_fit import DIVERGED_RMS
         from tracking.plots import track_plots
 
         out = Path(out_dir).absolute()
@@ -481,9 +480,9 @@ class TrackingView(QWidget):
     def _overlay_fitter(self):
         """A :class:`FrameFitter` of the run's model and camera, built once per results."""
         if self._fitter is None:
-            from photomodel.project import load_project
+            from photomodel.project.format import load_project
             from tracking.batch import project_face_model
-            from tracking.fit import FrameFitter
+            from tracking.frame_fit import FrameFitter
 
             cam = self.doc["camera"]
             model, _ = project_face_model(load_project(self.doc["project"]))
@@ -634,7 +633,7 @@ class FirstPoseDialog(QDialog):
     pose features (§6.2).
 
     Shows a frame, the project's pose features (``project.feature_names(pose_only=True)``) and a
-    focal length. *Solve* runs :func:`tracking.fit.pose_from_clicks` (≥ 6 clicks) and shows the
+    focal length. *Solve* runs :func:`tracking.frame_fit.pose_from_clicks` (≥ 6 clicks) and shows the
     model over the frame (:func:`tracking.batch.overlay_frame`).
 
     * **First pose** (default): frame 0, pre-filled from an existing first-pose JSON
@@ -647,7 +646,7 @@ class FirstPoseDialog(QDialog):
 
     Parameters
     ----------
-    project : photomodel.project.Project, whose features are clicked (and whose face model is fitted).
+    project : photomodel.project.format.Project, whose features are clicked (and whose face model is fitted).
     video : path of the video file or frame folder.
     path : where to read/write the first pose (default beside the video; unused when correcting).
     frame : int, the frame shown and clicked (default 0).
@@ -782,11 +781,11 @@ class FirstPoseDialog(QDialog):
                 "clicks": {n: [round(u, 3), round(v, 3)] for n, (u, v) in self.canvas.clicks.items()}}  # fmt: skip
 
     def solve(self) -> bool:
-        """Pose from the clicks (:func:`tracking.fit.pose_from_clicks`) and its overlay on the frame.
+        """Pose from the clicks (:func:`tracking.frame_fit.pose_from_clicks`) and its overlay on the frame.
 
         False (with a message box) with fewer than 6 clicks or when no pose is found."""
         from tracking.batch import overlay_frame
-        from tracking.fit import FrameFitter, pose_from_clicks
+        from tracking.frame_fit import FrameFitter, pose_from_clicks
 
         names = list(self.canvas.clicks)
         if len(names) < 6:

@@ -1,14 +1,14 @@
 """The studio's main window: photos in tabs, the feature panel, the 3D view, menus and project files.
 
-Layout: the current expression's photos fill the centre (one :class:`~app.photo_view.PhotoView`
+Layout: the current expression's photos fill the centre (one :class:`~app.qt.photo_view.PhotoView`
 per tab, the tab title showing the photo's reprojection RMS after a fit); the
-:class:`~app.feature_list.FeaturePanel` docks on the left and the :class:`~app.view3d.View3D` on
+:class:`~app.qt.feature_list.FeaturePanel` docks on the left and the :class:`~app.qt.view3d.View3D` on
 the right. The toolbar holds the expression, the editing mode (points / draw curve), the fit
 and overlay switches, and the current photo's starting view and camera group.
 
 Everything the window shows observes one :class:`~app.model.StudioModel`; edits are
-:mod:`app.commands` pushed on a :class:`QUndoStack`; fits run in a worker
-(:class:`~app.workers.FitController`). Files: new, open (with recovery of a newer autosave),
+:mod:`app.qt.commands` pushed on a :class:`QUndoStack`; fits run in a worker
+(:class:`~app.qt.workers.FitController`). Files: new, open (with recovery of a newer autosave),
 save, save as, recent files (``QSettings``), an unsaved-changes prompt, and an autosave timer
 writing ``<file>.autosave`` (a never-saved project: a recovery file in the user's data folder,
 ``QStandardPaths.AppDataLocation``, offered at the next start).
@@ -21,14 +21,14 @@ the folder whose lock no live process holds (a crashed instance's lock is stale:
 pid), so two studios running at once never overwrite, delete or recover each other's data.
 
 Texture (§5.2): *Texture → Extract texture* runs :mod:`photomodel.texturing.job` in a worker
-(:class:`~app.workers.JobController`) behind a cancellable progress dialog; the 3D view then
+(:class:`~app.qt.workers.JobController`) behind a cancellable progress dialog; the 3D view then
 shows the model with the cylindrical texture or view-dependently (a toggle), and the
-:class:`~app.texture_views.WeightMapPanel` dock shows the weight maps. A project saved with
+:class:`~app.qt.texture_views.WeightMapPanel` dock shows the weight maps. A project saved with
 textures shows them again when it is opened (read back from its files as each expression is
 shown, :meth:`~app.model.StudioModel.load_stored_texture`; a damaged file is named in the status
 bar and that texture is simply not shown). *Expression → Side by
-side* docks the :class:`~app.texture_views.ExpressionsView`. *Tracking → Track video…* / *Open
-results…* dock the :class:`~app.tracking_view.TrackingView` (§6.2: the footage with the model
+side* docks the :class:`~app.qt.texture_views.ExpressionsView`. *Tracking → Track video…* / *Open
+results…* dock the :class:`~app.qt.tracking_view.TrackingView` (§6.2: the footage with the model
 overlaid, a frame scrubber, the parameter curves). Every failure is shown in a dialog whose text is the cause
 (e.g. ``james.facestudio.json: expressions[0].photos[2].points.nose_tip: expected [u, v] …``).
 """
@@ -57,26 +57,25 @@ from PySide6.QtWidgets import (
     QTabWidget,
 )
 
-from photomodel.camera import PRESET_AZIMUTH_DEG
-from photomodel.errors import FaceStudioError, ProjectError
-from photomodel.project import FILE_SUFFIX
-
-from .commands import (
+from app.model import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, remove_autosave
+from app.qt.commands import (
     AddExpressionCommand,
     AddPhotosCommand,
     RemovePhotoCommand,
     SetCameraGroupCommand,
     SetPresetCommand,
 )
-from .feature_list import FeaturePanel
-from .model import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, remove_autosave
-from .photo_view import CURVE, POINTS, PhotoView
-from .progress import close_progress, open_progress, update_progress
-from .qt_compat import check_pyside
-from .texture_views import ExpressionsView, WeightMapPanel
-from .tracking_view import TrackingView
-from .view3d import View3D
-from .workers import FitController, JobController
+from app.qt.feature_list import FeaturePanel
+from app.qt.photo_view import CURVE, POINTS, PhotoView
+from app.qt.progress import close_progress, open_progress, update_progress
+from app.qt.qt_compat import check_pyside
+from app.qt.texture_views import ExpressionsView, WeightMapPanel
+from app.qt.tracking_view import TrackingView
+from app.qt.view3d import View3D
+from app.qt.workers import FitController, JobController
+from photomodel.camera import PRESET_AZIMUTH_DEG
+from photomodel.errors import FaceStudioError, ProjectError
+from photomodel.project.format import FILE_SUFFIX
 
 #: Autosave period (ms).
 AUTOSAVE_INTERVAL_MS = 60_000

@@ -1,7 +1,7 @@
-"""Interactive refits: the pipeline of :mod:`photomodel.fit` made fast enough to rerun after every click.
+"""Interactive refits: the pipeline of :mod:`photomodel.modeling.fit` made fast enough to rerun after every click.
 
 The studio refits an expression each time the artist moves a point, so that the fitted mesh
-follows the clicks live. A full :func:`~photomodel.fit.fit_expression` on the sample project
+follows the clicks live. A full :func:`~photomodel.modeling.fit.fit_expression` on the sample project
 takes ~0.6 s; almost all of it is the scattered-data interpolation (§5.1.2, Eq. 3) run three
 times over ~8k vertices and ~300 centres, and a second curve pass of the refinement (§5.1.3).
 Two observations make a refit cheap without changing what it computes:
@@ -10,10 +10,10 @@ Two observations make a refit cheap without changing what it computes:
   the deformed mesh is ``V + W (T − V[idx])`` with ``W`` (N × n) depending only on the
   generic mesh and on which vertices are constrained. Moving a click moves targets, not the
   set, so :class:`CachedDeformer` builds ``W`` once — by fitting the very
-  :class:`~photomodel.rbf.RBFInterpolant` of :mod:`photomodel.rbf` to the identity (n
+  :class:`~photomodel.modeling.rbf.RBFInterpolant` of :mod:`photomodel.modeling.rbf` to the identity (n
   right-hand sides sharing one factorisation) and evaluating it at the vertices — and then
   each refit costs one (N × n)·(n × 3) product. The result equals
-  :func:`~photomodel.rbf.deform_vertices` to rounding (tested to 1e-8 mm).
+  :func:`~photomodel.modeling.rbf.deform_vertices` to rounding (tested to 1e-8 mm).
 * **The previous fit is a warm start for the curves.** Curves are turned into vertex
   correspondences by arc length on the current fitted mesh, and :func:`fit_expression`
   repeats that step (``curve_passes = 2``) because the pose-only mesh is a poor
@@ -38,18 +38,18 @@ from dataclasses import replace
 
 import numpy as np
 
-from .errors import FitError
-from .fit import FitOptions, FitResult, fit_expression
-from .rbf import RBFInterpolant, deform_vertices
+from photomodel.errors import FitError
+from photomodel.modeling.fit import FitOptions, FitResult, fit_expression
+from photomodel.modeling.rbf import RBFInterpolant, deform_vertices
 
 #: Weight matrices kept (one per constrained-vertex set; ~20 MB each for 8k vertices × 300 centres).
 DEFAULT_CACHE_ENTRIES = 3
 
 
 class CachedDeformer:
-    """:func:`photomodel.rbf.deform_vertices` with the interpolation weights cached per vertex set.
+    """:func:`photomodel.modeling.rbf.deform_vertices` with the interpolation weights cached per vertex set.
 
-    Call it exactly like :func:`~photomodel.rbf.deform_vertices`. Thread-safe.
+    Call it exactly like :func:`~photomodel.modeling.rbf.deform_vertices`. Thread-safe.
 
     Parameters
     ----------
@@ -72,7 +72,7 @@ class CachedDeformer:
             self._cache.clear()
 
     def __call__(self, vertices, constrained, targets, **kw) -> np.ndarray:
-        """Deformed vertices ``(N, 3)`` mm; see :func:`photomodel.rbf.deform_vertices`."""
+        """Deformed vertices ``(N, 3)`` mm; see :func:`photomodel.modeling.rbf.deform_vertices`."""
         V = np.asarray(vertices, dtype=float)
         idx = np.asarray(constrained)
         T = np.asarray(targets, dtype=float)
@@ -120,7 +120,7 @@ class Refitter:
 
     Parameters
     ----------
-    mesh : photomodel.generic_mesh.GenericMesh
+    mesh : photomodel.modeling.generic_mesh.GenericMesh
     options : FitOptions, optional
         Options of a fit from scratch; a warm refit uses them with ``curve_passes = 1``.
     """
@@ -142,13 +142,13 @@ class Refitter:
 
         Parameters
         ----------
-        project : photomodel.project.Project
+        project : photomodel.project.format.Project
         expression_name : str
         previous : FitResult or (N, 3) float mm, optional
             The last fit of this expression (or its fitted vertices). When given, curves are
             parameterised on it in a single refinement pass; otherwise this is
-            :func:`~photomodel.fit.fit_expression` from scratch (with the cached deformer).
-        progress, cancel : as for :func:`~photomodel.fit.fit_expression`.
+            :func:`~photomodel.modeling.fit.fit_expression` from scratch (with the cached deformer).
+        progress, cancel : as for :func:`~photomodel.modeling.fit.fit_expression`.
 
         Returns
         -------

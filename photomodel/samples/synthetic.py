@@ -2,9 +2,9 @@
 lies on the scan, camera rigs, visibility, and what an artist would click and draw.
 
 Used **only** by tests, benchmarks and ``sample_projects/make_james.py``; the fit
-(:mod:`photomodel.fit`) never reads anything from here. To keep the ground truth
-independent of the code it judges, nothing here uses :mod:`photomodel.rbf` or
-:mod:`photomodel.pose`: the generic→scan correspondence is a thin-plate-spline warp
+(:mod:`photomodel.modeling.fit`) never reads anything from here. To keep the ground truth
+independent of the code it judges, nothing here uses :mod:`photomodel.modeling.rbf` or
+:mod:`photomodel.modeling.pose`: the generic→scan correspondence is a thin-plate-spline warp
 (:class:`scipy.interpolate.RBFInterpolator`, a kept, well-tested implementation) followed
 by a non-rigid closest-point refinement written below.
 
@@ -36,11 +36,11 @@ import scipy.sparse as sparse
 from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
 
-from .camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, orbit_camera, rodrigues
+from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, orbit_camera, rodrigues
 
 if TYPE_CHECKING:  # imported lazily at run time: only these functions need the sample data
-    from .generic_mesh import GenericMesh
-    from .sample_data import Scan
+    from photomodel.modeling.generic_mesh import GenericMesh
+    from photomodel.samples.sample_data import Scan
 
 #: Bump when the correspondence recipe changes; part of the cache file's key.
 CORRESPONDENCE_VERSION = 1
@@ -216,7 +216,7 @@ def deformed_scan(scan: Scan, vertices: np.ndarray, landmarks: np.ndarray | None
     """A copy of ``scan`` whose surface is moved to ``vertices`` (same triangles, texture
     coordinates and texture): e.g. the scan in another facial expression.
 
-    The copy is a new :class:`~photomodel.sample_data.Scan` object, so its welded surface
+    The copy is a new :class:`~photomodel.samples.sample_data.Scan` object, so its welded surface
     (:func:`scan_surface`, used by :func:`surface_distance`, :func:`visible` and
     :func:`dense_true_curve`) is built from the new vertices, not shared with ``scan``.
 
@@ -291,7 +291,7 @@ def correspondence_residual(mesh: GenericMesh, scan: Scan) -> np.ndarray:
 
 
 def _correspondence_arrays(mesh: GenericMesh, scan: Scan, use_cache: bool) -> dict[str, np.ndarray]:
-    from .sample_data import _load_npz, _save_npz, cache_dir
+    from photomodel.samples.sample_data import _load_npz, _save_npz, cache_dir
 
     h = hashlib.sha256(f"v{CORRESPONDENCE_VERSION}".encode())
     for a in (mesh.vertices, mesh.faces, mesh.landmarks, scan.vertices, scan.faces, scan.landmarks):
@@ -310,7 +310,7 @@ def _correspondence_arrays(mesh: GenericMesh, scan: Scan, use_cache: bool) -> di
 
 
 def _build_correspondence(mesh: GenericMesh, scan: Scan) -> tuple[np.ndarray, np.ndarray]:
-    from .generic_mesh import vertex_normals
+    from photomodel.modeling.generic_mesh import vertex_normals
 
     V, F, L = np.asarray(mesh.vertices, float), np.asarray(mesh.faces), np.asarray(mesh.landmarks)
     target = np.asarray(scan.landmarks, float)
@@ -440,10 +440,10 @@ def preset_for(camera: Camera) -> str:
 
 
 def render_scan(camera: Camera, scan: Scan, *, background=0.0, supersample: int = 1):
-    """Render the textured scan from ``camera`` with :func:`photomodel.render.get_renderer`.
+    """Render the textured scan from ``camera`` with :func:`photomodel.rendering.renderer.get_renderer`.
 
     The texture is already lit (a scan's photographs), so it is drawn unshaded.
-    ``background`` and ``supersample`` are passed to :meth:`photomodel.render.Renderer.render`.
+    ``background`` and ``supersample`` are passed to :meth:`photomodel.rendering.renderer.Renderer.render`.
 
     Returns
     -------
@@ -451,7 +451,7 @@ def render_scan(camera: Camera, scan: Scan, *, background=0.0, supersample: int 
         ``color`` (H, W, 3) float in [0, 1], ``depth`` (H, W) mm (inf on background),
         ``mask`` (H, W) bool.
     """
-    from .render import get_renderer
+    from photomodel.rendering.renderer import get_renderer
 
     return get_renderer().render(
         camera, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture,

@@ -28,7 +28,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from .model import StudioModel
+from app.model import StudioModel
 
 _NAME_ROLE = Qt.ItemDataRole.UserRole
 
@@ -296,7 +296,7 @@ class FeaturePanel(QWidget):
                 continue
             item = QListWidgetItem(f"{px:5.2f} px   {name}  @ {pid}")
             item.setData(_NAME_ROLE, (pid, name))
-            from .photo_view import residual_color
+            from app.qt.photo_view import residual_color
 
             item.setForeground(QBrush(residual_color(px).darker(130)))
             self.worst.addItem(item)

@@ -41,7 +41,7 @@ keeps one :class:`Renderer` *per thread* (``threading.local``); a :class:`Render
 
 Code beside this module
 -----------------------
-:mod:`photomodel.render_vd` (view-dependent texturing in fragment shaders) draws in the same
+:mod:`photomodel.rendering.view_dependent` (view-dependent texturing in fragment shaders) draws in the same
 context through public methods only: :meth:`Renderer.context` (the checked moderngl context),
 :meth:`Renderer.program` (programs compiled once per renderer) and
 :meth:`Renderer.defer_release` (GL objects dropped by a finaliser, which may run in any thread,
@@ -52,7 +52,7 @@ scan (colour, depth and face id read back), +10–35 ms when the 2400×1600 text
 per call instead of once with :meth:`Renderer.upload_texture`. Vertex and index buffers are
 uploaded per call: under 1 ms for meshes of this size, so they are not cached.
 
-Run ``python -m photomodel.render out.png`` to render the james sample scan from the front.
+Run ``python -m photomodel.rendering.renderer out.png`` to render the james sample scan from the front.
 """
 
 from __future__ import annotations
@@ -221,7 +221,7 @@ def write_png(path, image: np.ndarray) -> Path:
         they are swapped to OpenCV's BGR(A) on the way out. NaN and ±inf are written as 0/255
         after clipping (NaN → 0).
     """
-    from .exchange.files import atomic_write_bytes, encode_png
+    from photomodel.exchange.files import atomic_write_bytes, encode_png
 
     return atomic_write_bytes(path, encode_png(image))
 
@@ -368,7 +368,7 @@ class Renderer:
     def context(self):
         """The moderngl context, for GL code beside this module that draws with this renderer.
 
-        :mod:`photomodel.render_vd` (view-dependent texturing in a fragment shader) builds its
+        :mod:`photomodel.rendering.view_dependent` (view-dependent texturing in a fragment shader) builds its
         textures, buffers and framebuffers in this context, so everything Face Studio draws
         shares one context per thread. Enter it (``with renderer.context() as ctx:``) around
         GL calls; objects made in it die with :meth:`release`, after which this raises.
@@ -739,12 +739,12 @@ def get_renderer() -> Renderer:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m photomodel.render [out.png] [--size N]``: the james scan from the front."""
+    """``python -m photomodel.rendering.renderer [out.png] [--size N]``: the james scan from the front."""
     import argparse
     import time
 
     from photomodel.camera import orbit_camera
-    from photomodel.sample_data import load_james_scan
+    from photomodel.samples.sample_data import load_james_scan
 
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("out", nargs="?", default="render_check.png")

@@ -4,7 +4,7 @@
   photograph, its blending weight ``g_k = F_k P_k`` in texture space (§5.2.1, the images of the
   paper's Fig. 5(c): black 0 … white 1), for the current expression.
 * :class:`ExpressionsView` — every expression of the project rendered by our renderer
-  (:mod:`photomodel.render`) from one camera, next to each other, with its name and
+  (:mod:`photomodel.rendering.renderer`) from one camera, next to each other, with its name and
   reprojection RMS; a click on one makes it the current expression.
 
 Both observe the :class:`~app.model.StudioModel` and hold no state of their own.
@@ -26,9 +26,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.model import StudioModel
 from photomodel.camera import orbit_camera
-
-from .model import StudioModel
 
 #: Side (px) of a weight-map thumbnail.
 THUMB_PX = 150
@@ -180,7 +179,7 @@ class ExpressionsView(QWidget):
                             elevation_deg=TILE_ELEVATION_DEG, target=target)
 
     def render(self, vertices: np.ndarray, camera) -> QImage:
-        from photomodel.render import get_renderer
+        from photomodel.rendering.renderer import get_renderer
 
         out = get_renderer().render(camera, vertices, self.model.mesh.faces, shading="lambert", background=BACKGROUND)
         return to_qimage((np.clip(out.color[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8))

@@ -6,24 +6,24 @@ recovered cameras, the 3D feature points and the fitted mesh:
 
 1. **Pose recovery** (§5.1.1, Appendix A) from the ``pose`` features (the initial ~13
    clicks), starting from each photo's rough preset camera and the generic mesh's
-   feature vertices (:func:`photomodel.pose.recover_poses`).
+   feature vertices (:func:`photomodel.modeling.pose.recover_poses`).
 2. **Gauge.** Structure from motion recovers the scene only up to a similarity; we fix
    it by aligning the recovered feature points onto the generic mesh's (Umeyama,
    with scale), so results live in the generic head's frame and at its size
    (photographs alone carry no absolute scale). *Beyond the paper*, which leaves the
    gauge to the initial guess.
 3. **Scattered-data interpolation** (§5.1.2, Eq. 3): the generic mesh is deformed so
-   the feature vertices land on the recovered points (:mod:`photomodel.rbf`).
+   the feature vertices land on the recovered points (:mod:`photomodel.modeling.rbf`).
 4. **Refinement** (§5.1.3): with the cameras fixed, the other clicked correspondences
    are triangulated, hand-drawn curves are converted into per-vertex observations by
-   arc length and triangulated too (:mod:`photomodel.refine`), and the RBF is re-run
+   arc length and triangulated too (:mod:`photomodel.modeling.refine`), and the RBF is re-run
    from the generic mesh with every constraint. Curves are re-parameterised on the
    refined mesh and the step repeated ``curve_passes`` times.
 
 **Several expressions** (§5.1 photographs every expression with the same cameras). An
 expression whose ``cameras_from`` names another, already fitted, expression (or
 ``FitOptions.cameras_from``) skips steps 1–2: it takes that expression's fitted cameras photo
-by photo id, triangulates its pose features with them (:func:`photomodel.refine.triangulate`)
+by photo id, triangulates its pose features with them (:func:`photomodel.modeling.refine.triangulate`)
 and keeps their frame — no gauge onto the generic mesh — so its mesh lies in the source
 expression's head frame, vertex for vertex comparable with it (what a blend-shape model,
 §6.1.1, needs). Steps 3–4 are as usual; the cameras stay fixed (no ``bundle_all``).
@@ -39,13 +39,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .alignment import similarity_transform, transform_cameras
-from .camera import Camera, focal_mm_to_px, preset_camera
-from .camera_solve import solve_cameras
-from .errors import FitError
-from .pose import PoseResult, recover_poses
-from .rbf import deform_vertices
-from .refine import refine_points, triangulate
+from photomodel.alignment import similarity_transform, transform_cameras
+from photomodel.camera import Camera, focal_mm_to_px, preset_camera
+from photomodel.errors import FitError
+from photomodel.modeling.camera_solve import solve_cameras
+from photomodel.modeling.pose import PoseResult, recover_poses
+from photomodel.modeling.rbf import deform_vertices
+from photomodel.modeling.refine import refine_points, triangulate
 
 #: Default distance of a preset camera from the head (mm) when the project gives none.
 PRESET_DISTANCE_MM = 600.0
@@ -177,7 +177,7 @@ def source_cameras(project, expression_name: str, source: str) -> list[Camera]:
         naming the problem: ``source`` is the expression itself, does not exist, is not
         fitted yet, or lacks a camera for one of the photos (or has one of another image size).
     """
-    from .errors import ProjectError
+    from photomodel.errors import ProjectError
 
     if source == expression_name:
         raise FitError(f"expression {expression_name!r} cannot take its cameras from itself")
@@ -226,7 +226,7 @@ def source_cameras(project, expression_name: str, source: str) -> list[Camera]:
 def _fixed_camera_pose(cameras, obs_pose, pose_names, photo_ids):
     """Pose stage with known cameras: triangulate the pose features (§5.1.3 with the cameras
     fixed). Returns ``(PoseResult, kept (n,) bool, dropped messages)``."""
-    from .pose import reprojection_residuals
+    from photomodel.modeling.pose import reprojection_residuals
 
     tri = triangulate(cameras, obs_pose)
     kept = tri.ok
@@ -279,20 +279,20 @@ def fit_expression(
 
     Parameters
     ----------
-    project : photomodel.project.Project
+    project : photomodel.project.format.Project
     expression_name : str
-    mesh : photomodel.generic_mesh.GenericMesh (``vertices`` (N, 3) mm, ``faces``)
+    mesh : photomodel.modeling.generic_mesh.GenericMesh (``vertices`` (N, 3) mm, ``faces``)
     options : FitOptions
     progress : called as ``progress(stage, fraction)``.
     cancel : polled between stages; return True to abort with :class:`Cancelled`.
     deform : callable, optional
-        Replaces :func:`photomodel.rbf.deform_vertices` (same signature, same result), e.g. a
-        :class:`photomodel.refit.CachedDeformer` that reuses the RBF solve between refits.
+        Replaces :func:`photomodel.modeling.rbf.deform_vertices` (same signature, same result), e.g. a
+        :class:`photomodel.modeling.refit.CachedDeformer` that reuses the RBF solve between refits.
     curve_mesh : (N, 3) float mm, optional
         Mesh on which hand-drawn curves are parameterised by arc length in the first
         refinement pass (default: the mesh deformed by the pose features). An interactive
         refit passes the previous fit's vertices, already close to the answer, with
-        ``options.curve_passes = 1`` (see :mod:`photomodel.refit`).
+        ``options.curve_passes = 1`` (see :mod:`photomodel.modeling.refit`).
 
     With ``cameras_from`` (the expression's, or ``options.cameras_from``) the cameras are the
     source expression's fitted ones and stay fixed; the result is in that expression's frame
@@ -353,7 +353,7 @@ def fit_expression(
         check_cancel()
     elif opt.bundle_all:
         # 1b. every feature clicked in >= 2 photos places the cameras: cheap starts, the paper's
-        #     ALS, robust polish, suspect clicks named and left out (photomodel.camera_solve)
+        #     ALS, robust polish, suspect clicks named and left out (photomodel.modeling.camera_solve)
         all_names = [f.name for f in project.features]
         obs_all = project.observations(expression_name, all_names)
         sol = solve_cameras(
@@ -556,8 +556,8 @@ def store_fit_result(project, expression_name: str, result: FitResult, faces: np
     """Put ``result`` into ``project`` (in memory) and write the fitted mesh as OBJ and PLY
     next to the project file (``results/<expression>.obj|.ply``, atomically). The caller
     saves the project file."""
-    from .mesh_io import write_mesh
-    from .project import ExpressionResult
+    from photomodel.exchange.mesh import write_mesh
+    from photomodel.project.format import ExpressionResult
 
     if project.path is None:
         raise FitError("save the project before storing results (the mesh files go next to it)")

@@ -17,7 +17,7 @@ finite numbers, got [12.0]``. The checks run in this order:
    that Python's :mod:`json` accepts but JSON does not;
 2. ``format`` and ``version`` (a newer version is refused: "written by a newer Face Studio";
    an older one is upgraded in memory, see :data:`FORMAT_VERSION`);
-3. the structure, against ``project_schema.json`` (JSON Schema draft 2020-12, shipped with the
+3. the structure, against ``schema.json`` beside this module (JSON Schema draft 2020-12, shipped with the
    package) — the single most relevant schema error is reported;
 4. cross-references the schema cannot express: unique names and photo ids, points / hidden
    features / curves that name defined features and curves, known camera presets, points
@@ -55,8 +55,8 @@ from typing import Any
 
 import numpy as np
 
-from .camera import PRESET_AZIMUTH_DEG, Camera
-from .errors import ProjectError
+from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
+from photomodel.errors import ProjectError
 
 FORMAT_NAME = "facestudio-project"
 #: The version this Face Studio writes; it reads every version from 1 up to this one.
@@ -223,7 +223,7 @@ def _file_stem(name: str, fallback: str) -> str:
 
 @dataclass
 class ExpressionResult:
-    """The fitted model of one expression (written by the fitter, :mod:`photomodel.fit`).
+    """The fitted model of one expression (written by the fitter, :mod:`photomodel.modeling.fit`).
 
     Attributes
     ----------
@@ -274,7 +274,7 @@ class Expression:
         Name of another expression of the project whose photos were taken with the same
         cameras (the same rig, photo for photo by photo id, the head in the same place). The fit
         then reuses that expression's fitted cameras instead of recovering its own
-        (:func:`photomodel.fit.fit_expression`), and its mesh lands in that expression's head
+        (:func:`photomodel.modeling.fit.fit_expression`), and its mesh lands in that expression's head
         frame. None (default): the cameras are recovered from this expression's own clicks.
     """
 
@@ -743,7 +743,7 @@ def _fsync_dir(folder: Path) -> None:
 @lru_cache(maxsize=1)
 def project_schema() -> dict:
     """The JSON Schema (draft 2020-12) of the format (versions 1 and 2), shipped as package data."""
-    text = resources.files("photomodel").joinpath("project_schema.json").read_text(encoding="utf-8")
+    text = resources.files("photomodel.project").joinpath("schema.json").read_text(encoding="utf-8")
     return json.loads(text)
 
 

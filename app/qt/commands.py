@@ -12,9 +12,8 @@ from __future__ import annotations
 import numpy as np
 from PySide6.QtGui import QUndoCommand
 
-from photomodel.project import CurveDef, Expression, Feature, Photo
-
-from .model import StudioModel
+from app.model import StudioModel
+from photomodel.project.format import CurveDef, Expression, Feature, Photo
 
 
 def _fmt_uv(uv) -> str:

@@ -1,8 +1,8 @@
 """View-dependent texturing in fragment shaders, drawn with the one renderer's GL context (§5.2.3).
 
-:class:`ViewDependentGL` keeps, in a :class:`~photomodel.render.Renderer`'s context (reached
-through its public :meth:`~photomodel.render.Renderer.context` and
-:meth:`~photomodel.render.Renderer.program`), what
+:class:`ViewDependentGL` keeps, in a :class:`~photomodel.rendering.renderer.Renderer`'s context (reached
+through its public :meth:`~photomodel.rendering.renderer.Renderer.context` and
+:meth:`~photomodel.rendering.renderer.Renderer.program`), what
 :class:`photomodel.texturing.view_dependent.ViewDependentTexture` needs to draw new views on the
 GPU — Mesa's llvmpipe on machines without one — uploaded once:
 
@@ -62,7 +62,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from photomodel.camera import Camera
-from photomodel.render import Renderer, auto_near_far, gl_projection
+from photomodel.rendering.renderer import Renderer, auto_near_far, gl_projection
 
 __all__ = ["GLFrame", "ViewDependentGL", "FlowFunction"]
 

@@ -35,10 +35,9 @@ from PySide6.QtWidgets import (
     QMenu,
 )
 
+from app.model import StudioModel
+from app.qt.commands import SetCurveCommand, SetHiddenCommand, SetPointCommand
 from photomodel.errors import FaceStudioError
-
-from .commands import SetCurveCommand, SetHiddenCommand, SetPointCommand
-from .model import StudioModel
 
 #: A press closer than this (screen px) to a marker grabs it.
 HIT_RADIUS_PX = 9.0
@@ -404,7 +403,7 @@ class PhotoView(QGraphicsView):
         """Draw the fitted mesh's lines with the fitted camera of this photo (hidden lines removed).
 
         The lines come from the fit's overlay cache, filled by the fit's worker for the photo on
-        screen (:class:`app.workers.FitTask`), so after a refit this only paints; a photo that
+        screen (:class:`app.qt.workers.FitTask`), so after a refit this only paints; a photo that
         was not on screen then has its overlay computed here once (:meth:`StudioModel.overlay`).
         """
         import time

@@ -42,7 +42,7 @@ import numpy as np
 import scipy.linalg
 from scipy.spatial.distance import cdist
 
-from .errors import FitError
+from photomodel.errors import FitError
 
 MM_PER_INCH = 25.4
 

@@ -1,6 +1,6 @@
 """The generic face mesh: the shape Pighin et al. (2002), §5.1, deform into each person.
 
-Built once from menpo3d's ``template.ply`` (see :mod:`photomodel.sample_data`), a
+Built once from menpo3d's ``template.ply`` (see :mod:`photomodel.samples.sample_data`), a
 53k-vertex generic head surface (face, ears, neck; open at the back and at the mouth) with the
 68 iBUG landmarks, and cached as an ``.npz`` in the cache
 folder under a version key (:data:`GENERIC_MESH_VERSION`):
@@ -38,7 +38,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from photomodel.sample_data import Template, _load_npz, _save_npz, cache_dir, load_template
+from photomodel.samples.sample_data import Template, _load_npz, _save_npz, cache_dir, load_template
 
 #: Cache key of the built mesh; change it whenever the recipe below changes its output.
 GENERIC_MESH_VERSION = "2-faces16000"
@@ -212,7 +212,7 @@ def load_generic_mesh() -> GenericMesh:
     Raises
     ------
     SampleDataError
-        when the template cannot be obtained (see :func:`photomodel.sample_data.sample_data_dir`).
+        when the template cannot be obtained (see :func:`photomodel.samples.sample_data.sample_data_dir`).
     """
     folder = cache_dir()
     path = folder / f"generic_mesh-{GENERIC_MESH_VERSION}.npz"

@@ -1,4 +1,4 @@
-"""The 3D view: the generic or fitted face mesh rendered by :mod:`photomodel.render`, orbit and zoom.
+"""The 3D view: the generic or fitted face mesh rendered by :mod:`photomodel.rendering.renderer`, orbit and zoom.
 
 The image comes from the project's one renderer (headless moderngl, Lambert shading with a
 head-light), so the 3D view shows exactly the geometry that texturing and tracking use. It is
@@ -24,9 +24,8 @@ from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QImage, QPainter, QPen
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
+from app.model import StudioModel
 from photomodel.camera import focal_mm_to_px, orbit_camera
-
-from .model import StudioModel
 
 #: A click within this many pixels of a feature's projection picks it.
 PICK_RADIUS_PX = 14.0
@@ -125,7 +124,7 @@ class View3D(QWidget):
 
     def render_image(self, width: int | None = None, height: int | None = None) -> QImage:
         """Render now at the given size (default: the widget's) and return the image."""
-        from photomodel.render import get_renderer
+        from photomodel.rendering.renderer import get_renderer
 
         w = max(16, int(width or self.width()))
         h = max(16, int(height or self.height()))
@@ -194,7 +193,7 @@ class View3D(QWidget):
         return (names,) + self._project_visible(V[verts]) if len(names) else ([], np.zeros((0, 2)), np.zeros(0, bool))
 
     def _project_visible(self, X: np.ndarray):
-        from photomodel.overlay import visible_points
+        from photomodel.modeling.overlay import visible_points
 
         uv = self._camera.project(X)
         vis = visible_points(self._camera, X, self._depth, tolerance_mm=3.0)

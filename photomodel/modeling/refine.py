@@ -3,7 +3,7 @@
 After the pose stage the cameras are frozen. Extra correspondences — single clicked points
 and hand-drawn curves — are turned into 3D targets by triangulation, "finding the point
 nearest the intersection of the viewing rays in 3D", and the scattered-data interpolation
-(:mod:`photomodel.rbf`) is re-run with them.
+(:mod:`photomodel.modeling.rbf`) is re-run with them.
 
 What this module adds to the paper (each marked *beyond the paper* where it is used):
 
@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .camera import Camera
-from .errors import FitError
+from photomodel.camera import Camera
+from photomodel.errors import FitError
 
 
 # ---------------------------------------------------------------------------------------------
@@ -360,7 +360,7 @@ def curve_observations(
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class RefinementTargets:
-    """3D targets for :func:`photomodel.rbf.deform_vertices` from extra correspondences.
+    """3D targets for :func:`photomodel.modeling.rbf.deform_vertices` from extra correspondences.
 
     Attributes
     ----------

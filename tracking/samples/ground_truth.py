@@ -1,11 +1,11 @@
 """The sample tracking data: the james face model and a synthetic video with its ground truth.
 
 Tests, benchmarks and ``sample_projects/make_james_video.py`` use this module; the tracker
-(:mod:`tracking.fit`) never does, and :mod:`tracking.batch` only for the sample project's face model
+(:mod:`tracking.frame_fit`) never does, and :mod:`tracking.batch` only for the sample project's face model
 (until expressions are modeled from a project's photos).
 
 * :func:`sample_face_model` — the blend-shape model (§6.1.1) of the james basic expressions
-  (:mod:`tracking.expressions`) on the generic mesh, from their **true** geometries (the generic
+  (:mod:`tracking.samples.expressions`) on the generic mesh, from their **true** geometries (the generic
   vertices' true positions on the scan moved by each expression's deformation field). Texture: the
   scan's own photographic texture, reached through the true correspondence (each generic vertex
   gets the uv of its true point on the scan), downsampled ×:data:`TEXTURE_DOWNSAMPLE` (a 300-px
@@ -28,8 +28,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from photomodel.camera import Camera, rodrigues
-from tracking.expressions import EXPRESSION_NAMES, expression_displacements
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions
+from tracking.samples.expressions import EXPRESSION_NAMES, expression_displacements
 
 __all__ = [
     "FITTED_SAMPLE_VERSION",
@@ -60,13 +60,13 @@ VIDEO_FOCAL_PX = 560.0
 VIDEO_DISTANCE_MM = 650.0
 BACKGROUND_RGB = (0.55, 0.6, 0.65)
 #: The sample project file (its photos are next to it).
-SAMPLE_PROJECT = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
+SAMPLE_PROJECT = Path(__file__).resolve().parents[2] / "sample_projects" / "james" / "james.facestudio.json"
 
 
 def scan_uv_of_points(scan, points: np.ndarray) -> np.ndarray:
     """(n, 2) uv of the scan's texture at surface ``points`` (n, 3) mm (closest scan triangle,
     barycentric interpolation of its corners' uv)."""
-    from photomodel.synthetic import barycentric_coordinates, scan_surface
+    from photomodel.samples.synthetic import barycentric_coordinates, scan_surface
 
     surf = scan_surface(scan)
     closest, _, face = surf.closest(points)
@@ -84,9 +84,9 @@ def scan_uv_of_points(scan, points: np.ndarray) -> np.ndarray:
 @lru_cache(maxsize=4)
 def sample_face_model(names: tuple = EXPRESSION_NAMES, basis: str = "gram_schmidt") -> FaceModel:
     """The james face model of ``names`` (see the module docstring). Cached per arguments."""
-    from photomodel.generic_mesh import load_generic_mesh
-    from photomodel.sample_data import load_james_scan
-    from photomodel.synthetic import true_correspondence
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.samples.sample_data import load_james_scan
+    from photomodel.samples.synthetic import true_correspondence
 
     mesh, scan = load_generic_mesh(), load_james_scan()
     C = true_correspondence(mesh, scan)
@@ -106,7 +106,7 @@ def sample_face_model(names: tuple = EXPRESSION_NAMES, basis: str = "gram_schmid
 def _scan_membership() -> np.ndarray:
     """(n_scan, R) region memberships of the scan's vertices: inverse-distance average of the
     4 nearest generic vertices' (at their true positions) smoothed memberships."""
-    from photomodel.sample_data import load_james_scan
+    from photomodel.samples.sample_data import load_james_scan
 
     model = sample_face_model()
     scan = load_james_scan()
@@ -194,7 +194,7 @@ def video_truth(frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NA
     # facing the camera: the subject's left (+x) is on the image's right, up (+y) is image up
     # (camera y is down), and out of the face (+z) points back at the camera (−z_cam)
     R0 = np.diag([1.0, -1.0, -1.0])
-    from photomodel.synthetic import HEAD_CENTRE_MM
+    from photomodel.samples.synthetic import HEAD_CENTRE_MM
 
     R = np.array([rodrigues(np.array([p, y, r])) @ R0 for p, y, r in zip(pitch, yaw, roll, strict=True)])
     centre_cam = np.column_stack([
@@ -231,7 +231,7 @@ def true_vertices(truth: VideoTruth, i: int) -> np.ndarray:
 def true_scan_vertices(truth: VideoTruth, i: int) -> tuple[np.ndarray, np.ndarray]:
     """The true surface of frame ``i``: the scan deformed by the frame's region weights (what
     :func:`render_video_frame` draws), as vertices (n_scan, 3) mm in the head frame and triangles."""
-    from photomodel.sample_data import load_james_scan
+    from photomodel.samples.sample_data import load_james_scan
 
     scan = load_james_scan()
     Wv = _scan_membership() @ truth.weights[i]  # (n_scan, m)
@@ -241,8 +241,8 @@ def true_scan_vertices(truth: VideoTruth, i: int) -> tuple[np.ndarray, np.ndarra
 def render_video_frame(truth: VideoTruth, i: int, *, supersample: int = 3) -> np.ndarray:
     """(H, W, 3) float32 in [0, 1]: frame ``i`` — the textured scan deformed by the frame's
     region weights, seen by the video camera at the frame's head pose, on a plain background."""
-    from photomodel.render import get_renderer
-    from photomodel.sample_data import load_james_scan
+    from photomodel.rendering.renderer import get_renderer
+    from photomodel.samples.sample_data import load_james_scan
 
     scan = load_james_scan()
     V, _ = true_scan_vertices(truth, i)
@@ -255,7 +255,7 @@ def render_video_frame(truth: VideoTruth, i: int, *, supersample: int = 3) -> np
 
 @lru_cache(maxsize=2)
 def _scan_displacements(names: tuple) -> np.ndarray:
-    from photomodel.sample_data import load_james_scan
+    from photomodel.samples.sample_data import load_james_scan
 
     scan = load_james_scan()
     return expression_displacements(scan.vertices, scan.landmarks, names)
@@ -265,8 +265,8 @@ _TEX_HANDLES: dict = {}
 
 
 def _scan_texture_handle():
-    from photomodel.render import get_renderer
-    from photomodel.sample_data import load_james_scan
+    from photomodel.rendering.renderer import get_renderer
+    from photomodel.samples.sample_data import load_james_scan
 
     r = get_renderer()
     if id(r) not in _TEX_HANDLES:
@@ -278,7 +278,7 @@ def fitted_sample_project(progress=None) -> Path:
     """A copy of the sample project with every expression fitted and textured, as a user gets with
     ``facestudio fit`` then ``facestudio texture``: the path of its project file.
 
-    Made once in the cache (:func:`photomodel.sample_data.cache_dir`, folder ``fitted_james/<key>``,
+    Made once in the cache (:func:`photomodel.samples.sample_data.cache_dir`, folder ``fitted_james/<key>``,
     the key a hash of the project file, its photos and :data:`FITTED_SAMPLE_VERSION`; about half a
     minute on two cores) and reused; ``progress(stage, fraction)`` is told how far it got. Tests and
     benchmarks track with the face model of this project (:func:`fitted_sample_model`).
@@ -288,10 +288,10 @@ def fitted_sample_project(progress=None) -> Path:
     import shutil
     import tempfile
 
-    from photomodel.fit import FitOptions, fit_expression, fit_order, store_fit_result
-    from photomodel.generic_mesh import load_generic_mesh
-    from photomodel.project import load_project, save_project
-    from photomodel.sample_data import cache_dir
+    from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, store_fit_result
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.project.format import load_project, save_project
+    from photomodel.samples.sample_data import cache_dir
     from photomodel.texturing.job import commit_texture, encode_texture_outputs, texture_expression
 
     src = SAMPLE_PROJECT
@@ -341,7 +341,7 @@ def fitted_sample_model(names: tuple = EXPRESSION_NAMES) -> FaceModel:
     """The face model of the fitted sample project (:func:`fitted_sample_project`) on ``names``,
     E_1 = neutral — the model a user of the sample gets, built by
     :func:`tracking.project_model.face_model_from_project`. Cached per arguments."""
-    from photomodel.project import load_project
+    from photomodel.project.format import load_project
     from tracking.project_model import face_model_from_project
 
     return face_model_from_project(load_project(fitted_sample_project()), names)[0]
@@ -365,8 +365,8 @@ def model_gauge(model: FaceModel, iterations: int = 15) -> tuple[float, np.ndarr
     sees the surface.
     """
     from photomodel.alignment import similarity_transform
-    from photomodel.sample_data import load_james_scan
-    from photomodel.synthetic import scan_surface
+    from photomodel.samples.sample_data import load_james_scan
+    from photomodel.samples.synthetic import scan_surface
 
     key = (id(model), iterations)
     cached = _GAUGES.get(key)

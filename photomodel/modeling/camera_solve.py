@@ -2,7 +2,7 @@
 suspects and a plausibility check (the §5.1.1 pose stage of ``facestudio fit``; beyond the paper).
 
 The paper recovers the cameras from ~13 hand-picked pose features, starting from the artist's
-rough presets, by its alternating least squares (:mod:`photomodel.pose`). On input a user produces
+rough presets, by its alternating least squares (:mod:`photomodel.modeling.pose`). On input a user produces
 every day that fails: a fresh draw of click noise sends a camera behind the head, a profile shows
 too few pose features, one click 80 px off spoils every camera, a wrong preset is never
 recovered from. :func:`solve_cameras` keeps the paper's method at its core and adds:
@@ -10,7 +10,7 @@ recovered from. :func:`solve_cameras` keeps the paper's method at its core and a
 1. **Every feature clicked in ≥ 2 photos places the cameras**, not only the flagged pose
    features (a profile with 3 pose features and 20 other clicks solves).
 2. **Cheap starts, one polish.** (a) the presets, registered to the clicks
-   (:meth:`photomodel.pose._Problem.register`); (b) each photo placed on its own by a
+   (:meth:`photomodel.modeling.pose._Problem.register`); (b) each photo placed on its own by a
    perspective-n-point solve (OpenCV's SQPnP, a global solver) of its clicks against the generic
    head's feature positions at the lens guess. Each
    photo starts from its PnP pose where that agrees with its preset (within 30°) and fits the
@@ -20,7 +20,7 @@ recovered from. :func:`solve_cameras` keeps the paper's method at its core and a
    run on that mixed start; the pure presets and the pure PnP starts are the fallbacks when the
    result is implausible. The presets are thus only a hint: a photo whose preset is wrong still
    solves through (b).
-3. **A robust polish** (:mod:`photomodel.bundle`): Levenberg–Marquardt on the Huber loss of the
+3. **A robust polish** (:mod:`photomodel.modeling.bundle`): Levenberg–Marquardt on the Huber loss of the
    reprojection errors with threshold ``c = HUBER_C · σ̂``, the noise scale ``σ̂`` taken from the
    data (item 4). Residuals are leverage-corrected per feature (``e / √(1 − 3 / (2 v))`` for a
    feature clicked in ``v`` photos: its 3 coordinates absorb part of its 2v residuals), so a
@@ -69,11 +69,11 @@ import numpy as np
 from scipy import stats
 from threadpoolctl import ThreadpoolController
 
-from .alignment import similarity_transform
-from .bundle import BundleProblem, BundleState
-from .camera import Camera, focal_px_to_mm, rotation_angle_deg
-from .errors import FitError
-from .pose import MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate
+from photomodel.alignment import similarity_transform
+from photomodel.camera import Camera, focal_px_to_mm, rotation_angle_deg
+from photomodel.errors import FitError
+from photomodel.modeling.bundle import BundleProblem, BundleState
+from photomodel.modeling.pose import MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate
 
 #: BLAS thread control: the polish's matrices are small (≤ ~70 × 70), where a multi-threaded
 #: BLAS spends more time waking threads than computing (a 9-photo solve took 30–100 ms with
@@ -137,7 +137,7 @@ class CameraSolution:
     iterations: int = 0
 
     def pose_result(self) -> PoseResult:
-        """The solution as a :class:`photomodel.pose.PoseResult` (residuals of the used clicks)."""
+        """The solution as a :class:`photomodel.modeling.pose.PoseResult` (residuals of the used clicks)."""
         return PoseResult(
             cameras=self.cameras,
             points=self.points,
@@ -567,7 +567,7 @@ def _triangulate_from(A, R, t, f, xy):
 
 def _registered(o, v, cameras, points, fixed_focal) -> list[Camera]:
     """The presets with each photo's image scale and offset fitted to its clicks (the start of
-    :func:`photomodel.pose.recover_poses`)."""
+    :func:`photomodel.modeling.pose.recover_poses`)."""
     prob = _Problem(o, v, cameras, fixed_focal)
     st = prob.state_from(cameras, points)
     with np.errstate(all="ignore"):

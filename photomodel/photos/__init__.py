@@ -1,0 +1,1 @@
+"""Photographs as they come in: what a photo file says about its camera."""

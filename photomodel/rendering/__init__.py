@@ -1,0 +1,1 @@
+"""The one renderer (moderngl on EGL) and the view-dependent texturing shaders."""

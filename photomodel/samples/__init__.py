@@ -1,0 +1,1 @@
+"""Sample data and synthetic ground truth (menpo3d's james scan): tests, benchmarks and the sample project only."""
