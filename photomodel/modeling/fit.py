@@ -35,7 +35,7 @@ No file I/O happens here; :func:`store_fit_result` stores a result in a project.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -264,6 +264,169 @@ def _reproject(cameras: list[Camera], points: np.ndarray, obs: np.ndarray) -> np
     return proj - obs
 
 
+@dataclass
+class _CameraStage:
+    """What the camera stage hands on: cameras and the pose features' 3D points in the fit's
+    frame, plus what the report says about them."""
+
+    cameras: list[Camera]
+    pose: PoseResult
+    pose_names: list[str]
+    pose_idx: np.ndarray
+    pose_points: np.ndarray
+    dropped: list[str] = field(default_factory=list)
+    suspects: list[dict] = field(default_factory=list)
+    excluded: np.ndarray | None = None  # (k, features) clicks left out, project.features order
+    camera_report: dict = field(default_factory=dict)
+    bundle_report: dict | None = None
+
+
+def _check_inputs(project, expr, mesh, curve_mesh) -> tuple[dict, np.ndarray | None]:
+    """Feature → vertex map and the curve mesh as an array, or a FitError naming the problem."""
+    if len(expr.photos) < 2:
+        raise FitError(
+            f"expression {expr.name!r} has {len(expr.photos)} photo(s); pose recovery needs at least 2 views"
+        )
+    n_vertices = len(mesh.vertices)
+    if curve_mesh is not None:
+        curve_mesh = np.asarray(curve_mesh, dtype=float)
+        if curve_mesh.shape != mesh.vertices.shape:
+            raise FitError(f"curve_mesh has shape {curve_mesh.shape}, the generic mesh {mesh.vertices.shape}")
+    feat_vertex = {f.name: int(f.vertex) for f in project.features}
+    bad = [n for n, v in feat_vertex.items() if not 0 <= v < n_vertices]
+    if bad:
+        raise FitError(
+            f"feature(s) {', '.join(bad)} refer to vertices outside the generic mesh (0..{n_vertices - 1})"
+        )
+    if not any(f.pose for f in project.features):
+        raise FitError("no feature is marked for pose recovery (features[].pose = true)")
+    return feat_vertex, curve_mesh
+
+
+def _cameras_of_source(project, expression_name, source, feat_vertex) -> _CameraStage:
+    """Cameras of another, fitted expression (same rig): triangulate the pose features, keep its frame."""
+    pose_names = [f.name for f in project.features if f.pose]
+    photo_ids = [p.id for p in project.expression(expression_name).photos]
+    cameras = source_cameras(project, expression_name, source)
+    obs_pose = project.observations(expression_name, pose_names)
+    pose, kept, dropped = _fixed_camera_pose(cameras, obs_pose, pose_names, photo_ids)
+    pose_names = [n for n, k in zip(pose_names, kept, strict=True) if k]
+    pose_idx = np.array([feat_vertex[n] for n in pose_names])
+    return _CameraStage(cameras, pose, pose_names, pose_idx, pose.points, dropped)
+
+
+def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _CameraStage:
+    """Every feature clicked in ≥ 2 photos places the cameras (photomodel.modeling.camera_solve:
+    cheap starts, the paper's ALS, robust polish, suspects named and left out); the gauge is the
+    similarity of the pose features onto the generic mesh."""
+    photos = project.expression(expression_name).photos
+    all_names = [f.name for f in project.features]
+    pose_names = [f.name for f in project.features if f.pose]
+    obs_all = project.observations(expression_name, all_names)
+    sol = solve_cameras(
+        obs_all,
+        initial_cameras(photos),
+        mesh.vertices[[feat_vertex[n] for n in all_names]],
+        groups=project.camera_groups(expression_name),
+        fixed_focal=opt.fixed_focal,
+        names=all_names,
+        view_names=[p.id for p in photos],
+    )
+    solved = np.isfinite(sol.points[:, 0])
+    col = {n: i for i, n in enumerate(all_names)}
+    dropped = [
+        f"pose feature {n!r}: clicked in {int(np.isfinite(obs_all[:, col[n], 0]).sum())} photo(s), "
+        "needs 2 to be placed" for n in pose_names if not solved[col[n]]
+    ]
+    pose_names = [n for n in pose_names if solved[col[n]]]
+    if len(pose_names) < 4:
+        raise FitError(
+            f"only {len(pose_names)} pose feature(s) are clicked in at least 2 photos; the first "
+            "deformation of the generic mesh needs 4 — click more of: "
+            + ", ".join(f.name for f in project.features if f.pose and f.name not in pose_names)
+        )
+    pose_idx = np.array([feat_vertex[n] for n in pose_names])
+    pose_cols = [col[n] for n in pose_names]
+    s, R, t = similarity_transform(sol.points[pose_cols], mesh.vertices[pose_idx])
+    cameras = transform_cameras(sol.cameras, s, R, t)
+    pose_points = sol.points[pose_cols] @ (s * R).T + t
+    base = sol.pose_result()
+    pose = replace(
+        base, cameras=cameras, points=pose_points, per_point_rms_px=base.per_point_rms_px[pose_cols],
+        residuals_px=base.residuals_px[:, pose_cols],
+    )
+    return _CameraStage(
+        cameras, pose, pose_names, pose_idx, pose_points, dropped,
+        suspects=sol.suspects,
+        excluded=~sol.used & np.isfinite(obs_all[..., 0]),
+        camera_report={"start": sol.start, "sigma_px": sol.sigma_px, "rms_all_px": sol.rms_all_px},
+        bundle_report={"rms_px": float(sol.rms_px), "points": int(solved.sum())},
+    )
+
+
+def _cameras_paper(project, expression_name, mesh, opt, feat_vertex) -> _CameraStage:
+    """The paper (§5.1.1): cameras from the pose features alone, gauged onto the generic mesh."""
+    photos = project.expression(expression_name).photos
+    pose_names = [f.name for f in project.features if f.pose]
+    pose_idx = np.array([feat_vertex[n] for n in pose_names])
+    pose = recover_poses(
+        project.observations(expression_name, pose_names),
+        initial_cameras(photos),
+        mesh.vertices[pose_idx],
+        fixed_focal=opt.fixed_focal,
+        max_sweeps=opt.max_sweeps,
+        names=pose_names,
+        view_names=[p.id for p in photos],
+    )
+    s, R, t = similarity_transform(pose.points, mesh.vertices[pose_idx])
+    cameras = transform_cameras(pose.cameras, s, R, t)
+    pose_points = pose.points @ (s * R).T + t
+    pose = replace(pose, cameras=cameras, points=pose_points, polish_iterations=0, rms_history=np.zeros(0))
+    return _CameraStage(cameras, pose, pose_names, pose_idx, pose_points)
+
+
+def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, curve_mesh, deform, progress,
+            check_cancel):
+    """§5.1.3 with the cameras fixed: triangulate the other features and the curves, re-run the
+    RBF from the generic mesh with every constraint; curves re-parameterised on the refined mesh
+    ``curve_passes`` times. Returns ``(vertices, feature names, points (n, 3), dropped, curve report)``."""
+    photos = project.expression(expression_name).photos
+    extra = [f for f in project.features if not f.pose]
+    extra_names = [f.name for f in extra]
+    extra_idx = np.array([f.vertex for f in extra], dtype=int)
+    obs_extra = project.observations(expression_name, extra_names) if extra else None
+    if obs_extra is not None and stage.excluded is not None:  # suspect clicks stay out
+        obs_extra[stage.excluded[:, [i for i, f in enumerate(project.features) if not f.pose]]] = np.nan
+    curves = [c for c in project.curves if sum(c.name in p.curves for p in photos) >= 2]
+    curve_args = [
+        (c.vertices, {k: p.curves[c.name] for k, p in enumerate(photos) if c.name in p.curves}) for c in curves
+    ]
+    pose_set = set(stage.pose_idx.tolist())
+    n_passes = max(1, opt.curve_passes if curves else 1)
+    for n_pass in range(n_passes):
+        progress("refining: points and curves", 0.55 + 0.4 * n_pass / n_passes)
+        # curves are parameterised on the current fitted mesh, so later passes see a better one
+        param_mesh = curve_mesh if (n_pass == 0 and curve_mesh is not None) else vertices
+        targets = refine_points(
+            stage.cameras, param_mesh,
+            point_vertices=extra_idx if extra else None, point_observations=obs_extra,
+            curves=curve_args, point_names=extra_names, curve_names=[c.name for c in curves],
+        )
+        keep = np.array([v not in pose_set for v in targets.vertices.tolist()], dtype=bool)
+        vertices = deform(
+            mesh.vertices,
+            np.concatenate([stage.pose_idx, targets.vertices[keep]]),
+            np.concatenate([stage.pose_points, targets.targets[keep]]),
+        )
+        check_cancel()
+    vertex_of = {int(v): i for i, v in enumerate(targets.vertices.tolist())}
+    got = [(n, vertex_of[int(v)]) for n, v in zip(extra_names, extra_idx, strict=True)
+           if int(v) in vertex_of and int(v) not in pose_set]
+    points = np.concatenate([stage.pose_points, targets.targets[[i for _, i in got]].reshape(-1, 3)])
+    curve_report = {c.name: {"views": len(d)} for c, (_, d) in zip(curves, curve_args, strict=True)}
+    return vertices, [n for n, _ in got], points, list(targets.dropped), curve_report
+
+
 def fit_expression(
     project,
     expression_name: str,
@@ -279,7 +442,7 @@ def fit_expression(
 
     Parameters
     ----------
-    project : photomodel.project.format.Project
+    project : photomodel.project.Project
     expression_name : str
     mesh : photomodel.modeling.generic_mesh.GenericMesh (``vertices`` (N, 3) mm, ``faces``)
     options : FitOptions
@@ -307,212 +470,44 @@ def fit_expression(
     opt = options or FitOptions()
     expr = project.expression(expression_name)
     source = cameras_source(project, expression_name, opt)
-    photos = expr.photos
-    if len(photos) < 2:
-        raise FitError(
-            f"expression {expression_name!r} has {len(photos)} photo(s); pose recovery needs at least 2 views"
-        )
-    report_progress = progress or (lambda stage, frac: None)
+    progress = progress or (lambda stage, frac: None)
     deform = deform or deform_vertices
 
     def check_cancel():
         if cancel is not None and cancel():
             raise Cancelled("fit cancelled")
 
-    n_vertices = len(mesh.vertices)
-    if curve_mesh is not None:
-        curve_mesh = np.asarray(curve_mesh, dtype=float)
-        if curve_mesh.shape != mesh.vertices.shape:
-            raise FitError(f"curve_mesh has shape {curve_mesh.shape}, the generic mesh {mesh.vertices.shape}")
-    feat_vertex = {f.name: int(f.vertex) for f in project.features}
-    bad = [n for n, v in feat_vertex.items() if not 0 <= v < n_vertices]
-    if bad:
-        raise FitError(
-            f"feature(s) {', '.join(bad)} refer to vertices outside the generic mesh (0..{n_vertices - 1})"
-        )
-
-    # 1. pose recovery ---------------------------------------------------------------
-    report_progress("pose recovery", 0.0)
-    pose_names = [f.name for f in project.features if f.pose]
-    if not pose_names:
-        raise FitError("no feature is marked for pose recovery (features[].pose = true)")
-    obs_pose = project.observations(expression_name, pose_names)
-    photo_ids = [p.id for p in photos]
-    pose_dropped: list[str] = []
-    suspects: list[dict] = []
-    excluded = None  # (k, features) clicks left out as suspects, in project.features order
-    camera_report: dict = {}
-    bundle_report = None
+    feat_vertex, curve_mesh = _check_inputs(project, expr, mesh, curve_mesh)
+    # 1–2. cameras and the gauge
+    progress("pose recovery", 0.0)
     if source is not None:
-        # 1'. cameras of another expression (same rig): triangulate, keep its frame -------
-        cameras = source_cameras(project, expression_name, source)
-        pose, kept, pose_dropped = _fixed_camera_pose(cameras, obs_pose, pose_names, photo_ids)
-        pose_names = [n for n, k in zip(pose_names, kept, strict=True) if k]
-        pose_idx = np.array([feat_vertex[n] for n in pose_names])
-        pose_points = pose.points
-        check_cancel()
+        stage = _cameras_of_source(project, expression_name, source, feat_vertex)
     elif opt.bundle_all:
-        # 1b. every feature clicked in >= 2 photos places the cameras: cheap starts, the paper's
-        #     ALS, robust polish, suspect clicks named and left out (photomodel.modeling.camera_solve)
-        all_names = [f.name for f in project.features]
-        obs_all = project.observations(expression_name, all_names)
-        sol = solve_cameras(
-            obs_all,
-            initial_cameras(photos),
-            mesh.vertices[[feat_vertex[n] for n in all_names]],
-            groups=project.camera_groups(expression_name),
-            fixed_focal=opt.fixed_focal,
-            names=all_names,
-            view_names=photo_ids,
-        )
-        check_cancel()
-        solved = np.isfinite(sol.points[:, 0])
-        col = {n: i for i, n in enumerate(all_names)}
-        pose_dropped = [
-            f"pose feature {n!r}: clicked in {int(np.isfinite(obs_all[:, col[n], 0]).sum())} photo(s), "
-            "needs 2 to be placed" for n in pose_names if not solved[col[n]]
-        ]
-        pose_names = [n for n in pose_names if solved[col[n]]]
-        if len(pose_names) < 4:
-            raise FitError(
-                f"only {len(pose_names)} pose feature(s) are clicked in at least 2 photos; the first "
-                "deformation of the generic mesh needs 4 — click more of: "
-                + ", ".join(f.name for f in project.features if f.pose and f.name not in pose_names)
-            )
-        pose_idx = np.array([feat_vertex[n] for n in pose_names])
-        # 2. gauge: similarity onto the generic feature vertices of the pose features
-        pose_cols = [col[n] for n in pose_names]
-        s, R, t = similarity_transform(sol.points[pose_cols], mesh.vertices[pose_idx])
-        cameras = transform_cameras(sol.cameras, s, R, t)
-        pose_points = sol.points[pose_cols] @ (s * R).T + t
-        base = sol.pose_result()
-        pose = PoseResult(
-            cameras=cameras,
-            points=pose_points,
-            iterations=base.iterations,
-            converged=True,
-            rms_px=sol.rms_px,
-            per_view_rms_px=base.per_view_rms_px,
-            per_point_rms_px=base.per_point_rms_px[pose_cols],
-            residuals_px=base.residuals_px[:, pose_cols],
-            polish_iterations=base.polish_iterations,
-        )
-        suspects = sol.suspects
-        excluded = ~sol.used & np.isfinite(obs_all[..., 0])
-        camera_report = {"start": sol.start, "sigma_px": sol.sigma_px, "rms_all_px": sol.rms_all_px}
-        bundle_report = {"rms_px": float(sol.rms_px), "points": int(solved.sum())}
+        stage = _cameras_robust(project, expression_name, mesh, opt, feat_vertex)
     else:
-        # 1c. the paper: cameras from the pose features alone (section 5.1.1)
-        pose_idx = np.array([feat_vertex[n] for n in pose_names])
-        pose = recover_poses(
-            obs_pose,
-            initial_cameras(photos),
-            mesh.vertices[pose_idx],
-            fixed_focal=opt.fixed_focal,
-            max_sweeps=opt.max_sweeps,
-            names=pose_names,
-            view_names=photo_ids,
-        )
-        check_cancel()
-
-        # 2. gauge: similarity onto the generic feature vertices -----------------------
-        s, R, t = similarity_transform(pose.points, mesh.vertices[pose_idx])
-        cameras = transform_cameras(pose.cameras, s, R, t)
-        pose_points = pose.points @ (s * R).T + t
-        pose = PoseResult(
-            cameras=cameras,
-            points=pose_points,
-            iterations=pose.iterations,
-            converged=pose.converged,
-            rms_px=pose.rms_px,
-            per_view_rms_px=pose.per_view_rms_px,
-            per_point_rms_px=pose.per_point_rms_px,
-            residuals_px=pose.residuals_px,
-        )
-
-    # 3. scattered-data interpolation from the pose features ----------------------------
-    report_progress("deforming the generic mesh", 0.4)
-    initial_vertices = deform(mesh.vertices, pose_idx, pose_points)
+        stage = _cameras_paper(project, expression_name, mesh, opt, feat_vertex)
     check_cancel()
-
-    names = list(pose_names)
-    points_3d = pose_points
-    dropped: list[str] = []
-    vertices = initial_vertices
-    curve_report: dict = {}
-
-    # 4. refinement with fixed cameras --------------------------------------------------
+    # 3. scattered-data interpolation from the pose features
+    progress("deforming the generic mesh", 0.4)
+    initial_vertices = deform(mesh.vertices, stage.pose_idx, stage.pose_points)
+    check_cancel()
+    # 4. refinement with fixed cameras
+    vertices, names, points_3d, dropped, curve_report = initial_vertices, [], stage.pose_points, [], {}
     if opt.refine:
-        extra = [f for f in project.features if not f.pose]
-        extra_names = [f.name for f in extra]
-        extra_idx = np.array([f.vertex for f in extra], dtype=int)
-        obs_extra = project.observations(expression_name, extra_names) if extra else None
-        if obs_extra is not None and excluded is not None:  # suspect clicks stay out
-            ex = excluded[:, [i for i, f in enumerate(project.features) if not f.pose]]
-            obs_extra[ex] = np.nan
-        curves = [c for c in project.curves if sum(c.name in p.curves for p in photos) >= 2]
-        curve_args = [
-            (c.vertices, {k: p.curves[c.name] for k, p in enumerate(photos) if c.name in p.curves})
-            for c in curves
-        ]
-        pose_set = set(pose_idx.tolist())
-
-        def refine(cameras, pose_points, vertices, n_passes, first_mesh=None):
-            """Triangulate points and curves with ``cameras`` fixed and re-run the RBF."""
-            for n_pass in range(n_passes):
-                report_progress("refining: points and curves", 0.55 + 0.4 * n_pass / n_passes)
-                # curves are parameterised on the current fitted mesh, so later passes see a better one
-                param_mesh = first_mesh if (n_pass == 0 and first_mesh is not None) else vertices
-                targets = refine_points(
-                    cameras,
-                    param_mesh,
-                    point_vertices=extra_idx if extra else None,
-                    point_observations=obs_extra,
-                    curves=curve_args,
-                    point_names=extra_names,
-                    curve_names=[c.name for c in curves],
-                )
-                keep = np.array([v not in pose_set for v in targets.vertices.tolist()], dtype=bool)
-                vertices = deform(
-                    mesh.vertices,
-                    np.concatenate([pose_idx, targets.vertices[keep]]),
-                    np.concatenate([pose_points, targets.targets[keep]]),
-                )
-                check_cancel()
-            vertex_of = {int(v): i for i, v in enumerate(targets.vertices.tolist())}
-            got = [
-                (n, vertex_of[int(v)])
-                for n, v in zip(extra_names, extra_idx, strict=True)
-                if int(v) in vertex_of and int(v) not in pose_set
-            ]
-            pts = np.concatenate([pose_points, targets.targets[[i for _, i in got]].reshape(-1, 3)])
-            return vertices, targets, [n for n, _ in got], pts
-
-        n_passes = max(1, opt.curve_passes if curves else 1)
-        vertices, targets, got_names, points_3d = refine(cameras, pose_points, vertices, n_passes, curve_mesh)
-        dropped = targets.dropped
-        names += got_names
-        curve_report = {c.name: {"views": len(d)} for c, (_, d) in zip(curves, curve_args, strict=True)}
-
-    all_names = names
-    report = build_report(photo_ids, cameras, pose, project, expression_name, all_names, points_3d)
-    report["dropped"] = pose_dropped + list(dropped)
-    report["bundle"] = bundle_report
-    report["suspect_clicks"] = suspects
-    report["camera_solve"] = camera_report
-    report["curves"] = curve_report
-    report["cameras_from"] = source
-    report_progress("done", 1.0)
+        vertices, names, points_3d, dropped, curve_report = _refine(
+            project, expression_name, mesh, opt, stage, initial_vertices, curve_mesh, deform, progress, check_cancel
+        )
+    names = list(stage.pose_names) + names
+    photo_ids = [p.id for p in expr.photos]
+    report = build_report(photo_ids, stage.cameras, stage.pose, project, expression_name, names, points_3d)
+    report.update(
+        dropped=stage.dropped + dropped, bundle=stage.bundle_report, suspect_clicks=stage.suspects,
+        camera_solve=stage.camera_report, curves=curve_report, cameras_from=source,
+    )
+    progress("done", 1.0)
     return FitResult(
-        photo_ids=photo_ids,
-        cameras=cameras,
-        feature_names=all_names,
-        points_3d=points_3d,
-        initial_vertices=initial_vertices,
-        vertices=vertices,
-        pose=pose,
-        report=report,
-        cameras_from=source,
+        photo_ids=photo_ids, cameras=stage.cameras, feature_names=names, points_3d=points_3d,
+        initial_vertices=initial_vertices, vertices=vertices, pose=stage.pose, report=report, cameras_from=source,
     )
 
 
