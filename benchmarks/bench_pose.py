@@ -9,7 +9,7 @@ landmarks carried onto the scan), each draw scaled by its own random factors per
 and the generic head (the start and the prior) is never the truth. A rig: ``n`` cameras spread
 over the variant's azimuth range (±3° jitter, ±10° elevation, ±3° roll), lenses 35–100 mm (or
 one lens for the whole rig with a camera group), distances framing the face; a landmark is
-clicked where it faces the camera (``posebench.synthetic_rig``), with Gaussian noise of σ px per
+clicked where it faces the camera (:func:`peers.rigs.synthetic_rig`), with Gaussian noise of σ px per
 axis on 1000×1333 photos. Every landmark is a feature (the mesh's 13 pose features and 55
 plain ones, as ``facestudio fit`` sets a project up); the start is each photo's nearest preset
 at 600 mm with a 50 mm lens — exactly what ``facestudio fit`` starts from.
@@ -20,7 +20,7 @@ Methods, same data, same start:
   starts (presets, PnP), the paper's ALS (§5.1.1, App. A, 3 sweeps), robust polish, suspects
   left out, least-squares finish;
 * ``peer`` — full bundle adjustment, ``scipy.optimize.least_squares`` (trf, sparse analytic
-  Jacobian; ``benchmarks/peer_bundle_adjust.py``), from the presets;
+  Jacobian; :mod:`peers.bundle_adjust`), from the presets;
 * ``ours_als`` — the paper's plain ALS to convergence (:func:`photomodel.modeling.pose.recover_poses`
   with ``accelerate=False``), on the first draw of each variant only (it takes seconds).
 
@@ -49,12 +49,10 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository, when not installed
 
-from peer_bundle_adjust import bundle_adjust  # noqa: E402
-from posebench import accuracy, synthetic_rig  # noqa: E402
-
+from peers.bundle_adjust import bundle_adjust  # noqa: E402
+from peers.rigs import accuracy, synthetic_rig  # noqa: E402
 from photomodel.alignment import similarity_transform  # noqa: E402
 from photomodel.camera import focal_mm_to_px, preset_camera  # noqa: E402
 from photomodel.errors import FitError  # noqa: E402

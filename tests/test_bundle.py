@@ -1,7 +1,7 @@
 """The robust joint polish (photomodel.modeling.bundle.BundleProblem) on synthetic rigs with known truth.
 
-The truth (cameras, points, clicks) is made in :mod:`camera_rigs`; the peer is the SciPy full
-bundle adjustment of ``benchmarks/peer_bundle_adjust.py`` (benchmarks/ is on sys.path, conftest).
+The truth (cameras, points, clicks) is made in :mod:`peers.rigs`; the peer is the SciPy full
+bundle adjustment of :mod:`peers.bundle_adjust`.
 The analytic Jacobian is checked two ways: Gauss–Newton from near the truth with exact clicks
 converges quadratically to the truth (a wrong Jacobian column gives at best linear convergence),
 and at the point where :meth:`BundleProblem.solve` stops, the finite-difference gradient of
@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from camera_rigs import (
+
+from peers.bundle_adjust import bundle_adjust
+from peers.rigs import (
     aligned,
     click_rms,
     face_points,
@@ -22,8 +24,6 @@ from camera_rigs import (
     perturbed_start,
     rotation_errors_deg,
 )
-from peer_bundle_adjust import bundle_adjust  # benchmarks/ is on sys.path (conftest)
-
 from photomodel.alignment import transform_cameras
 from photomodel.camera import rodrigues
 from photomodel.modeling.bundle import BundleProblem, BundleState
@@ -34,10 +34,10 @@ GENERIC = generic_head(TRUTH)
 
 
 def problem(rig, groups=None, **kw) -> BundleProblem:
-    valid = np.isfinite(rig.obs[..., 0])
-    pp = np.stack([c.principal_point for c in rig.cameras])
-    groups = np.arange(len(rig.cameras)) if groups is None else np.asarray(groups)
-    return BundleProblem(rig.obs, valid, pp, groups, **kw)
+    valid = np.isfinite(rig.observations[..., 0])
+    pp = np.stack([c.principal_point for c in rig.true_cameras])
+    groups = np.arange(len(rig.true_cameras)) if groups is None else np.asarray(groups)
+    return BundleProblem(rig.observations, valid, pp, groups, **kw)
 
 
 def fd_gradient(prob: BundleProblem, st: BundleState, c: float, h: float = 1e-6) -> np.ndarray:
@@ -72,41 +72,41 @@ def test_exact_clicks_converge_quadratically_to_the_truth(groups, focal_free):
     # lenses that the groups [0, 0, 1, 1, 2] hold
     rig = make_rig(TRUTH, AZ5, seed=3, noise_px=0.0, focal_mm=[40.0, 40.0, 60.0, 60.0, 90.0])
     prob = problem(rig, groups, focal_free=focal_free)
-    start_cams, start_pts = perturbed_start(rig.cameras, TRUTH, seed=3, focal=0.05 if focal_free else 0.0)
+    start_cams, start_pts = perturbed_start(rig.true_cameras, TRUTH, seed=3, focal=0.05 if focal_free else 0.0)
     st0 = prob.state_from_cameras(start_cams, start_pts)
-    assert click_rms(start_cams, start_pts, rig.obs) > 10.0  # a real start: tens of px off
+    assert click_rms(start_cams, start_pts, rig.observations) > 10.0  # a real start: tens of px off
     # RMS after 1, 2, ... iterations from 26 px. Measured: 0.4–0.8, 0.6–1.4e-3, 0.9–3.8e-7, 3–27e-12 px —
     # the error squares each iteration, which only the exact Jacobian gives (Gauss–Newton on a
     # zero-residual problem; LM's damping starts at 1e-3 and shrinks ×10 per accepted step)
     rms = []
     for m in range(1, 6):
         st, _, _ = prob.solve(st0.copy(), c=np.inf, max_iter=m, tol=0.0)
-        rms.append(click_rms(prob.cameras(st, rig.cameras), st.m, rig.obs))
+        rms.append(click_rms(prob.cameras(st, rig.true_cameras), st.m, rig.observations))
     assert rms[1] < 0.05 and rms[2] < 1e-5 and rms[3] < 1e-9, rms
     st, its, converged = prob.solve(st0.copy(), c=np.inf)
     assert converged and its <= 6
-    cams, pts = aligned(prob.cameras(st, rig.cameras), st.m, TRUTH)
+    cams, pts = aligned(prob.cameras(st, rig.true_cameras), st.m, TRUTH)
     # exact clicks, 1e-11 px RMS: the truth to near machine precision (rotation angles come from
     # an arccos, good to ~1e-6°); measured focal 5e-12, centres 1e-8 mm, points 6e-11 mm
-    assert rotation_errors_deg(cams, rig.cameras).max() < 1e-4
-    assert focal_errors(cams, rig.cameras).max() < 1e-8
-    assert max(np.linalg.norm(a.center - b.center) for a, b in zip(cams, rig.cameras, strict=True)) < 1e-5
+    assert rotation_errors_deg(cams, rig.true_cameras).max() < 1e-4
+    assert focal_errors(cams, rig.true_cameras).max() < 1e-8
+    assert max(np.linalg.norm(a.center - b.center) for a, b in zip(cams, rig.true_cameras, strict=True)) < 1e-5
     assert np.abs(pts - TRUTH).max() < 1e-7
     if groups is not None:
         assert prob.G == 3 and st.logf.shape == (3,)
     if not focal_free:
-        assert [c.f for c in prob.cameras(st, rig.cameras)] == pytest.approx([c.f for c in start_cams], rel=1e-12)
+        assert [c.f for c in prob.cameras(st, rig.true_cameras)] == pytest.approx([c.f for c in start_cams], rel=1e-12)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_least_squares_reaches_the_peer_bundle_adjustment_minimum(seed):
     rig = make_rig(TRUTH, AZ5, seed=seed, noise_px=1.0)
     prob = problem(rig)
-    start_cams, start_pts = perturbed_start(rig.cameras, TRUTH, seed=seed)
+    start_cams, start_pts = perturbed_start(rig.true_cameras, TRUTH, seed=seed)
     st, _, converged = prob.solve(prob.state_from_cameras(start_cams, start_pts), c=np.inf, max_iter=100, tol=1e-10)
-    ours = click_rms(prob.cameras(st, rig.cameras), st.m, rig.obs)
-    peer_cams, peer_pts, _ = bundle_adjust(rig.obs, start_cams, start_pts)
-    peer = click_rms(peer_cams, peer_pts, rig.obs)
+    ours = click_rms(prob.cameras(st, rig.true_cameras), st.m, rig.observations)
+    peer_cams, peer_pts, _ = bundle_adjust(rig.observations, start_cams, start_pts)
+    peer = click_rms(peer_cams, peer_pts, rig.observations)
     # the same minimum: measured relative differences 2e-8–8e-8 (SciPy stops at ftol = 1e-8)
     assert converged
     assert ours == pytest.approx(peer, rel=1e-4)
@@ -116,7 +116,7 @@ def test_least_squares_reaches_the_peer_bundle_adjustment_minimum(seed):
 def test_solve_stops_where_the_finite_difference_gradient_vanishes(c):
     rig = make_rig(TRUTH, AZ5, seed=3, noise_px=1.0)
     prob = problem(rig, [0, 1, 1, 2, 2])
-    st0 = prob.state_from_cameras(*perturbed_start(rig.cameras, TRUTH, seed=3))
+    st0 = prob.state_from_cameras(*perturbed_start(rig.true_cameras, TRUTH, seed=3))
     st, _, _ = prob.solve(st0.copy(), c=c, max_iter=100, tol=1e-14)
     g0 = np.linalg.norm(fd_gradient(prob, st0, c))
     g = np.linalg.norm(fd_gradient(prob, st, c))
@@ -131,7 +131,7 @@ def test_solve_stops_where_the_finite_difference_gradient_vanishes(c):
 def test_prior_polish_converges_and_keeps_the_scene_scale():
     rig = make_rig(TRUTH, AZ5, seed=3, noise_px=1.0)
     prob = problem(rig, [0, 1, 1, 2, 2], prior_points=GENERIC, prior_weight=(1.0 / 15.0) ** 2)
-    st0 = prob.state_from_cameras(*perturbed_start(rig.cameras, TRUTH, seed=3))
+    st0 = prob.state_from_cameras(*perturbed_start(rig.true_cameras, TRUTH, seed=3))
     early, _, _ = prob.solve(st0.copy(), c=np.inf, max_iter=3, tol=0.0)
     st, _, converged = prob.solve(st0.copy(), c=np.inf, max_iter=50, tol=1e-12)
 
@@ -156,13 +156,13 @@ def test_one_group_recovers_one_focal_length(seed):
     rig = make_rig(TRUTH, [-60.0, -20.0, 20.0, 60.0], seed=seed, noise_px=1.0, focal_mm=60.0)
     prob = problem(rig, [0, 0, 0, 0])
     # each photo starts from its own focal length (off by up to 15 %): the group takes their mean
-    start_cams, start_pts = perturbed_start(rig.cameras, TRUTH, seed=seed, focal=0.15)
+    start_cams, start_pts = perturbed_start(rig.true_cameras, TRUTH, seed=seed, focal=0.15)
     st, _, converged = prob.solve(prob.state_from_cameras(start_cams, start_pts), c=np.inf, max_iter=100, tol=1e-10)
     assert converged and prob.G == 1 and st.logf.shape == (1,)
-    cams = prob.cameras(st, rig.cameras)
+    cams = prob.cameras(st, rig.true_cameras)
     assert len({c.f for c in cams}) == 1
     # measured over 8 draws: the shared focal length within 0.2–1.6 % (each photo alone: up to 8 %)
-    assert focal_errors(cams, rig.cameras).max() < 0.04
+    assert focal_errors(cams, rig.true_cameras).max() < 0.04
 
 
 # ---------------------------------------------------------------------------------------------
@@ -171,14 +171,14 @@ def test_one_group_recovers_one_focal_length(seed):
 @pytest.mark.parametrize("seed", [0, 4, 9])
 def test_huber_down_weights_a_gross_outlier(seed):
     rig = make_rig(TRUTH, AZ5, seed=seed, noise_px=1.0)
-    rig.obs[2, 4] += [60.0, 45.0]  # the nose tip in the front photo 75 px off
-    start = perturbed_start(rig.cameras, TRUTH, seed=seed)
+    rig.observations[2, 4] += [60.0, 45.0]  # the nose tip in the front photo 75 px off
+    start = perturbed_start(rig.true_cameras, TRUTH, seed=seed)
     err = {}
     for c in (np.inf, 2.5):  # c = 2.5 σ with σ = 1 px, the threshold camera_solve uses
         prob = problem(rig)
         st, _, _ = prob.solve(prob.state_from_cameras(*start), c=c, max_iter=100, tol=1e-10)
-        cams, _ = aligned(prob.cameras(st, rig.cameras), st.m, TRUTH)
-        err[c] = rotation_errors_deg(cams, rig.cameras).max()
+        cams, _ = aligned(prob.cameras(st, rig.true_cameras), st.m, TRUTH)
+        err[c] = rotation_errors_deg(cams, rig.true_cameras).max()
     # measured over 10 draws: least squares 1.1–1.5°, Huber 0.18–0.44° (as without the outlier)
     assert err[2.5] < 0.6
     assert err[2.5] < 0.5 * err[np.inf], err
@@ -192,7 +192,7 @@ def test_prior_cost_is_similarity_invariant():
     beta = (1.0 / 15.0) ** 2
     with_prior = problem(rig, prior_points=GENERIC, prior_weight=beta)
     no_prior = problem(rig)
-    cams, pts = perturbed_start(rig.cameras, TRUTH, seed=5)
+    cams, pts = perturbed_start(rig.true_cameras, TRUTH, seed=5)
     st = with_prior.state_from_cameras(cams, pts)
     prior_cost = with_prior.cost(st, np.inf) - no_prior.cost(st, np.inf)
     # not vacuous: points up to 3 mm off a truth that is ~5 % and 4 mm from the generic head

@@ -1,17 +1,18 @@
 """Robust camera recovery (photomodel.modeling.camera_solve.solve_cameras) on synthetic heads and rigs.
 
-The truth is made in :mod:`camera_rigs`: 68 face-like points (the first 13 play the paper's pose
+The truth is made in :mod:`peers.rigs`: 68 face-like points (the first 13 play the paper's pose
 features), true cameras on an arc, clicks with σ = 1 px per axis, and a "generic head" that is the
 truth with ±5 % proportions and ±4 mm per point. The initial cameras are the rough presets
-(600 mm, 50 mm lens). The peer is the SciPy full bundle adjustment of
-``benchmarks/peer_bundle_adjust.py`` (benchmarks/ is on sys.path, conftest).
+(600 mm, 50 mm lens). The peer is the SciPy full bundle adjustment of :mod:`peers.bundle_adjust`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from camera_rigs import (
+
+from peers.bundle_adjust import bundle_adjust
+from peers.rigs import (
     N_POSE,
     NAMES,
     H,
@@ -24,8 +25,6 @@ from camera_rigs import (
     make_rig,
     rotation_errors_deg,
 )
-from peer_bundle_adjust import bundle_adjust  # benchmarks/ is on sys.path (conftest)
-
 from photomodel.alignment import transform_cameras
 from photomodel.camera import Camera, preset_camera, rodrigues
 from photomodel.errors import FitError
@@ -42,14 +41,14 @@ VIEWS5 = ["right", "three_quarter_right", "front", "three_quarter_left", "left"]
 
 def solve(rig, **kw) -> CameraSolution:
     kw.setdefault("names", FEATURES)
-    kw.setdefault("view_names", VIEWS5[: len(rig.cameras)] if len(rig.cameras) == 5 else None)
-    return solve_cameras(rig.obs, rig.presets, GENERIC, **kw)
+    kw.setdefault("view_names", VIEWS5[: len(rig.true_cameras)] if len(rig.true_cameras) == 5 else None)
+    return solve_cameras(rig.observations, rig.init_cameras, GENERIC, **kw)
 
 
 def truth_errors(sol: CameraSolution, rig):
     """(rotation errors °, relative focal errors) of the solution after similarity alignment."""
     cams, _ = aligned(sol.cameras, sol.points, TRUTH)
-    return rotation_errors_deg(cams, rig.cameras), focal_errors(cams, rig.cameras)
+    return rotation_errors_deg(cams, rig.true_cameras), focal_errors(cams, rig.true_cameras)
 
 
 def rotation_between_deg(a: CameraSolution, b: CameraSolution) -> float:
@@ -67,9 +66,9 @@ def test_five_photos_from_presets_reach_the_peer_minimum():
     for seed in range(10):
         rig = make_rig(TRUTH, AZ5, seed=seed, jitter_deg=3.0)
         sol = solve(rig)  # a FitError here is a failure
-        peer_cams, peer_pts, _ = bundle_adjust(rig.obs, rig.presets, GENERIC)
-        peer = click_rms(peer_cams, peer_pts, rig.obs)
-        assert sol.rms_all_px == pytest.approx(click_rms(sol.cameras, sol.points, rig.obs), rel=1e-9)
+        peer_cams, peer_pts, _ = bundle_adjust(rig.observations, rig.init_cameras, GENERIC)
+        peer = click_rms(peer_cams, peer_pts, rig.observations)
+        assert sol.rms_all_px == pytest.approx(click_rms(sol.cameras, sol.points, rig.observations), rel=1e-9)
         ratios.append(sol.rms_all_px / peer)
         with_suspects.append(bool(sol.suspects))
         rot, focal = truth_errors(sol, rig)
@@ -85,12 +84,12 @@ def test_five_photos_from_presets_reach_the_peer_minimum():
 def test_solution_fields_are_consistent():
     rig = make_rig(TRUTH, AZ5, seed=11)
     sol = solve(rig)
-    clicked = np.isfinite(rig.obs[..., 0])
+    clicked = np.isfinite(rig.observations[..., 0])
     proj = np.stack([c.project(sol.points) for c in sol.cameras])
-    np.testing.assert_allclose(sol.residuals_px[clicked], (proj - rig.obs)[clicked], atol=1e-9)
+    np.testing.assert_allclose(sol.residuals_px[clicked], (proj - rig.observations)[clicked], atol=1e-9)
     assert np.all(np.isnan(sol.residuals_px[~clicked]))
     assert np.array_equal(sol.used, clicked)  # no suspect: every click used
-    e2 = np.where(clicked, ((proj - rig.obs) ** 2).sum(2), 0.0)
+    e2 = np.where(clicked, ((proj - rig.observations) ** 2).sum(2), 0.0)
     assert sol.rms_px == pytest.approx(np.sqrt(e2.sum() / clicked.sum()))
     np.testing.assert_allclose(sol.per_view_rms_px, np.sqrt(e2.sum(1) / clicked.sum(1)))
     np.testing.assert_allclose(sol.per_point_rms_px, np.sqrt(e2.sum(0) / clicked.sum(0)))
@@ -104,10 +103,10 @@ def test_solution_fields_are_consistent():
 
 def test_fixed_focal_keeps_the_lenses():
     rig = make_rig(TRUTH, AZ5, seed=12)
-    init = [Camera(p.R, p.t, t.f, W, H) for p, t in zip(rig.presets, rig.cameras, strict=True)]
-    sol = solve_cameras(rig.obs, init, GENERIC, fixed_focal=True)
+    init = [Camera(p.R, p.t, t.f, W, H) for p, t in zip(rig.init_cameras, rig.true_cameras, strict=True)]
+    sol = solve_cameras(rig.observations, init, GENERIC, fixed_focal=True)
     # kept to the last bits (ln f and back through the shared-focal parameterisation)
-    assert [c.f for c in sol.cameras] == pytest.approx([c.f for c in rig.cameras], rel=1e-12)
+    assert [c.f for c in sol.cameras] == pytest.approx([c.f for c in rig.true_cameras], rel=1e-12)
     rot, _ = truth_errors(sol, rig)
     assert rot.max() < 1.0  # as with free focal lengths (measured 0.2°)
 
@@ -119,7 +118,7 @@ def test_fixed_focal_keeps_the_lenses():
 def test_a_wrong_preset_still_solves(seed):
     rig = make_rig(TRUTH, [-85.0, -40.0, 0.0, 40.0, 85.0], seed=seed)
     right = solve(rig)
-    rig.presets[4] = preset_camera("front", W, H)  # the +85° profile marked "front"
+    rig.init_cameras[4] = preset_camera("front", W, H)  # the +85° profile marked "front"
     wrong = solve(rig)
     rot, focal = truth_errors(wrong, rig)
     # the same minimum as from the right presets (the PnP start does not use the presets):
@@ -135,17 +134,17 @@ def test_profile_with_three_pose_features_and_twenty_others_solves(seed):
     rig = make_rig(TRUTH, [-90.0, -45.0, 0.0, 45.0, 90.0], seed=seed)
     # the +90° profile keeps 3 of the 13 pose features and 20 of the others it sees
     j = 4
-    pose_seen = np.flatnonzero(np.isfinite(rig.obs[j, :N_POSE, 0]))
-    other_seen = N_POSE + np.flatnonzero(np.isfinite(rig.obs[j, N_POSE:, 0]))
+    pose_seen = np.flatnonzero(np.isfinite(rig.observations[j, :N_POSE, 0]))
+    other_seen = N_POSE + np.flatnonzero(np.isfinite(rig.observations[j, N_POSE:, 0]))
     assert len(pose_seen) >= 3 and len(other_seen) >= 20
     rng = np.random.default_rng(seed)
     keep = np.zeros(N, bool)
     keep[rng.choice(pose_seen, 3, replace=False)] = True
     keep[rng.choice(other_seen, 20, replace=False)] = True
-    rig.obs[j, ~keep] = np.nan
+    rig.observations[j, ~keep] = np.nan
     # the paper's method, from the pose features alone, cannot place this photo
     with pytest.raises(FitError, match="'left' has 3 clicked"):
-        recover_poses(rig.obs[:, :N_POSE], rig.presets, GENERIC[:N_POSE], view_names=VIEWS5)
+        recover_poses(rig.observations[:, :N_POSE], rig.init_cameras, GENERIC[:N_POSE], view_names=VIEWS5)
     sol = solve(rig)
     rot, focal = truth_errors(sol, rig)
     # measured over 8 draws: rotation ≤ 0.9°, focal ≤ 14 % — the profile's, which its 23 clicks
@@ -161,10 +160,10 @@ def test_profile_with_three_pose_features_and_twenty_others_solves(seed):
 def test_a_click_60_px_off_is_the_first_suspect_and_spoils_nothing(seed, photo, feature):
     rig = make_rig(TRUTH, AZ5, seed=seed)
     # a feature clicked in >= 4 photos (for 3, see the test below)
-    assert np.isfinite(rig.obs[photo, feature, 0]) and np.isfinite(rig.obs[:, feature, 0]).sum() >= 4
+    assert np.isfinite(rig.observations[photo, feature, 0]) and np.isfinite(rig.observations[:, feature, 0]).sum() >= 4
     clean = solve(rig)
     d = np.random.default_rng(seed).normal(size=2)
-    rig.obs[photo, feature] += 60.0 * d / np.linalg.norm(d)
+    rig.observations[photo, feature] += 60.0 * d / np.linalg.norm(d)
     sol = solve(rig)
     first = sol.suspects[0]
     assert (first["photo"], first["feature"]) == (VIEWS5[photo], FEATURES[feature])
@@ -180,10 +179,10 @@ def test_a_click_60_px_off_is_the_first_suspect_and_spoils_nothing(seed, photo, 
 def test_a_wrong_click_of_a_three_photo_feature_is_the_first_suspect():
     rig = make_rig(TRUTH, AZ5, seed=4)
     photo, feature = 0, 11  # the jaw point, clicked in 'right', 'three_quarter_right', 'front'
-    assert np.isfinite(rig.obs[:, feature, 0]).sum() == 3
+    assert np.isfinite(rig.observations[:, feature, 0]).sum() == 3
     clean = solve(rig)
     d = np.random.default_rng(4).normal(size=2)
-    rig.obs[photo, feature] += 60.0 * d / np.linalg.norm(d)
+    rig.observations[photo, feature] += 60.0 * d / np.linalg.norm(d)
     sol = solve(rig)
     assert (sol.suspects[0]["photo"], sol.suspects[0]["feature"]) == ("right", "f11")
     assert rotation_between_deg(sol, clean) < 0.5
@@ -193,11 +192,11 @@ def test_a_wrong_click_of_a_three_photo_feature_is_the_first_suspect():
 def test_a_click_outside_the_photo_is_named_and_left_out(seed):
     rig = make_rig(TRUTH, AZ5, seed=seed)
     j = 1
-    i = int(np.flatnonzero(np.isfinite(rig.obs[j, :, 0]))[5])
-    without = rig.obs.copy()
+    i = int(np.flatnonzero(np.isfinite(rig.observations[j, :, 0]))[5])
+    without = rig.observations.copy()
     without[j, i] = np.nan
-    reference = solve_cameras(without, rig.presets, GENERIC, names=FEATURES, view_names=VIEWS5)
-    rig.obs[j, i, 0] = W + 5.0  # u beyond the right edge
+    reference = solve_cameras(without, rig.init_cameras, GENERIC, names=FEATURES, view_names=VIEWS5)
+    rig.observations[j, i, 0] = W + 5.0  # u beyond the right edge
     sol = solve(rig)
     assert {"photo": VIEWS5[j], "feature": FEATURES[i]}.items() <= sol.suspects[0].items()
     assert not sol.used[j, i]
@@ -217,15 +216,15 @@ def test_a_click_outside_the_photo_is_named_and_left_out(seed):
 def test_a_photo_with_three_shared_clicks_is_a_fit_error_naming_it():
     rig = make_rig(TRUTH, AZ5, seed=0)
     j = 4  # "left"
-    seen = np.flatnonzero(np.isfinite(rig.obs[j, :, 0]))
+    seen = np.flatnonzero(np.isfinite(rig.observations[j, :, 0]))
     # keep 3 features shared with other photos; 6 more are clicked in this photo only
     only_here = seen[3:9]
-    obs = rig.obs.copy()
+    obs = rig.observations.copy()
     obs[np.ix_(np.arange(5) != j, only_here)] = np.nan
     obs[j, seen[9:]] = np.nan
     assert np.isfinite(obs[j, :, 0]).sum() == 9
     with pytest.raises(FitError, match=r"photo 'left' has 3 clicked feature\(s\) that are also clicked in another"):
-        solve_cameras(obs, rig.presets, GENERIC, names=FEATURES, view_names=VIEWS5)
+        solve_cameras(obs, rig.init_cameras, GENERIC, names=FEATURES, view_names=VIEWS5)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -246,7 +245,7 @@ def test_one_camera_group_gives_one_focal_length(seed):
 # ---------------------------------------------------------------------------------------------
 def test_plausibility_problem_flags_nonsense_and_passes_the_truth():
     rig = make_rig(TRUTH, AZ5, seed=0)
-    cams = rig.cameras
+    cams = rig.true_cameras
     assert plausibility_problem(cams, TRUTH, GENERIC, FEATURES, VIEWS5) is None
     # a similarity changes nothing (the check aligns onto the generic head first)
     R = rodrigues([0.3, -0.5, 0.2])
@@ -286,7 +285,7 @@ def test_narrow_baseline_one_lens_gives_a_plausible_face_and_the_focal_length():
         sol = solve(rig, groups=[0] * 5)
         assert plausibility_problem(sol.cameras, sol.points, GENERIC) is None
         cams, pts = aligned(sol.cameras, sol.points, TRUTH)
-        focal_err.append(focal_errors(cams, rig.cameras).max())
+        focal_err.append(focal_errors(cams, rig.true_cameras).max())
         depth_ratio.append(np.ptp(pts[:, 2]) / np.ptp(TRUTH[:, 2]))
     # measured on these 10 draws: focal errors 0.5–9.8 %, depth within 2.3 % of the truth's (the
     # depth and the focal length trade against each other when the views are this close)
@@ -301,8 +300,8 @@ def test_generic_head_prior_rescues_a_collapsing_narrow_baseline():
     generic = generic_head(truth)
     rig = make_rig(truth, np.linspace(-10.0, 10.0, 4), seed=3, noise_px=3.0, focal_mm=65.0)
     with pytest.raises(FitError, match="could not be recovered"):
-        solve_cameras(rig.obs, rig.presets, generic, groups=[0] * 4, prior=False)
-    sol = solve_cameras(rig.obs, rig.presets, generic, groups=[0] * 4)
+        solve_cameras(rig.observations, rig.init_cameras, generic, groups=[0] * 4, prior=False)
+    sol = solve_cameras(rig.observations, rig.init_cameras, generic, groups=[0] * 4)
     assert sol.start.endswith("generic-head prior")
     _, pts = aligned(sol.cameras, sol.points, truth)
     # measured: depth 0.99 of the truth's, points 2.1 mm off on average (σ = 3 px is ~1 mm here)

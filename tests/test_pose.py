@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from peer_bundle_adjust import bundle_adjust  # benchmarks/ is on sys.path (conftest)
 
+from peers.bundle_adjust import bundle_adjust
 from photomodel.camera import (
     PRESET_AZIMUTH_DEG,
     Camera,

@@ -60,7 +60,7 @@ error over all unknowns, in the same parameterisation (incremental rotation, ``t
 ``s``, ``η`` per camera; ``m`` per point). The point blocks are eliminated by a Schur
 complement, so an iteration is one dense solve of size ``7k`` (``k ≤ 10`` photos) plus batched
 3×3 work per point; 4–6 iterations reach the minimum of the full bundle adjustment
-(``benchmarks/peer_bundle_adjust.py``). ``accelerate=False`` runs the paper's alternation alone.
+(:mod:`peers.bundle_adjust`). ``accelerate=False`` runs the paper's alternation alone.
 
 Gauge
 -----

@@ -1,5 +1,10 @@
 """Peer for :func:`photomodel.modeling.pose.recover_poses`: a full bundle adjustment with SciPy.
 
+A comparison method, not part of the product: ``benchmarks/bench_pose.py`` and
+``benchmarks/posebench.py`` time ours against it, and ``tests/test_pose.py``,
+``tests/test_bundle.py`` and ``tests/test_camera_solve.py`` check that ours reaches the minimum
+it reaches. Nothing in ``app``, ``photomodel`` or ``tracking`` imports it.
+
 This is the method the paper contrasts its alternation with (§5.1.1: "the Levenberg–Marquardt
 algorithm to perform a complete iterative minimization over all of the unknowns
 simultaneously", Szeliski & Kang 1994). It minimises the same residual — projected minus
