@@ -74,9 +74,9 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
 
 
 def cmd_fit(args) -> int:
-    from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, store_fit_result
+    from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
     from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.project.format import ExpressionResult, load_project, save_project
+    from photomodel.project import load_project, record_fit, save_results
 
     project = load_project(args.project)
     if args.expression is not None:
@@ -98,24 +98,22 @@ def cmd_fit(args) -> int:
             result = fit_expression(project, name, mesh, options, progress=progress)
             results.append((name, result))
             # in memory at once: an expression fitted next may take its cameras from this one
-            project.expression(name).result = ExpressionResult(
-                cameras=dict(zip(result.photo_ids, result.cameras, strict=True)),
-                points_3d=dict(zip(result.feature_names, result.points_3d, strict=True)),
-                report=result.report,
-            )
+            record_fit(project, name, result)
     finally:
         if bar is not None:
             bar.close()
     for name, result in results:
-        if not args.dry_run:
-            store_fit_result(project, name, result, mesh.faces)
         entry = {"name": name, **result.report}
         entry["cameras"] = {pid: c.to_dict() for pid, c in zip(result.photo_ids, result.cameras, strict=True)}
         out["expressions"].append(entry)
         if not args.json:
             print(_format_report(name, result.report, result.report.get("dropped", [])))
     if not args.dry_run:
-        save_project(project)
+        # the meshes, then the project file; Ctrl-C waits until this is done
+        with _sigint_deferred() as interrupted:
+            save_results(project, fits={name: result.vertices for name, result in results}, faces=mesh.faces)
+        if interrupted:
+            print("facestudio: interrupted while saving; the results were saved completely", file=sys.stderr)
         if not args.json:
             print(f"saved results into {args.project}")
     if args.json:
@@ -136,8 +134,8 @@ def _sigint_deferred():
 
 def cmd_texture(args) -> int:
     from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.project.format import load_project, save_project
-    from photomodel.texturing.job import commit_texture, encode_texture_outputs, fitted_expressions, texture_expression
+    from photomodel.project import load_project, save_results
+    from photomodel.texturing.job import encode_texture_outputs, fitted_expressions, texture_expression
 
     lo, hi = TEXTURE_SIZES
     if not lo <= args.size <= hi:
@@ -165,9 +163,7 @@ def cmd_texture(args) -> int:
 
     # commit: every file atomically, then the project; Ctrl-C waits until this is done
     with _sigint_deferred() as interrupted:
-        for _name, job, files, rel, _report in prepared:
-            commit_texture(project, job, files, rel)
-        save_project(project)
+        save_results(project, textures=[(job, files, rel) for _name, job, files, rel, _report in prepared])
     if interrupted:
         print("facestudio: interrupted while saving; the results were saved completely", file=sys.stderr)
 

@@ -1,7 +1,7 @@
 """The studio's state, apart from any widget: a project being edited, its fits, and events.
 
 This is the napari pattern (``napari/components/viewer_model.py``): one model object holds
-the :class:`~photomodel.project.format.Project`, the current expression, the active feature and curve,
+the :class:`~photomodel.project.Project`, the current expression, the active feature and curve,
 and the fitted results, and announces every change through small :class:`Signal` objects. The
 Qt widgets of :mod:`app` observe it and edit it through undoable commands
 (:mod:`app.qt.commands`); scripts and tests drive the same object without any GUI. Nothing here
@@ -33,16 +33,18 @@ import numpy as np
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
 from photomodel.errors import FaceStudioError, ProjectError
 from photomodel.photos.exif import focal_mm_guess_from_exif
-from photomodel.project.format import (
+from photomodel.project import (
     CurveDef,
     Expression,
-    ExpressionResult,
     Feature,
     Photo,
     Project,
     load_project,
     new_project,
+    record_fit,
     save_project,
+    save_results,
+    texture_files,
 )
 
 #: Suffix of the autosave file written next to the project (``<file>.autosave``).
@@ -617,12 +619,8 @@ class StudioModel:
 
         ``overlays`` (:meth:`compute_overlays` of this result) fill the fit's overlay cache.
         """
-        e = self._expr(expression)
-        cams = {pid: c for pid, c in zip(result.photo_ids, result.cameras, strict=True)}
-        pts = {n: p for n, p in zip(result.feature_names, result.points_3d, strict=True)}
-        e.result = ExpressionResult(cameras=cams, points_3d=pts, mesh_obj=None, mesh_ply=None,
-                                    report=result.report)
-        self.fits[expression] = FitState(cams, pts, np.asarray(result.vertices), result.report, result,
+        e = record_fit(self.project, self._expr(expression).name, result)
+        self.fits[expression] = FitState(e.cameras, e.points_3d, np.asarray(result.vertices), result.report, result,
                                          elapsed_s, saved=False, overlays=dict(overlays or {}))
         self._drop_texture(expression)  # it was made for the previous mesh
         self._touch()
@@ -816,7 +814,9 @@ class StudioModel:
                         None, None, saved=vertices is not None)
 
     def save(self, path: str | os.PathLike | None = None) -> Path:
-        """Save (atomically) to ``path`` (default: the project's file); writes the fitted meshes.
+        """Save (atomically) to ``path`` (default: the project's file), with the fitted meshes and
+        textures not yet saved there written first (:func:`photomodel.project.results.save_results`,
+        as ``facestudio fit`` and ``facestudio texture`` do).
 
         Relative paths are rewritten for the new folder on "save as"; the autosave file is
         removed afterwards.
@@ -827,61 +827,15 @@ class StudioModel:
             path = self.project.path
         target = Path(path).absolute()
         old_path = self.project.path
-        from photomodel.exchange.mesh import write_mesh
-
         moved = old_path is None or target.parent != old_path.parent
-        from photomodel.texturing.job import commit_texture, encode_texture_outputs
-
-        at_target = copy.copy(self.project)  # shares the expressions; resolves paths in the target folder
-        at_target.path = target
-        for name, tex in self.textures.items():
-            if tex.saved and not moved:
-                continue
-            try:
-                files, rel = encode_texture_outputs(at_target, tex.job)
-                commit_texture(at_target, tex.job, files, rel)
-            except OSError as exc:
-                raise ProjectError(f"{target.parent}: could not write the texture of {name!r}: "
-                                   f"{exc.strerror or exc}") from exc
-        for name, fit in self.fits.items():
-            e = self.project.expression(name)
-            if fit.vertices is None or e.result is None or (fit.saved and not moved):
-                continue
-            rel_obj, rel_ply = self.project.default_result_paths(name)
-            try:
-                write_mesh(target.parent / rel_obj, fit.vertices, self.mesh.faces)
-                write_mesh(target.parent / rel_ply, fit.vertices, self.mesh.faces)
-            except OSError as exc:
-                raise ProjectError(f"{target.parent / rel_obj}: could not write the fitted mesh: "
-                                   f"{exc.strerror or exc}") from exc
-            # absolute, so that save_project stores them relative to the *target* folder
-            e.result.mesh_obj = (target.parent / rel_obj).as_posix()
-            e.result.mesh_ply = (target.parent / rel_ply).as_posix()
-        written = save_project(self.project, target)
+        fits, textures = self._results_to_write(target.parent, moved)
+        written = save_results(self.project, target, fits=fits, faces=self.mesh.faces, textures=textures)
         for fit in self.fits.values():
             fit.saved = fit.vertices is not None
         for tex in self.textures.values():
             tex.saved = True
         if moved:
-            # result paths relative to the old folder: take them as written (photo paths are
-            # absolute in memory, see open())
-            fresh = load_project(written)
-            for e_old, e_new in zip(self.project.expressions, fresh.expressions, strict=True):
-                if e_old.result is not None and e_new.result is not None:
-                    e_old.result.mesh_obj, e_old.result.mesh_ply = e_new.result.mesh_obj, e_new.result.mesh_ply
-                    if hasattr(e_new.result, "texture"):  # paths of a texture record, if any
-                        e_old.result.texture = e_new.result.texture
-            self.project.generic_mesh = fresh.generic_mesh
-        else:
-            for e in self.project.expressions:
-                if e.result is not None:
-                    for attr in ("mesh_obj", "mesh_ply"):
-                        v = getattr(e.result, attr)
-                        if v is not None and Path(v).is_absolute():
-                            try:
-                                setattr(e.result, attr, Path(v).relative_to(written.parent).as_posix())
-                            except ValueError:
-                                pass
+            self._take_written_paths(written)
         self.project.path = written
         remove_autosave(written)
         self._autosaved_revision = self.revision
@@ -889,6 +843,26 @@ class StudioModel:
         if written != old_path:
             self.path_changed.emit(written)
         return written
+
+    def _results_to_write(self, folder: Path, moved: bool) -> tuple[dict, list]:
+        """``(fits, textures)`` for :func:`~photomodel.project.results.save_results` into ``folder``:
+        the fitted meshes and textures held in memory and not yet saved there."""
+        fits = {name: fit.vertices for name, fit in self.fits.items()
+                if fit.vertices is not None and self.project.expression(name).result is not None
+                and (moved or not fit.saved)}
+        textures = [(tex.job, *texture_files(self.project, tex.job, folder))
+                    for tex in self.textures.values() if moved or not tex.saved]
+        return fits, textures
+
+    def _take_written_paths(self, written: Path) -> None:
+        """After "save as": result and generic-mesh paths as written, relative to the new folder
+        (photo paths are absolute in memory, see :meth:`open`)."""
+        fresh = load_project(written)
+        for e_old, e_new in zip(self.project.expressions, fresh.expressions, strict=True):
+            if e_old.result is not None and e_new.result is not None:
+                e_old.result.mesh_obj, e_old.result.mesh_ply = e_new.result.mesh_obj, e_new.result.mesh_ply
+                e_old.result.texture = e_new.result.texture
+        self.project.generic_mesh = fresh.generic_mesh
 
     def autosave(self, recovery: str | os.PathLike | None = None) -> Path | None:
         """Write ``<file>.autosave`` if there are changes since the last save or autosave.

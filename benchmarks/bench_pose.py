@@ -60,7 +60,7 @@ from photomodel.modeling.camera_solve import plausibility_problem, solve_cameras
 from photomodel.modeling.fit import fit_expression  # noqa: E402
 from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
 from photomodel.modeling.pose import recover_poses  # noqa: E402
-from photomodel.project.format import load_project  # noqa: E402
+from photomodel.project import load_project  # noqa: E402
 from photomodel.samples import synthetic  # noqa: E402
 from photomodel.samples.sample_data import load_james_scan  # noqa: E402
 

@@ -65,7 +65,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from photomodel.modeling.fit import fit_expression  # noqa: E402
 from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
-from photomodel.project.format import load_project  # noqa: E402
+from photomodel.project import load_project  # noqa: E402
 from photomodel.rendering.renderer import get_renderer, write_png  # noqa: E402
 from photomodel.samples.sample_data import load_james_scan  # noqa: E402
 from photomodel.samples.synthetic import load_ground_truth, true_correspondence  # noqa: E402

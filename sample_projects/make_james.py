@@ -17,7 +17,7 @@ It writes, into ``--out``:
   rig, the same cameras photo for photo. JPEG (quality :data:`JPEG_QUALITY`), as real cameras
   write, to keep the repository small (2.7 MB for the 20; the neutral's PNGs predate them and
   are kept byte for byte);
-* ``james.facestudio.json`` — the project (:mod:`photomodel.project.format`): the 13 initial
+* ``james.facestudio.json`` — the project (:mod:`photomodel.project`): the 13 initial
   features (``pose: true``), the other 55 iBUG landmarks and 100 extra correspondences
   (``pose: false``), the generic mesh's curves, and five expressions whose photos carry the
   nearest preset as the artist's rough guess, no focal guess, noisy clicks (σ = 1 px) where
@@ -52,7 +52,7 @@ if str(REPO) not in sys.path:
 
 from photomodel.exchange.files import atomic_write_bytes  # noqa: E402
 from photomodel.modeling.generic_mesh import IBUG68_NAMES, load_generic_mesh  # noqa: E402
-from photomodel.project.format import CurveDef, Expression, Feature, Photo, new_project, save_project  # noqa: E402
+from photomodel.project import CurveDef, Expression, Feature, Photo, new_project, save_project  # noqa: E402
 from photomodel.rendering.renderer import write_png  # noqa: E402
 from photomodel.samples import synthetic  # noqa: E402
 from photomodel.samples.sample_data import load_james_scan  # noqa: E402

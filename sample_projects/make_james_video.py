@@ -28,7 +28,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from photomodel.project.format import load_project  # noqa: E402
+from photomodel.project import load_project  # noqa: E402
 from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth  # noqa: E402
 
 FPS = 10

@@ -19,7 +19,7 @@ from app.cli import main
 from photomodel.camera import rotation_angle_deg
 from photomodel.errors import FaceStudioError, FitError, ProjectError
 from photomodel.exchange.files import decode_png
-from photomodel.project.format import load_project, new_project
+from photomodel.project import load_project, new_project
 from tracking.batch import (
     CSV_COLUMNS,
     VideoError,

@@ -9,7 +9,7 @@ import numpy as np
 
 from app.cli import main
 from photomodel.exchange.mesh import read_mesh
-from photomodel.project.format import load_project
+from photomodel.project import load_project
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 

@@ -18,7 +18,7 @@ import trimesh
 from app.cli import main
 from photomodel.exchange.gltf import METRES_PER_MM
 from photomodel.exchange.mesh import read_mesh
-from photomodel.project.format import load_project
+from photomodel.project import load_project
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 SIZE = 256

@@ -25,7 +25,7 @@ from photomodel.photos.exif import (
     focal_mm_36_from_exif,
     focal_mm_guess_from_exif,
 )
-from photomodel.project.format import load_project
+from photomodel.project import load_project
 
 
 def write_jpeg(path: Path, tags: dict | None = None, size=(60, 40)) -> Path:

@@ -18,7 +18,7 @@ import pytest
 from photomodel.alignment import similarity_transform
 from photomodel.errors import FitError
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, source_cameras
-from photomodel.project.format import ExpressionResult, load_project
+from photomodel.project import ExpressionResult, load_project
 from photomodel.samples.synthetic import deformed_scan, surface_distance
 from tracking.samples.expressions import deformed_scan_vertices, expression_displacement, true_expression_geometry
 

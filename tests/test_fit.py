@@ -15,7 +15,7 @@ import pytest
 from photomodel.alignment import align_to_truth, camera_errors
 from photomodel.errors import FitError
 from photomodel.modeling.fit import FitOptions, fit_expression
-from photomodel.project.format import load_project
+from photomodel.project import load_project
 from photomodel.samples.synthetic import surface_distance, true_correspondence
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"

@@ -13,7 +13,7 @@ import pytest
 
 from photomodel.alignment import align_to_truth, camera_errors
 from photomodel.modeling.fit import fit_expression
-from photomodel.project.format import load_project
+from photomodel.project import load_project
 
 PROJECT = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 

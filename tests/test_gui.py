@@ -24,7 +24,7 @@ from PySide6.QtWidgets import QMessageBox  # noqa: E402
 from app.model import autosave_path  # noqa: E402
 from app.qt.main_window import MainWindow, guess_preset  # noqa: E402
 from photomodel.alignment import align_to_truth, camera_errors  # noqa: E402
-from photomodel.project.format import load_project  # noqa: E402
+from photomodel.project import load_project  # noqa: E402
 from photomodel.samples.synthetic import load_ground_truth  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"

@@ -24,7 +24,7 @@ from PySide6.QtCore import QSettings  # noqa: E402
 from PySide6.QtWidgets import QInputDialog, QMessageBox  # noqa: E402
 
 from app.qt.main_window import MainWindow  # noqa: E402
-from photomodel.project.format import load_project  # noqa: E402
+from photomodel.project import load_project  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 

@@ -10,7 +10,7 @@ import pytest
 
 from photomodel.camera import Camera, rodrigues
 from photomodel.errors import FitError, ProjectError
-from photomodel.project.format import load_project, save_project
+from photomodel.project import load_project, save_project
 from tracking.facemodel import CONTROL_REGIONS, render_model
 from tracking.project_model import face_model_from_project, model_expressions, register_expression
 from tracking.samples.ground_truth import (

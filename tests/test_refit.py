@@ -13,7 +13,7 @@ from photomodel.modeling.fit import FitOptions, fit_expression
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.modeling.rbf import deform_vertices
 from photomodel.modeling.refit import CachedDeformer, Refitter
-from photomodel.project.format import load_project
+from photomodel.project import load_project
 
 PROJECT = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 

@@ -11,7 +11,7 @@ import pytest
 
 from app.model import MissingPhotos, Signal, StudioModel, autosave_path, newer_autosave
 from photomodel.errors import ProjectError
-from photomodel.project.format import load_project
+from photomodel.project import load_project
 from photomodel.samples.synthetic import load_ground_truth
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"

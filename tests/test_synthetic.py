@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, orbit_camera
-from photomodel.project.format import load_project
+from photomodel.project import load_project
 from photomodel.samples import synthetic
 from tracking.samples.expressions import deformed_scan_vertices, expression_displacement, true_expression_geometry
 

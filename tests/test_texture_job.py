@@ -16,11 +16,10 @@ import pytest
 
 from photomodel.errors import FitError, ProjectError
 from photomodel.exchange.mesh import read_mesh
-from photomodel.modeling.fit import Cancelled, fit_expression, store_fit_result
+from photomodel.modeling.fit import Cancelled, fit_expression
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.project.format import load_project, save_project
+from photomodel.project import load_project, save_project, store_fit_result, store_texture_result
 from photomodel.texturing.job import (
-    commit_texture,
     encode_texture_outputs,
     fitted_expressions,
     load_stored_texture,
@@ -56,7 +55,7 @@ def test_texture_from_the_project_files_is_written_and_recorded(fitted):
     assert job.texture.image.shape == (64, 64, 3) and len(job.texture.weight_maps) == 5
     assert job.report["single_view_fallback"] and 0.5 < job.report["coverage"] <= 1.0
     files, rel = encode_texture_outputs(project, job)
-    commit_texture(project, job, files, rel)
+    store_texture_result(project, job, files, rel)
     save_project(project)
     stored = load_project(path).expression("neutral").result.texture
     assert stored.size == 64 and set(stored.weight_maps) == set(job.inputs.photo_ids)
@@ -93,7 +92,7 @@ def test_stored_texture_reads_back_as_extracted(fitted):
     path, mesh = fitted
     project = load_project(path)
     job = texture_expression(project, "neutral", 64, face_mask=mesh.face_mask)
-    commit_texture(project, job, *encode_texture_outputs(project, job))
+    store_texture_result(project, job, *encode_texture_outputs(project, job))
     save_project(project)
     project = load_project(path)
     V, F = job.inputs.vertices, job.inputs.faces
@@ -136,7 +135,7 @@ def test_stored_texture_errors_name_the_file(fitted):
     project = load_project(path)
     if project.expression("neutral").result.texture is None:
         job = texture_expression(project, "neutral", 64)
-        commit_texture(project, job, *encode_texture_outputs(project, job))
+        store_texture_result(project, job, *encode_texture_outputs(project, job))
     V, F = read_mesh(project.resolve(project.expression("neutral").result.mesh_obj))
     stored = project.expression("neutral").result.texture
     image = project.resolve(stored.image)

@@ -40,7 +40,7 @@ def sample():
     """The fitted sample model, its photos and a new view 20° from the front photo."""
     from photomodel.modeling.fit import fit_expression
     from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.project.format import load_project
+    from photomodel.project import load_project
     from photomodel.texturing.cylindrical import single_view_weights
 
     project = load_project(SAMPLE / "james.facestudio.json")

@@ -660,7 +660,7 @@ def track_video(
     results to correct, the frame out of range or beyond the tracked frames, a malformed pose file);
     KeyboardInterrupt after saving the frames tracked so far.
     """
-    from photomodel.project.format import load_project
+    from photomodel.project import load_project
 
     if (correct_frame is None) != (correct_pose is None):
         raise FaceStudioError("a correction needs both the frame (--correct) and its pose (--pose)")

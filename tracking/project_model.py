@@ -208,7 +208,7 @@ def face_model_from_project(project, names: Sequence[str] | None = None, *, text
 
     Parameters
     ----------
-    project : photomodel.project.format.Project (saved: meshes and textures are read next to it)
+    project : photomodel.project.Project (saved: meshes and textures are read next to it)
     names : expressions to use, E_1 first (default: :func:`model_expressions`).
     texture_size : texels per side of the model's textures.
     basis : ``"gram_schmidt"`` or ``"pca"``.

@@ -13,7 +13,7 @@ import numpy as np
 from PySide6.QtGui import QUndoCommand
 
 from app.model import StudioModel
-from photomodel.project.format import CurveDef, Expression, Feature, Photo
+from photomodel.project import CurveDef, Expression, Feature, Photo
 
 
 def _fmt_uv(uv) -> str:

@@ -75,7 +75,7 @@ from app.qt.view3d import View3D
 from app.qt.workers import FitController, JobController
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import FaceStudioError, ProjectError
-from photomodel.project.format import FILE_SUFFIX
+from photomodel.project import FILE_SUFFIX
 
 #: Autosave period (ms).
 AUTOSAVE_INTERVAL_MS = 60_000

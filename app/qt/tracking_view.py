@@ -480,7 +480,7 @@ class TrackingView(QWidget):
     def _overlay_fitter(self):
         """A :class:`FrameFitter` of the run's model and camera, built once per results."""
         if self._fitter is None:
-            from photomodel.project.format import load_project
+            from photomodel.project import load_project
             from tracking.batch import project_face_model
             from tracking.frame_fit import FrameFitter
 
@@ -646,7 +646,7 @@ class FirstPoseDialog(QDialog):
 
     Parameters
     ----------
-    project : photomodel.project.format.Project, whose features are clicked (and whose face model is fitted).
+    project : photomodel.project.Project, whose features are clicked (and whose face model is fitted).
     video : path of the video file or frame folder.
     path : where to read/write the first pose (default beside the video; unused when correcting).
     frame : int, the frame shown and clicked (default 0).

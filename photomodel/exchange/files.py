@@ -1,27 +1,43 @@
-"""Atomic file writes and PNG encoding shared by every exporter.
+"""Atomic file writes and PNG encoding shared by every exporter and by the project file.
 
 Each exporter first *encodes* its file(s) to bytes in memory and only then writes them, so a
 caller can prepare every output of a command, and a failure or Ctrl-C while encoding leaves the
 disk untouched. A write goes to a temporary file in the destination folder, is flushed and
-fsynced, and is moved over the destination with :func:`os.replace`: a reader sees the old file
-or the new one, never half of one.
+fsynced, and is moved over the destination with :func:`os.replace` (the folder is fsynced too,
+so the rename itself survives a crash): a reader sees the old file or the new one, never half of
+one. :func:`atomic_write_bytes` is the one such writer of the code base; the project file
+(:func:`photomodel.project.io.save_project`) uses it with ``backup=True``.
 """
 
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
+#: Permissions of a new file (``mkstemp`` makes 0600; outputs are ordinary documents).
+NEW_FILE_MODE = 0o644
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, backup: bool = False,
+                       mode: int | None = None) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file + fsync + :func:`os.replace`).
 
     Missing parent folders are created; on any error (or interruption) the destination is
     left as it was and the temporary file is removed. Returns the path written.
+
+    Parameters
+    ----------
+    backup : bool
+        keep the file being replaced as ``<path>.bak`` (itself written atomically, with the
+        permissions of the file it copies), just before it is replaced.
+    mode : int, optional
+        permission bits of the new file; default: those of the file it replaces, or
+        :data:`NEW_FILE_MODE` for a new file.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -31,12 +47,42 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)  # mkstemp makes 0600; exports are ordinary documents
+        os.chmod(tmp, _mode_for(path) if mode is None else mode)
+        if backup and path.exists():
+            _backup(path)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    _fsync_dir(path.parent)
     return path
+
+
+def _mode_for(path: Path) -> int:
+    """Permission bits of the file at ``path`` (kept when it is replaced), else the default."""
+    try:
+        return stat.S_IMODE(path.stat().st_mode)
+    except FileNotFoundError:
+        return NEW_FILE_MODE
+
+
+def _backup(path: Path) -> None:
+    """Copy ``path`` to ``path.bak`` atomically, with ``path``'s permissions."""
+    bak = path.with_name(path.name + ".bak")
+    atomic_write_bytes(bak, path.read_bytes(), mode=_mode_for(path))
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Persist a rename in ``folder`` (POSIX); not possible / not needed on Windows."""
+    if os.name != "posix":
+        return
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass  # some filesystems refuse fsync on directories; the data file itself is synced
+    finally:
+        os.close(fd)
 
 
 def write_files(files: Mapping[str | os.PathLike, bytes]) -> list[Path]:

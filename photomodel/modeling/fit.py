@@ -29,7 +29,7 @@ expression's head frame, vertex for vertex comparable with it (what a blend-shap
 §6.1.1, needs). Steps 3–4 are as usual; the cameras stay fixed (no ``bundle_all``).
 :func:`fit_order` sorts expressions so that sources are fitted first.
 
-No file I/O happens here; :func:`store_fit_result` stores a result in a project.
+No file I/O happens here; :func:`photomodel.project.results.store_fit_result` stores a result in a project.
 """
 
 from __future__ import annotations
@@ -546,24 +546,3 @@ def build_report(photo_ids, cameras, pose, project, expression_name, names, poin
         ],
     }
 
-
-def store_fit_result(project, expression_name: str, result: FitResult, faces: np.ndarray) -> None:
-    """Put ``result`` into ``project`` (in memory) and write the fitted mesh as OBJ and PLY
-    next to the project file (``results/<expression>.obj|.ply``, atomically). The caller
-    saves the project file."""
-    from photomodel.exchange.mesh import write_mesh
-    from photomodel.project.format import ExpressionResult
-
-    if project.path is None:
-        raise FitError("save the project before storing results (the mesh files go next to it)")
-    folder = project.path.parent
-    rel_obj, rel_ply = project.default_result_paths(expression_name)
-    write_mesh(folder / rel_obj, result.vertices, faces)
-    write_mesh(folder / rel_ply, result.vertices, faces)
-    project.expression(expression_name).result = ExpressionResult(
-        cameras={pid: c for pid, c in zip(result.photo_ids, result.cameras, strict=True)},
-        points_3d={n: p for n, p in zip(result.feature_names, result.points_3d, strict=True)},
-        mesh_obj=rel_obj,
-        mesh_ply=rel_ply,
-        report=result.report,
-    )

@@ -142,7 +142,7 @@ class Refitter:
 
         Parameters
         ----------
-        project : photomodel.project.format.Project
+        project : photomodel.project.Project
         expression_name : str
         previous : FitResult or (N, 3) float mm, optional
             The last fit of this expression (or its fitted vertices). When given, curves are

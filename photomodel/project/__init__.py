@@ -1,1 +1,73 @@
-"""The project file: data model, validation, load/save with atomic writes and backup."""
+"""The project file (format version 2, reads 1) in one place, for the CLI and the studio alike.
+
+* :mod:`~photomodel.project.model` — the dataclasses (``Project``, ``Expression``, ``Photo``,
+  ``Feature``, ``CurveDef``, ``ExpressionResult``, ``TextureResult``), format constants, ``new_project``;
+* :mod:`~photomodel.project.codec` — ``Project`` ⇄ the JSON-able dict of the file (rounding,
+  canonical order, relative paths);
+* :mod:`~photomodel.project.jsontext` — strict JSON parsing (line/column, duplicate keys, NaN
+  literals) and the readable writer;
+* :mod:`~photomodel.project.validate` — format/version, JSON Schema (``schema.json``) and
+  cross-reference checks;
+* :mod:`~photomodel.project.problems` — wording of errors: JSON paths, listings, "did you mean";
+* :mod:`~photomodel.project.io` — ``load_project``, ``save_project`` (atomic, ``.bak``);
+* :mod:`~photomodel.project.results` — storing a fit (record + meshes) and a texture into a
+  project, and saving the project with them.
+
+The format is documented field by field in ``docs/project-format.md``.
+"""
+
+from photomodel.project.io import default_filename, encode_project, load_project, save_project, write_project
+from photomodel.project.model import (
+    BUILTIN_MESH,
+    FILE_SUFFIX,
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    CurveDef,
+    Expression,
+    ExpressionResult,
+    Feature,
+    Photo,
+    Project,
+    TextureResult,
+    new_project,
+)
+from photomodel.project.results import (
+    expression_result,
+    record_fit,
+    save_results,
+    store_fit_meshes,
+    store_fit_result,
+    store_texture_result,
+    texture_files,
+)
+from photomodel.project.validate import OUT_OF_BOUNDS_MARGIN, ROTATION_TOL, project_schema
+
+__all__ = [
+    "BUILTIN_MESH",
+    "FILE_SUFFIX",
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "OUT_OF_BOUNDS_MARGIN",
+    "ROTATION_TOL",
+    "CurveDef",
+    "Expression",
+    "ExpressionResult",
+    "Feature",
+    "Photo",
+    "Project",
+    "TextureResult",
+    "default_filename",
+    "encode_project",
+    "expression_result",
+    "load_project",
+    "new_project",
+    "project_schema",
+    "record_fit",
+    "save_project",
+    "save_results",
+    "store_fit_meshes",
+    "store_fit_result",
+    "store_texture_result",
+    "texture_files",
+    "write_project",
+]

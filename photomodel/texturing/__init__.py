@@ -11,8 +11,9 @@
 The weight maps combine visibility, cubic feathering, positional certainty and (view-dependent
 only) view similarity, with the single-view fallback of §5.2.4; the cylindrical texture is
 ``cylindrical_texture``, view-dependent rendering ``ViewDependentTexture``, and the job
-(``texture_expression``, ``commit_texture``) is the one path shared by ``facestudio texture``
-and the studio. Nothing is imported here, so importing the package costs nothing: import from
-the module that does the work. The exported files (OBJ/PLY/glTF) are :mod:`photomodel.exchange`'s
-job; the design and measurements are in ``docs/texturing.md``.
+(``texture_expression``, ``encode_texture_outputs``; stored by :mod:`photomodel.project.results`)
+is the one path shared by ``facestudio texture`` and the studio. Nothing is imported here, so
+importing the package costs nothing: import from the module that does the work. The exported
+files (OBJ/PLY/glTF) are :mod:`photomodel.exchange`'s job; the design and measurements are in
+``docs/texturing.md``.
 """

@@ -11,9 +11,9 @@ the slow one in a worker and commit on its own thread:
    fallback weights (when the mesh has the generic mesh's topology), ``progress`` / ``cancel``;
 3. :func:`encode_texture_outputs` — every file in memory: the texture PNG, one weight-map PNG per
    photo (black 0 … white 1), textured OBJ+MTL, glb and coloured PLY;
-4. :func:`commit_texture` — writes the files atomically and records a
-   :class:`~photomodel.project.format.TextureResult` in the expression's result (the caller saves the
-   project file).
+4. :func:`photomodel.project.results.store_texture_result` (or ``save_results``, which saves the
+   project file too) — writes the files atomically and records a
+   :class:`~photomodel.project.TextureResult` in the expression's result.
 
 The way back, when the studio opens a textured project: :func:`load_stored_texture` rebuilds the
 :class:`TextureJob` of a stored texture from its PNGs and the fitted mesh (no photograph is read:
@@ -34,7 +34,6 @@ __all__ = [
     "TEXTURE_SIZES",
     "TextureInputs",
     "TextureJob",
-    "commit_texture",
     "encode_texture_outputs",
     "extract_texture",
     "fitted_expressions",
@@ -254,26 +253,9 @@ def encode_texture_outputs(project, job: TextureJob) -> tuple[dict, dict]:
     return files, rel
 
 
-def commit_texture(project, job: TextureJob, files: dict, rel: dict) -> None:
-    """Write the encoded files (each atomically) and record the texture in the expression's result.
-
-    The project file itself is not written: the caller saves it (``save_project`` or the studio).
-    """
-    from photomodel.exchange.files import write_files
-    from photomodel.project.format import TextureResult
-
-    result = project.expression(job.expression).result
-    if result is None:
-        raise FitError(f"expression {job.expression!r} is no longer fitted; its texture is not stored")
-    write_files(files)
-    result.texture = TextureResult(size=job.size, image=rel["image"], weight_maps=rel["weight_maps"],
-                                   exports={"obj": rel["obj"], "glb": rel["glb"], "ply": rel["ply"]},
-                                   report=dict(job.report))
-
-
 def stored_cylinder(texture, vertices: np.ndarray, faces: np.ndarray):
     """The :class:`~photomodel.texturing.cylindrical.CylinderMap` of a stored texture (a
-    :class:`~photomodel.project.format.TextureResult`): its ``report["cylinder"]``, or for a texture
+    :class:`~photomodel.project.TextureResult`): its ``report["cylinder"]``, or for a texture
     recorded before the cylinder was, :func:`~photomodel.texturing.cylindrical.cylinder_map_for` the fitted mesh
     at the texture's size (what its extraction used: the cylinder is a function of the mesh).
     """

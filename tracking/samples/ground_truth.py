@@ -288,11 +288,11 @@ def fitted_sample_project(progress=None) -> Path:
     import shutil
     import tempfile
 
-    from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, store_fit_result
+    from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
     from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.project.format import load_project, save_project
+    from photomodel.project import load_project, save_project, store_fit_result, store_texture_result
     from photomodel.samples.sample_data import cache_dir
-    from photomodel.texturing.job import commit_texture, encode_texture_outputs, texture_expression
+    from photomodel.texturing.job import encode_texture_outputs, texture_expression
 
     src = SAMPLE_PROJECT
     project = load_project(src)
@@ -323,7 +323,7 @@ def fitted_sample_project(progress=None) -> Path:
             report(f"texturing {name}", (len(order) + i) / steps)
             job = texture_expression(project, name, face_mask=mesh.face_mask)
             files, rel = encode_texture_outputs(project, job)
-            commit_texture(project, job, files, rel)
+            store_texture_result(project, job, files, rel)
         save_project(project)
         try:
             os.replace(staged, target)
@@ -341,7 +341,7 @@ def fitted_sample_model(names: tuple = EXPRESSION_NAMES) -> FaceModel:
     """The face model of the fitted sample project (:func:`fitted_sample_project`) on ``names``,
     E_1 = neutral — the model a user of the sample gets, built by
     :func:`tracking.project_model.face_model_from_project`. Cached per arguments."""
-    from photomodel.project.format import load_project
+    from photomodel.project import load_project
     from tracking.project_model import face_model_from_project
 
     return face_model_from_project(load_project(fitted_sample_project()), names)[0]

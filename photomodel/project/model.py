@@ -1,0 +1,483 @@
+"""The project's data model: features, curves, photos with their clicks, expressions and their results.
+
+A project (one ``<name>.facestudio.json`` file, documented field by field in
+``docs/project-format.md``) names the generic mesh, the features (generic-mesh vertices the artist
+clicks, §5.1 of Pighin et al. 2002) and curves (mesh polylines that hand-drawn image curves bind
+to, §5.1.3), and, per expression, the photographs with their clicks and the fitted result. Every
+path stored in it is relative to the folder that holds the file. Conventions are those of
+:mod:`photomodel.camera`: pixels ``u`` right, ``v`` down, pixel centres at integers; millimetres
+in the world.
+
+The dict form written to disk is :mod:`photomodel.project.codec`'s, its checks
+:mod:`photomodel.project.validate`'s, reading and writing the file :mod:`photomodel.project.io`'s.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from photomodel.camera import Camera
+from photomodel.errors import ProjectError
+from photomodel.project.problems import did_you_mean, listing, problems_error
+
+FORMAT_NAME = "facestudio-project"
+#: The version this Face Studio writes; it reads every version from 1 up to this one.
+#: History (``docs/project-format.md``, "Versioning"):
+#:
+#: * 1 — the first format.
+#: * 2 — a photo may name its ``camera_group`` (photos taken with one camera and lens share one
+#:   focal length). Upgrading a version-1 file: nothing to do (no photo has a group).
+FORMAT_VERSION = 2
+FILE_SUFFIX = ".facestudio.json"
+BUILTIN_MESH = "builtin:template-v1"
+
+
+@dataclass
+class Feature:
+    """A named feature: the generic-mesh vertex that a click of that name corresponds to.
+
+    Attributes
+    ----------
+    name : str
+    vertex : int, index into the generic mesh's vertices.
+    pose : bool, True if the feature is one of the initial features used for pose recovery
+        (§5.1.1); False for refinement-only correspondences (§5.1.3).
+    """
+
+    name: str
+    vertex: int
+    pose: bool = False
+
+    def __post_init__(self):
+        self.vertex = int(self.vertex)
+        self.pose = bool(self.pose)
+
+
+@dataclass
+class CurveDef:
+    """A polyline on the generic mesh that hand-drawn image curves bind to (§5.1.3).
+
+    Attributes
+    ----------
+    name : str
+    vertices : (m,) int, generic-mesh vertex indices in order along the curve, m >= 2.
+    """
+
+    name: str
+    vertices: np.ndarray
+
+    def __post_init__(self):
+        self.vertices = np.asarray(self.vertices, dtype=np.int64).reshape(-1)
+
+    def __eq__(self, other):
+        return (isinstance(other, CurveDef) and self.name == other.name
+                and np.array_equal(self.vertices, other.vertices))
+
+
+@dataclass
+class Photo:
+    """One photograph of an expression with the artist's clicks.
+
+    Attributes
+    ----------
+    id : str, unique within the expression (e.g. ``"front"``).
+    path : str, image file relative to the project folder (POSIX separators).
+    width, height : int, image size in pixels.
+    preset : str, rough initial camera, a key of :data:`photomodel.camera.PRESET_AZIMUTH_DEG`.
+    focal_mm_guess : float or None, lens guess in mm on a 36 mm-wide sensor.
+    camera_group : str or None, photos with the same (non-empty) group name were taken with one
+        camera and lens (frames of one video, a fixed lens) and so share one focal length; None:
+        a camera of its own (:meth:`Expression.camera_groups`). Format version 2.
+    points : dict[str, (2,) float], clicked feature positions ``[u, v]`` in pixels.
+    hidden : set[str], features the artist marked as not visible in this photo (a hidden
+        feature is unobserved even if it also has a click).
+    curves : dict[str, (m, 2) float], hand-drawn polylines in pixels, m >= 2.
+    """
+
+    id: str
+    path: str
+    width: int
+    height: int
+    preset: str = "front"
+    focal_mm_guess: float | None = None
+    points: dict[str, np.ndarray] = field(default_factory=dict)
+    hidden: set[str] = field(default_factory=set)
+    curves: dict[str, np.ndarray] = field(default_factory=dict)
+    camera_group: str | None = None
+
+    def __post_init__(self):
+        self.path = Path(self.path).as_posix() if isinstance(self.path, Path) else str(self.path)
+        self.width = int(self.width)
+        self.height = int(self.height)
+        self.focal_mm_guess = None if self.focal_mm_guess is None else float(self.focal_mm_guess)
+        self.points = {k: np.asarray(v, dtype=float).reshape(2) for k, v in self.points.items()}
+        self.hidden = set(self.hidden)
+        self.curves = {k: np.asarray(v, dtype=float).reshape(-1, 2) for k, v in self.curves.items()}
+
+    def __eq__(self, other):
+        return (isinstance(other, Photo)
+                and (self.id, self.path, self.width, self.height, self.preset, self.focal_mm_guess,
+                     self.camera_group, self.hidden)
+                == (other.id, other.path, other.width, other.height, other.preset,
+                    other.focal_mm_guess, other.camera_group, other.hidden)
+                and _array_dicts_equal(self.points, other.points)
+                and _array_dicts_equal(self.curves, other.curves))
+
+
+@dataclass
+class TextureResult:
+    """The texture of a fitted expression and the exports made with it (``facestudio texture``).
+
+    Written when the texture is extracted from the photos (Pighin et al. 2002, §5.2); a new fit
+    of the expression replaces the whole :class:`ExpressionResult` and so drops it (the
+    texture belongs to the mesh it was made for).
+
+    Attributes
+    ----------
+    size : int, the texture is ``size × size`` texels.
+    image : str, the texture PNG relative to the project folder (``results/<expr>_texture.png``).
+    weight_maps : dict[str, str], photo id → PNG of that photo's blending weight in texture
+        space (``results/<expr>_weights_<photo>.png``; black = 0, white = 1).
+    exports : dict[str, str], format → exported file relative to the project folder; formats
+        are ``"obj"`` (with its ``.mtl`` next to it), ``"glb"`` and ``"ply"`` (vertex colours).
+    report : dict, free-form JSON-able facts (coverage, timings...).
+    """
+
+    size: int
+    image: str
+    weight_maps: dict[str, str] = field(default_factory=dict)
+    exports: dict[str, str] = field(default_factory=dict)
+    report: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.size = int(self.size)
+        self.weight_maps = {k: _posix(v) for k, v in self.weight_maps.items()}
+        self.exports = {k: _posix(v) for k, v in self.exports.items()}
+        self.image = _posix(self.image)
+
+
+def _posix(p) -> str:
+    return Path(p).as_posix() if isinstance(p, Path) else str(p)
+
+
+def _file_stem(name: str, fallback: str) -> str:
+    """``name`` with characters unsafe in file names replaced by ``_`` (never hidden or empty)."""
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name).lstrip(".") or fallback
+
+
+@dataclass
+class ExpressionResult:
+    """The fitted model of one expression (written by the fitter, :mod:`photomodel.modeling.fit`).
+
+    Attributes
+    ----------
+    cameras : dict[str, Camera], recovered camera per photo id.
+    points_3d : dict[str, (3,) float], recovered feature positions in mm.
+    mesh_obj, mesh_ply : str or None, fitted mesh files relative to the project folder
+        (by convention ``results/<expression>.obj`` / ``.ply``).
+    report : dict, free-form JSON-able fit report (rms, per-view, per-point residuals...).
+    texture : TextureResult or None, the extracted texture and exports (``facestudio texture``).
+    """
+
+    cameras: dict[str, Camera] = field(default_factory=dict)
+    points_3d: dict[str, np.ndarray] = field(default_factory=dict)
+    mesh_obj: str | None = None
+    mesh_ply: str | None = None
+    report: dict = field(default_factory=dict)
+    texture: TextureResult | None = None
+
+    def __post_init__(self):
+        self.points_3d = {k: np.asarray(v, dtype=float).reshape(3) for k, v in self.points_3d.items()}
+
+    def __eq__(self, other):
+        if not isinstance(other, ExpressionResult):
+            return False
+        if ((self.mesh_obj, self.mesh_ply, self.report, self.texture)
+                != (other.mesh_obj, other.mesh_ply, other.report, other.texture)):
+            return False
+        if self.cameras.keys() != other.cameras.keys():
+            return False
+        for k, a in self.cameras.items():
+            b = other.cameras[k]
+            if not (np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t) and a.f == b.f
+                    and (a.width, a.height) == (b.width, b.height)):
+                return False
+        return _array_dicts_equal(self.points_3d, other.points_3d)
+
+
+@dataclass
+class Expression:
+    """One facial expression: its photographs and, once fitted, its result.
+
+    Attributes
+    ----------
+    name : str
+    photos : list[Photo]
+    result : ExpressionResult or None
+    cameras_from : str or None
+        Name of another expression of the project whose photos were taken with the same
+        cameras (the same rig, photo for photo by photo id, the head in the same place). The fit
+        then reuses that expression's fitted cameras instead of recovering its own
+        (:func:`photomodel.modeling.fit.fit_expression`), and its mesh lands in that expression's head
+        frame. None (default): the cameras are recovered from this expression's own clicks.
+    """
+
+    name: str
+    photos: list[Photo] = field(default_factory=list)
+    result: ExpressionResult | None = None
+    cameras_from: str | None = None
+
+    def photo(self, photo_id: str) -> Photo:
+        """The photo with id ``photo_id``; :class:`ProjectError` listing the ids if absent."""
+        for p in self.photos:
+            if p.id == photo_id:
+                return p
+        raise ProjectError(f"expression {self.name!r} has no photo {photo_id!r}; "
+                           f"its photos are: {listing(p.id for p in self.photos)}")
+
+    def camera_groups(self) -> list[int]:
+        """The camera of each photo, in photo order, as the index array a solver shares
+        intrinsics by: photos with the same ``camera_group`` get the same index, a photo without
+        a group an index of its own; indices are 0, 1, … in order of first appearance.
+
+        E.g. groups ``["a", None, "a", "b", None]`` → ``[0, 1, 0, 2, 3]``.
+        """
+        index: dict[str, int] = {}
+        out = []
+        n = 0
+        for p in self.photos:
+            if p.camera_group is None:
+                out.append(n)
+                n += 1
+            else:
+                if p.camera_group not in index:
+                    index[p.camera_group] = n
+                    n += 1
+                out.append(index[p.camera_group])
+        return out
+
+
+@dataclass
+class Project:
+    """A Face Studio project (see ``docs/project-format.md``).
+
+    Attributes
+    ----------
+    name : str
+    generic_mesh : str, ``"builtin:template-v1"`` or a mesh path relative to the project folder.
+    features : list[Feature]
+    curves : list[CurveDef]
+    expressions : list[Expression]
+    path : Path or None, the project file (absolute) once loaded or saved.
+    """
+
+    name: str
+    generic_mesh: str = BUILTIN_MESH
+    features: list[Feature] = field(default_factory=list)
+    curves: list[CurveDef] = field(default_factory=list)
+    expressions: list[Expression] = field(default_factory=list)
+    path: Path | None = field(default=None, compare=False)
+
+    # -- look-ups --------------------------------------------------------------------
+    @property
+    def folder(self) -> Path:
+        """The folder relative paths are resolved against (the cwd for an unsaved project)."""
+        return self.path.parent if self.path is not None else Path.cwd()
+
+    def resolve(self, relative: str | os.PathLike) -> Path:
+        """Absolute path of a path stored in the project (relative to :attr:`folder`)."""
+        return (self.folder / Path(relative)).absolute()
+
+    def expression(self, name: str) -> Expression:
+        """The expression called ``name``; :class:`ProjectError` listing the names if absent."""
+        for e in self.expressions:
+            if e.name == name:
+                return e
+        raise ProjectError(f"project {self.name!r} has no expression {name!r}; "
+                           f"available: {listing(e.name for e in self.expressions)}")
+
+    def feature(self, name: str) -> Feature:
+        for f in self.features:
+            if f.name == name:
+                return f
+        raise ProjectError(f"project {self.name!r} has no feature {name!r}"
+                           f"{did_you_mean(name, self.feature_names())}")
+
+    def feature_names(self, pose_only: bool = False) -> list[str]:
+        """Feature names in definition order; only the pose-recovery ones if ``pose_only``."""
+        return [f.name for f in self.features if f.pose or not pose_only]
+
+    def feature_vertices(self, feature_names: Sequence[str] | None = None) -> np.ndarray:
+        """(n,) int generic-mesh vertex of each named feature (all features by default)."""
+        names = self.feature_names() if feature_names is None else list(feature_names)
+        by_name = {f.name: f.vertex for f in self.features}
+        self._require_features(names, by_name)
+        return np.array([by_name[n] for n in names], dtype=np.int64)
+
+    def camera_groups(self, expression_name: str) -> list[int]:
+        """:meth:`Expression.camera_groups` of the expression called ``expression_name``: one
+        camera index per photo, in the order of its photos (that of :meth:`observations`)."""
+        return self.expression(expression_name).camera_groups()
+
+    def photo_path(self, photo: Photo) -> Path:
+        """Absolute path of ``photo``'s image file."""
+        return self.resolve(photo.path)
+
+    def observations(self, expression_name: str,
+                     feature_names: Sequence[str] | None = None) -> np.ndarray:
+        """Clicked feature positions of one expression as an observation array.
+
+        Parameters
+        ----------
+        expression_name : str
+        feature_names : sequence of n str, default all features in definition order.
+
+        Returns
+        -------
+        (k, n, 2) float
+            Pixel coordinates ``[u, v]`` of feature ``j`` in photo ``i`` (photos in the
+            expression's order), ``NaN`` where the feature is not clicked or is hidden.
+        """
+        expr = self.expression(expression_name)
+        names = self.feature_names() if feature_names is None else list(feature_names)
+        self._require_features(names, {f.name for f in self.features})
+        col = {n: j for j, n in enumerate(names)}
+        obs = np.full((len(expr.photos), len(names), 2), np.nan)
+        for i, photo in enumerate(expr.photos):
+            for n, uv in photo.points.items():
+                if n in col and n not in photo.hidden:
+                    obs[i, col[n]] = uv
+        return obs
+
+    def default_result_paths(self, expression_name: str) -> tuple[str, str]:
+        """``("results/<expr>.obj", "results/<expr>.ply")``, relative to the project folder;
+        characters unsafe in file names are replaced by ``_``."""
+        stem = _file_stem(expression_name, "expression")
+        return f"results/{stem}.obj", f"results/{stem}.ply"
+
+    def default_texture_paths(self, expression_name: str) -> dict:
+        """Where ``facestudio texture`` writes, relative to the project folder.
+
+        Returns ``{"image": "results/<expr>_texture.png", "weight_maps": {photo id:
+        "results/<expr>_weights_<photo>.png"}, "obj": "results/<expr>_textured.obj", "mtl":
+        "results/<expr>_textured.mtl", "glb": "results/<expr>.glb", "ply":
+        "results/<expr>_colors.ply"}``; unsafe characters become ``_`` as in
+        :meth:`default_result_paths` (photo ids that would then collide get their position in
+        the expression appended).
+        """
+        stem = _file_stem(expression_name, "expression")
+        weights: dict[str, str] = {}
+        for i, photo in enumerate(self.expression(expression_name).photos):
+            path = f"results/{stem}_weights_{_file_stem(photo.id, 'photo')}.png"
+            if path in weights.values():
+                path = path[: -len(".png")] + f"_{i}.png"
+            weights[photo.id] = path
+        return {
+            "image": f"results/{stem}_texture.png",
+            "weight_maps": weights,
+            "obj": f"results/{stem}_textured.obj",
+            "mtl": f"results/{stem}_textured.mtl",
+            "glb": f"results/{stem}.glb",
+            "ply": f"results/{stem}_colors.ply",
+        }
+
+    # -- checks that need more than the file ---------------------------------------------
+    def check_vertices(self, n_vertices: int) -> None:
+        """Raise :class:`ProjectError` if a feature or curve names a vertex ``>= n_vertices``.
+
+        The file cannot know the generic mesh's size; the fitter calls this once the mesh is
+        loaded.
+        """
+        problems = []
+        for i, f in enumerate(self.features):
+            if not 0 <= f.vertex < n_vertices:
+                problems.append((f"features[{i}].vertex",
+                                 f"feature {f.name!r}: vertex {f.vertex} is out of range for a "
+                                 f"generic mesh with {n_vertices} vertices"))
+        for i, c in enumerate(self.curves):
+            bad = np.flatnonzero((c.vertices < 0) | (c.vertices >= n_vertices))
+            if bad.size:
+                problems.append((f"curves[{i}].vertices[{bad[0]}]",
+                                 f"curve {c.name!r}: vertex {c.vertices[bad[0]]} is out of range for "
+                                 f"a generic mesh with {n_vertices} vertices"))
+        if problems:
+            raise problems_error(self._source(), problems)
+
+    def check_photos(self, read: bool = False) -> None:
+        """Raise :class:`ProjectError` naming every photo that is missing or unreadable.
+
+        Parameters
+        ----------
+        read : bool
+            If False (default, cheap) a photo must exist and OpenCV must recognise its format
+            from the file header (``cv2.haveImageReader``). If True each image is decoded and
+            its size compared with the ``width``/``height`` stored in the project.
+        """
+        import cv2  # local: loading/saving projects does not need OpenCV
+
+        problems = []
+        for ei, expr in enumerate(self.expressions):
+            for pi, photo in enumerate(expr.photos):
+                where = f"expressions[{ei}].photos[{pi}]"
+                who = f"expression {expr.name!r}, photo {photo.id!r}"
+                p = self.photo_path(photo)
+                if not p.is_file():
+                    problems.append((where, f"{who}: {photo.path} does not exist (looked for {p})"))
+                elif not cv2.haveImageReader(str(p)):
+                    problems.append((where, f"{who}: {photo.path} is not an image OpenCV can read"))
+                elif read:
+                    img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+                    if img is None:
+                        problems.append((where, f"{who}: {photo.path} could not be decoded"))
+                    elif img.shape[:2] != (photo.height, photo.width):
+                        problems.append((where, f"{who}: {photo.path} is {img.shape[1]}x{img.shape[0]} "
+                                                f"but the project says {photo.width}x{photo.height}"))
+        if problems:
+            raise problems_error(self._source(), problems)
+
+    # -- (de)serialisation -----------------------------------------------------------
+    def to_dict(self) -> dict:
+        """The project as the JSON-able dict written to disk (rounded, canonical order)."""
+        from photomodel.project.codec import project_to_dict
+
+        return project_to_dict(self, self.path)
+
+    @classmethod
+    def from_dict(cls, d: Any, path: str | os.PathLike | None = None) -> Project:
+        """Validate a parsed project dict and build the :class:`Project`.
+
+        ``path`` (the file it came from) is used for error messages and for resolving
+        relative paths. Raises :class:`ProjectError` naming the field at fault.
+        """
+        from photomodel.project.codec import project_from_dict
+
+        return project_from_dict(d, path)
+
+    # -- internals ------------------------------------------------------------------
+    def _source(self) -> str:
+        return self.path.name if self.path is not None else f"project {self.name!r}"
+
+    def _require_features(self, names: Iterable[str], defined) -> None:
+        missing = [n for n in names if n not in defined]
+        if missing:
+            raise ProjectError(f"project {self.name!r} has no feature(s) {listing(missing)}"
+                               f"{did_you_mean(missing[0], self.feature_names())}")
+
+
+def new_project(name: str, *, generic_mesh: str = BUILTIN_MESH,
+                features: Sequence[Feature] = (), curves: Sequence[CurveDef] = ()) -> Project:
+    """An empty project (no expressions) called ``name``; not yet saved."""
+    if not isinstance(name, str) or not name.strip():
+        raise ProjectError(f"a project needs a non-empty name, got {name!r}")
+    return Project(name=name, generic_mesh=generic_mesh, features=list(features), curves=list(curves))
+
+
+def _array_dicts_equal(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)

@@ -1,0 +1,214 @@
+"""Storing results into a project: a fit (its record and mesh files) and a texture (its files and record).
+
+The one path shared by ``facestudio fit`` / ``facestudio texture`` (:mod:`app.cli`) and the studio
+(:meth:`app.model.StudioModel.save`):
+
+* :func:`record_fit` puts a :class:`~photomodel.modeling.fit.FitResult` into the project in
+  memory (:func:`expression_result`, the one place a fit becomes an
+  :class:`~photomodel.project.model.ExpressionResult`; no file yet). A new fit replaces the whole
+  result, so a texture made for the previous mesh is dropped.
+* :func:`save_results` stores the fitted meshes (``results/<expr>.obj|.ply``) and encoded
+  textures (:func:`texture_files`, or :func:`photomodel.texturing.job.encode_texture_outputs`)
+  and then the project file:
+
+  1. records the result files in the project (paths relative to the folder of the file being
+     written);
+  2. serialises and validates the project — if it is invalid nothing at all is written;
+  3. writes the result files, each atomically (a reader never finds half a file);
+  4. writes the project file, atomically and last, keeping the previous one as ``.bak``.
+
+  The project file never names a result file that is not completely on disk: a crash, a kill or
+  a full disk before step 4 leaves the previous project file in place (and each result file
+  whole, old or new).
+
+:func:`store_fit_result` and :func:`store_texture_result` store one result without saving the
+project file (the caller saves it, e.g. after several).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from photomodel.errors import FitError, ProjectError
+from photomodel.project.io import default_filename, encode_project, target_file, write_project
+from photomodel.project.model import ExpressionResult, Project, TextureResult
+
+
+# ---------------------------------------------------------------------------------------
+# a fit
+# ---------------------------------------------------------------------------------------
+def expression_result(fit, *, mesh_obj: str | None = None, mesh_ply: str | None = None) -> ExpressionResult:
+    """The project record of a :class:`~photomodel.modeling.fit.FitResult`: cameras by photo id,
+    3-D points by feature name, the report, and the mesh files if already written."""
+    return ExpressionResult(
+        cameras=dict(zip(fit.photo_ids, fit.cameras, strict=True)),
+        points_3d=dict(zip(fit.feature_names, fit.points_3d, strict=True)),
+        mesh_obj=mesh_obj,
+        mesh_ply=mesh_ply,
+        report=fit.report,
+    )
+
+
+def record_fit(project: Project, expression_name: str, fit) -> ExpressionResult:
+    """Make ``fit`` the expression's result, in memory only (no mesh file yet): what an expression
+    fitted next with ``cameras_from`` reads. Drops a texture made for the previous fit."""
+    result = project.expression(expression_name).result = expression_result(fit)
+    return result
+
+
+def fit_mesh_paths(project: Project, expression_name: str, folder: Path) -> dict[str, Path]:
+    """``{"mesh_obj": <folder>/results/<expr>.obj, "mesh_ply": <folder>/results/<expr>.ply}``."""
+    rel_obj, rel_ply = project.default_result_paths(expression_name)
+    return {"mesh_obj": folder / rel_obj, "mesh_ply": folder / rel_ply}
+
+
+def store_fit_meshes(project: Project, expression_name: str, vertices: np.ndarray, faces: np.ndarray,
+                     folder: Path | None = None) -> dict[str, Path]:
+    """Write the fitted mesh as OBJ and PLY (each atomically) into ``folder`` (default: the
+    project's) and record them in the expression's result; returns the files written."""
+    folder = _folder(project, folder)
+    paths = fit_mesh_paths(project, expression_name, folder)
+    _write_meshes(paths, vertices, faces)
+    _record_meshes(project, expression_name, folder, paths)
+    return paths
+
+
+def store_fit_result(project: Project, expression_name: str, fit, faces: np.ndarray) -> None:
+    """Put ``fit`` into ``project`` (in memory) and write the fitted mesh as OBJ and PLY next to the
+    project file (``results/<expression>.obj|.ply``, atomically). The caller saves the project
+    file (or uses :func:`save_results`, which does both)."""
+    if project.path is None:
+        raise FitError("save the project before storing results (the mesh files go next to it)")
+    record_fit(project, expression_name, fit)
+    store_fit_meshes(project, expression_name, fit.vertices, faces)
+
+
+def _write_meshes(paths: dict[str, Path], vertices: np.ndarray, faces: np.ndarray) -> None:
+    from photomodel.exchange.mesh import write_mesh
+
+    for path in paths.values():
+        try:
+            write_mesh(path, vertices, faces)
+        except OSError as exc:
+            raise ProjectError(f"{path}: could not write the fitted mesh: {exc.strerror or exc}") from exc
+
+
+def _record_meshes(project: Project, expression_name: str, folder: Path, paths: dict[str, Path]) -> None:
+    result = project.expression(expression_name).result
+    if result is None:
+        raise FitError(f"expression {expression_name!r} is not fitted; its mesh is not stored")
+    result.mesh_obj = _recorded(project, folder, paths["mesh_obj"])
+    result.mesh_ply = _recorded(project, folder, paths["mesh_ply"])
+
+
+# ---------------------------------------------------------------------------------------
+# a texture
+# ---------------------------------------------------------------------------------------
+def texture_files(project: Project, job, folder: Path | None = None) -> tuple[dict, dict]:
+    """:func:`photomodel.texturing.job.encode_texture_outputs` for a project saved into ``folder``
+    (default: its own): ``({absolute path: bytes}, paths relative to that folder)``."""
+    from photomodel.texturing.job import encode_texture_outputs
+
+    if folder is None or (project.path is not None and Path(folder) == project.path.parent):
+        return encode_texture_outputs(project, job)
+    at_folder = copy.copy(project)  # shares the expressions; resolves paths in ``folder``
+    at_folder.path = Path(folder).absolute() / default_filename(project.name)
+    return encode_texture_outputs(at_folder, job)
+
+
+def store_texture_result(project: Project, job, files: Mapping, rel: dict, folder: Path | None = None) -> None:
+    """Write a texture's encoded files (each atomically, in order) and record the texture in the
+    expression's result; ``files, rel`` are :func:`texture_files`' for ``folder`` (default: the
+    project's). The project file itself is not written: the caller saves it (or uses
+    :func:`save_results`, which does both)."""
+    _check_fitted(project, job)
+    _write_texture(job, files)
+    _record_texture(project, job, rel, _folder(project, folder))
+
+
+def _check_fitted(project: Project, job) -> None:
+    if project.expression(job.expression).result is None:
+        raise FitError(f"expression {job.expression!r} is no longer fitted; its texture is not stored")
+
+
+def _write_texture(job, files: Mapping) -> None:
+    from photomodel.exchange import files as exchange_files  # looked up at call time (tests replace it)
+
+    try:
+        exchange_files.write_files(files)
+    except OSError as exc:
+        where = Path(next(iter(files))).parent if files else Path.cwd()
+        raise ProjectError(f"{where}: could not write the texture of {job.expression!r}: "
+                           f"{exc.strerror or exc}") from exc
+
+
+def _record_texture(project: Project, job, rel: dict, folder: Path) -> None:
+    def recorded(p: str) -> str:
+        return _recorded(project, folder, folder / p)
+
+    project.expression(job.expression).result.texture = TextureResult(
+        size=job.size, image=recorded(rel["image"]),
+        weight_maps={pid: recorded(p) for pid, p in rel["weight_maps"].items()},
+        exports={k: recorded(rel[k]) for k in ("obj", "glb", "ply")},
+        report=dict(job.report))
+
+
+# ---------------------------------------------------------------------------------------
+# results and the project file, together
+# ---------------------------------------------------------------------------------------
+def save_results(project: Project, target=None, *, fits: Mapping[str, np.ndarray] | None = None,
+                 faces: np.ndarray | None = None, textures: Sequence[tuple] = ()) -> Path:
+    """Store result files, then the project file (see the module docstring); returns the file written.
+
+    Parameters
+    ----------
+    project : Project, whose expressions in ``fits`` already hold their result (:func:`record_fit`).
+    target : path of the project file to write (default ``project.path``; a folder means
+        ``<folder>/<name>.facestudio.json``); result files go into its folder.
+    fits : {expression name: (N, 3) fitted vertices}, meshes to write (with ``faces``).
+    faces : (M, 3) int, the generic mesh's faces.
+    textures : sequence of ``(job, files, rel)``, :func:`texture_files` for the target's folder.
+
+    Raises
+    ------
+    ProjectError
+        the project is invalid (nothing is written), or a file could not be written (naming it;
+        the project file is then not written).
+    FitError
+        an expression in ``fits`` or ``textures`` has no result.
+    """
+    target = target_file(project, target)
+    folder = target.parent
+    meshes = {name: fit_mesh_paths(project, name, folder) for name in (fits or {})}
+    for name, paths in meshes.items():  # 1. record
+        _record_meshes(project, name, folder, paths)
+    for job, _files, rel in textures:
+        _check_fitted(project, job)
+        _record_texture(project, job, rel, folder)
+    target, data = encode_project(project, target)  # 2. validate; nothing written if invalid
+    for name, paths in meshes.items():  # 3. result files
+        _write_meshes(paths, fits[name], faces)
+    for job, files, _rel in textures:
+        _write_texture(job, files)
+    return write_project(project, target, data)  # 4. the project file, last
+
+
+def _folder(project: Project, folder: Path | None) -> Path:
+    if folder is not None:
+        return Path(folder).absolute()
+    if project.path is None:
+        raise FitError("save the project before storing results (the result files go next to it)")
+    return project.path.parent
+
+
+def _recorded(project: Project, folder: Path, path: Path) -> str:
+    """How a result file written at ``path`` (in ``folder``) is recorded in the project: relative
+    to the project's folder when ``folder`` is it, else absolute (saving to ``folder`` then stores
+    it relative to the file written)."""
+    if project.path is not None and folder == project.path.parent:
+        return path.relative_to(folder).as_posix()
+    return path.as_posix()
