@@ -4,6 +4,7 @@ with a backup (a failed save leaves the original intact)."""
 from __future__ import annotations
 
 import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -125,4 +126,15 @@ def test_failed_save_leaves_original_intact(tmp_path, saved, monkeypatch, target
     monkeypatch.undo()
     assert path.read_bytes() == before
     assert load_project(path).name == "james"
+    assert temp_files(tmp_path) == []
+
+
+def test_save_keeps_the_file_permissions_and_so_does_the_backup(tmp_path, saved):
+    """A private project stays private: the new file and its .bak keep its mode; a new file is 0644."""
+    path, _ = saved
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644
+    path.chmod(0o600)
+    save_project(load_project(path))
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert stat.S_IMODE(Path(str(path) + ".bak").stat().st_mode) == 0o600
     assert temp_files(tmp_path) == []
