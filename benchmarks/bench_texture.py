@@ -63,15 +63,22 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from photomodel.exchange.files import atomic_write_bytes, encode_png  # noqa: E402
 from photomodel.modeling.fit import fit_expression  # noqa: E402
 from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
 from photomodel.project import load_project  # noqa: E402
-from photomodel.rendering.renderer import get_renderer, write_png  # noqa: E402
+from photomodel.rendering.renderer import get_renderer  # noqa: E402
 from photomodel.samples.sample_data import load_james_scan  # noqa: E402
 from photomodel.samples.synthetic import load_ground_truth, true_correspondence  # noqa: E402
 from photomodel.texturing.cylindrical import cylindrical_texture, render_cylindrical, single_view_weights  # noqa: E402
 from photomodel.texturing.view_dependent import ViewDependentTexture  # noqa: E402
 from photomodel.texturing.weights import FEATHER_WIDTH_MM  # noqa: E402
+
+
+def write_png(path, image):
+    """Write an image as PNG, atomically (photomodel.exchange.files)."""
+    return atomic_write_bytes(path, encode_png(image))
+
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 BACKGROUND = (0.86, 0.86, 0.85)  # the sample photos' backdrop

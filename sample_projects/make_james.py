@@ -50,10 +50,9 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from photomodel.exchange.files import atomic_write_bytes  # noqa: E402
+from photomodel.exchange.files import atomic_write_bytes, encode_png  # noqa: E402
 from photomodel.modeling.generic_mesh import IBUG68_NAMES, load_generic_mesh  # noqa: E402
 from photomodel.project import CurveDef, Expression, Feature, Photo, new_project, save_project  # noqa: E402
-from photomodel.rendering.renderer import write_png  # noqa: E402
 from photomodel.samples import synthetic  # noqa: E402
 from photomodel.samples.sample_data import load_james_scan  # noqa: E402
 from tracking.samples.expressions import (  # noqa: E402
@@ -135,7 +134,7 @@ def shoot(out: Path, expression: str, scan, cameras, ids, names, points3d, curve
         result = synthetic.render_scan(cam, scan, background=BACKGROUND_RGB, supersample=3)
         rel = f"photos/{expression}_{pid}.{image_format}"
         if image_format == "png":
-            write_png(out / rel, result.color)
+            atomic_write_bytes(out / rel, encode_png(result.color))
         else:
             atomic_write_bytes(out / rel, encode_jpeg(result.color, JPEG_QUALITY))
         paths.append(rel)

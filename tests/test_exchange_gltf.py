@@ -29,7 +29,8 @@ from PIL import Image
 
 from photomodel.exchange.files import decode_png
 from photomodel.exchange.gltf import METRES_PER_MM, encode_glb, write_glb
-from photomodel.exchange.uv import sample_texture, split_uv_seams
+from photomodel.exchange.uv import split_uv_seams
+from photomodel.rendering.sampling import sample_texture
 
 # glTF 2.0 constants, from the spec
 GLB_MAGIC, JSON_CHUNK, BIN_CHUNK = 0x46546C67, 0x4E4F534A, 0x004E4942

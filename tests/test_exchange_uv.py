@@ -17,7 +17,6 @@ from photomodel.exchange.uv import (
     check_uv,
     corner_uvs,
     merge_uv_seams,
-    sample_texture,
     split_uv_seams,
     vertex_colors_from_texture,
 )
@@ -55,19 +54,6 @@ def test_split_uv_seams_of_two_triangles_copies_the_one_seam_vertex():
     np.testing.assert_array_equal(sorted(map(tuple, uv_out[[1, 4]])), [(0.0, 0.1), (0.9, 0.1)])
     # and back
     np.testing.assert_array_equal(merge_uv_seams(QUAD_FACES, source, f_out, uv_out), QUAD_CORNERS)
-
-
-def test_sample_texture_bilinear_known_values():
-    tex = np.array([[[0.0], [100.0]], [[200.0], [40.0]]])  # 2×2, one channel; row 0 is the top (v = 1)
-    # texel centres: (0.25, 0.75) → row 0 col 0; (0.75, 0.25) → row 1 col 1
-    np.testing.assert_allclose(sample_texture(tex, [[0.25, 0.75], [0.75, 0.25]]), [[0.0], [40.0]])
-    # the image centre is the mean of the four: (0 + 100 + 200 + 40) / 4 = 85
-    np.testing.assert_allclose(sample_texture(tex, [0.5, 0.5]), [85.0])
-    # halfway between the top two texel centres: (0 + 100) / 2 = 50; a quarter of the way from the
-    # top-left centre to the bottom-left one (v = 0.75 − 0.25·0.5 = 0.625): 0.75·0 + 0.25·200 = 50
-    np.testing.assert_allclose(sample_texture(tex, [[0.5, 0.75], [0.25, 0.625]]), [[50.0], [50.0]])
-    # the corner of the image: clamped to the corner texel
-    np.testing.assert_allclose(sample_texture(tex, [[0.0, 0.0], [1.0, 1.0]]), [[200.0], [100.0]])
 
 
 def test_checks_name_the_problem():
@@ -119,16 +105,6 @@ def test_merge_uv_seams_inverts_a_split_in_any_triangle_order(sphere):
     np.testing.assert_array_equal(merge_uv_seams(f, source, f_out[order], uv_out), c)
     with pytest.raises(ValueError, match="not the mesh's triangles"):
         merge_uv_seams(f[::-1, ::-1], source, f_out, uv_out)
-
-
-def test_sample_texture_hits_texel_centres_v_up_and_clamps(texture):
-    uv = np.array([texel_uv(0, 0, texture.shape), texel_uv(63, 5, texture.shape), texel_uv(10, 127, texture.shape)])
-    np.testing.assert_allclose(sample_texture(texture, uv), texture[[0, 63, 10], [0, 5, 127]])  # v = 1: top row
-    # beyond the edges: clamped, as the renderer and the glTF sampler do
-    np.testing.assert_allclose(sample_texture(texture, [[1.2, 1.1], [-0.3, -2.0]]), texture[[0, 63], [127, 0]])
-    # halfway between two columns of the same row: the mean
-    mid = (texel_uv(3, 7, texture.shape) + texel_uv(3, 8, texture.shape)) / 2
-    np.testing.assert_allclose(sample_texture(texture, mid), texture[3, 7:9].astype(float).mean(axis=0))
 
 
 def test_vertex_colors_from_per_corner_uv_average_the_corners(texture):

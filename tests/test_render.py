@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import threading
 
-import cv2
 import numpy as np
 import pytest
 
@@ -21,7 +20,6 @@ from photomodel.rendering.renderer import (
     get_renderer,
     gl_projection,
     vertex_normals,
-    write_png,
 )
 from photomodel.samples.sample_data import load_james_scan
 
@@ -346,6 +344,18 @@ def test_vertex_normals_of_a_box_corner():
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0)
 
 
+def test_vertex_normals_are_area_weighted_and_zero_on_isolated_vertices():
+    """A vertex shared by a big and a small triangle leans towards the big one's normal by area;
+    a vertex no triangle uses gets 0 (no NaN); integer input is fine."""
+    V = np.array([[0, 0, 0], [4, 0, 0], [0, 4, 0], [0, 0, 1], [9, 9, 9]])
+    F = np.array([[0, 1, 2], [0, 3, 1]])  # areas 8 (normal +z) and 2 (normal +y)
+    n = vertex_normals(V, F)
+    expect = 8 * np.array([0, 0, 1.0]) + 2 * np.array([0, 1.0, 0])
+    np.testing.assert_allclose(n[0], expect / np.linalg.norm(expect), atol=1e-12)
+    np.testing.assert_allclose(n[2], [0, 0, 1.0], atol=1e-12)
+    np.testing.assert_array_equal(n[4], 0.0)
+
+
 def test_gl_projection_maps_pixels_to_window_coordinates():
     """The matrix itself: window = (project(X) + 0.5) for any point in view (the renderer's
     contract, independent of the rasteriser)."""
@@ -407,26 +417,12 @@ def test_one_renderer_per_thread(renderer):
     assert isinstance(out["result"], RenderResult) and out["result"].mask.any()
 
 
-def test_write_png_round_trip(tmp_path):
-    img = np.zeros((4, 5, 3), np.float32)
-    img[0, 0] = (1.0, 0.0, 0.0)  # red stays red: RGB in, BGR on disk
-    path = write_png(tmp_path / "sub" / "x.png", img)
-    back = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    assert back.shape == (4, 5, 3) and tuple(back[0, 0]) == (0, 0, 255)
-    rgba = np.zeros((2, 2, 4), np.uint8)
-    rgba[..., 2] = 200
-    back = cv2.imread(str(write_png(tmp_path / "y.png", rgba)), cv2.IMREAD_UNCHANGED)
-    assert back.shape == (2, 2, 4) and (back[..., 0] == 200).all()
-    with pytest.raises(ValueError, match="shape"):
-        write_png(tmp_path / "z.png", np.zeros((2, 2, 2)))
-
-
 # ----------------------------------------------------------------------------- the real scan
 
 
 def test_james_scan_front_view_is_upright_and_not_mirrored(renderer):
     """The textured scan from the front: subject's left (+x) on the image right, +y up, and the
-    landmarks land on the rendered surface. (The picture itself: python -m photomodel.rendering.renderer.)"""
+    landmarks land on the rendered surface. (The picture itself: python benchmarks/bench_render.py.)"""
     scan = load_james_scan()
     cam = orbit_camera(0.0, 200, 250, distance_mm=900.0, target=(0.0, 10.0, 0.0))
     res = renderer.render(cam, scan.vertices, scan.faces, colors=scan.vertices)
@@ -445,3 +441,94 @@ def test_james_scan_front_view_is_upright_and_not_mirrored(renderer):
     np.testing.assert_allclose(res.depth[p[:, 1], p[:, 0]], cam.depth(lm), atol=5.0)  # mm; ±½ px slope
     textured = renderer.render(cam, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture)
     assert textured.color.shape == (250, 200, 3) and 0.05 < textured.color[m].mean() < 0.9
+
+
+# ----------------------------------------------------------------------------- barycentric rasterisation
+
+
+def bumpy_mesh(n: int = 21, half: float = 80.0):
+    """A height field ``half`` mm wide each way: many small triangles, self-occlusion from the side."""
+    g = np.linspace(-half, half, n)
+    X, Y = np.meshgrid(g, g)
+    Z = 25.0 * np.sin(X / 23.0) * np.cos(Y / 31.0)
+    V = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    i = np.arange(n - 1)
+    a = (i[:, None] * n + i[None, :]).ravel()
+    F = np.concatenate([np.column_stack([a, a + 1, a + n + 1]), np.column_stack([a, a + n + 1, a + n])])
+    return V, F
+
+
+@pytest.mark.parametrize("name", CAMERAS)
+def test_barycentric_raster_is_the_render_of_the_same_mesh(renderer, name):
+    """Same pixels and triangles as :meth:`render` (one rasteriser, one fill rule); the barycentric
+    coordinates interpolate the world position to a point on the pixel's own viewing ray."""
+    cam = CAMERAS[name]
+    V, F = bumpy_mesh()
+    raster = renderer.rasterize_barycentric(cam, V, F)
+    ref = renderer.render(cam, V, F)
+    np.testing.assert_array_equal(raster.mask, ref.mask)
+    assert raster.shape == (cam.height, cam.width) and len(raster.pixels) == ref.mask.sum() > 3000
+    np.testing.assert_array_equal(raster.face_ids, ref.face_id.reshape(-1)[raster.pixels])
+    np.testing.assert_array_equal(raster.corners, F[raster.face_ids])
+    np.testing.assert_allclose(raster.bary.sum(1), 1.0, atol=1e-5)
+    # inside the triangle up to GL's interpolation error at centres on an edge (measured -2e-4)
+    assert raster.bary.dtype == np.float32 and (raster.bary > -1e-3).all()
+    P = raster.interpolate(V)  # float64 values interpolated with float32 coordinates
+    assert P.shape == (len(raster.pixels), 3) and P.dtype == np.float64
+    v, u = np.divmod(raster.pixels, cam.width)
+    np.testing.assert_allclose(cam.project(P), np.column_stack([u, v]), atol=2e-3)
+    np.testing.assert_allclose(cam.depth(P), ref.depth.reshape(-1)[raster.pixels], rtol=1e-5)
+    y0, y1, x0, x1 = raster.box
+    assert (v >= y0).all() and (v < y1).all() and (u >= x0).all() and (u < x1).all()
+    assert raster.interpolate(np.ones((len(V), 2, 2), np.float32)).shape == (len(raster.pixels), 2, 2)
+
+
+def test_barycentric_raster_of_a_mesh_out_of_view_or_half_behind(renderer):
+    cam = CAMERAS["front 640x480"]
+    V, F = bumpy_mesh(9)
+    for gone in (V + cam.center * 3.0, V + [5000.0, 0.0, 0.0]):  # behind the camera; beside the image
+        raster = renderer.rasterize_barycentric(cam, gone, F)
+        assert len(raster.pixels) == 0 and raster.corners.shape == (0, 3) and raster.bary.shape == (0, 3)
+        assert not raster.mask.any() and raster.interpolate(V).shape == (0, 3)
+    # the camera inside the mesh's depth range: vertices behind the near plane, the whole frame read
+    near_cam = Camera(cam.R, cam.t - [0.0, 0.0, cam.t[2] - 10.0], cam.f, cam.width, cam.height)
+    raster = renderer.rasterize_barycentric(near_cam, V, F)
+    ref = renderer.render(near_cam, V, F)
+    assert raster.box == (0, cam.height, 0, cam.width)
+    np.testing.assert_array_equal(raster.mask, ref.mask)
+
+
+def test_barycentric_raster_follows_a_changed_triangle_list(renderer):
+    """The index buffer is kept between calls, but never stale: a new list, or the same array
+    edited in place, is drawn as it is now."""
+    cam = CAMERAS["oblique 480x640"]
+    V, F = bumpy_mesh(11)
+    F = F.copy()
+    full = renderer.rasterize_barycentric(cam, V, F)
+    half = renderer.rasterize_barycentric(cam, V, F[: len(F) // 2])
+    assert 0 < len(half.pixels) < len(full.pixels)
+    np.testing.assert_array_equal(half.mask, renderer.render(cam, V, F[: len(F) // 2]).mask)
+    F[: len(F) // 2] = F[len(F) // 2 :]  # in place: the first half now repeats the second
+    edited = renderer.rasterize_barycentric(cam, V, F)
+    np.testing.assert_array_equal(edited.mask, renderer.render(cam, V, F).mask)
+    with pytest.raises(ValueError, match="outside"):
+        renderer.rasterize_barycentric(cam, V, F + len(V))
+
+
+def test_barycentric_pass_is_released_with_its_renderer():
+    out = {}
+
+    def worker():
+        own = get_renderer()
+        own.rasterize_barycentric(CAMERAS["front 640x480"], BIG_TRIANGLE, np.array([[0, 1, 2]]))
+        own.release()
+        out["released"] = own.released
+        try:
+            own.rasterize_barycentric(CAMERAS["front 640x480"], BIG_TRIANGLE, np.array([[0, 1, 2]]))
+        except RuntimeError as exc:
+            out["error"] = str(exc)
+
+    t = threading.Thread(target=worker)
+    t.start()
+    t.join()
+    assert out["released"] and "released" in out["error"]

@@ -17,7 +17,9 @@ import pytest
 
 from photomodel.camera import Camera, orbit_camera
 from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.rendering.depth import project_points
 from photomodel.rendering.renderer import get_renderer, vertex_normals
+from photomodel.rendering.sampling import sample_image
 from photomodel.samples.sample_data import load_james_scan
 from photomodel.samples.synthetic import load_ground_truth, true_correspondence
 from photomodel.texturing.cylindrical import (
@@ -30,7 +32,6 @@ from photomodel.texturing.cylindrical import (
     single_view_weights,
 )
 from photomodel.texturing.view_dependent import ViewDependentTexture, render_view_dependent
-from photomodel.texturing.visibility import project_points, sample_image
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 SCALE = 4  # photos 1000 → 250 px

@@ -1,4 +1,5 @@
-"""Tests of photomodel.texturing.visibility: depth-map visibility against analytic scenes (§5.2.1)."""
+"""Tests of photomodel.rendering.depth (the depth test) and photomodel.texturing.visibility (depth maps,
+facing, the visibility table) against analytic scenes (§5.2.1)."""
 
 from __future__ import annotations
 
@@ -7,15 +8,8 @@ import pytest
 import trimesh
 
 from photomodel.camera import Camera, orbit_camera
-from photomodel.texturing.visibility import (
-    depth_visible,
-    front_facing,
-    project_points,
-    render_depth,
-    sample_image,
-    vertex_visibility,
-    visible,
-)
+from photomodel.rendering.depth import depth_visible, project_points
+from photomodel.texturing.visibility import front_facing, render_depth, vertex_visibility, visible
 
 
 def square(z: float, half: float, centre=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -102,21 +96,6 @@ def test_project_points_matches_camera_project_in_float64_and_float32():
     assert uv32.dtype == np.float32
     # float32 at head scale: ~1e-4 px (7 significant digits on ~500 px)
     np.testing.assert_allclose(uv32, cam.project(X.astype(np.float32).astype(float)), atol=2e-3)
-
-
-def test_sample_image_is_bilinear_and_handles_long_point_lists():
-    H, W = 40, 60
-    v, u = np.mgrid[0:H, 0:W].astype(np.float32)
-    img = np.dstack([2.0 * u + 3.0 * v, u - v, np.full_like(u, 7.0)]).astype(np.float32)
-    rng = np.random.default_rng(1)
-    n = 70_000  # more than cv2.remap's 32767-per-side limit
-    uv = np.column_stack([rng.uniform(0, W - 1, n), rng.uniform(0, H - 1, n)])
-    s = sample_image(img, uv)
-    assert s.shape == (n, 3)
-    # a linear ramp is reproduced exactly by bilinear interpolation, up to OpenCV's 1/32 px weights
-    np.testing.assert_allclose(s[:, 0], 2.0 * uv[:, 0] + 3.0 * uv[:, 1], atol=5.0 / 32)
-    np.testing.assert_allclose(s[:, 1], uv[:, 0] - uv[:, 1], atol=2.0 / 32)
-    assert sample_image(img[..., 0], np.array([[-5.0, 3.0]]), border_value=-1.0)[0] == -1.0
 
 
 def test_vertex_visibility_of_a_sphere_matches_the_analytic_horizon():

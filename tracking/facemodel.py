@@ -28,25 +28,27 @@ How we composite (Eq. 5)
 ------------------------
 The paper rendered each ``Î_k`` with the weights in the 8-bit alpha channel, rescaled from
 [−0.5, 1.5]. Our renderer has float targets, so no rescaling is needed, and one pass is enough:
-the consensus mesh is drawn *unwelded* with each triangle's corners carrying the barycentric
-basis (1,0,0), (0,1,0), (0,0,1) as float attributes; the float target then holds, at every pixel,
-the perspective-correct barycentric coordinates and the triangle id. Any per-vertex quantity —
-uv, blending weights ``W_k``, memberships, camera-space positions, and the per-vertex derivatives
-of §6.1.3 — is interpolated from these in numpy (a gather over the covered pixels; exactly what
-rendering it as a float attribute would give, without one pass per four channels). Each texture is
-sampled at the interpolated uv (:func:`cv2.remap`, bilinear) and the samples are summed with the
-interpolated weights ``W_k`` — Eq. (5) with Gouraud-interpolated weights, as in the paper.
+the renderer's barycentric rasterisation
+(:meth:`photomodel.rendering.renderer.Renderer.rasterize_barycentric`) gives, at every pixel the
+consensus mesh covers, the triangle and the perspective-correct barycentric coordinates. Any
+per-vertex quantity — uv, blending weights ``W_k``, memberships, camera-space positions, and the
+per-vertex derivatives of §6.1.3 — is interpolated from these in numpy (a gather over the covered
+pixels; exactly what rendering it as a float attribute would give, without one pass per four
+channels). Each texture is sampled at the interpolated uv
+(:func:`photomodel.rendering.sampling.sample_texture`, bilinear) and the samples are summed with
+the interpolated weights ``W_k`` — Eq. (5) with Gouraud-interpolated weights, as in the paper.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 import scipy.sparse as sparse
 
 from photomodel.camera import Camera
+from photomodel.rendering.barycentric import interpolate
+from photomodel.rendering.sampling import sample_texture
 
 __all__ = [
     "CONTROL_REGIONS",
@@ -375,7 +377,7 @@ class ModelRender:
     def interpolate(self, values: np.ndarray) -> np.ndarray:
         """(N, ...) per-pixel interpolation of per-vertex ``values`` (n, ...)."""
         values = np.asarray(values)
-        flat = _interpolate(values.reshape(len(values), -1), self.corners, self.bary)
+        flat = interpolate(values.reshape(len(values), -1), self.corners, self.bary)
         return flat.reshape((len(self.bary),) + values.shape[1:])
 
 
@@ -389,9 +391,11 @@ def render_model(
 ) -> ModelRender:
     """Render the model with consensus geometry ``vertices`` and per-vertex weights (Eq. 5).
 
-    One GL pass draws the barycentric coordinates and triangle ids (:class:`_BaryRasterizer`,
-    reading back only the model's bounding box); uv, weights and camera-space points are
-    interpolated at the covered pixels in numpy, the textures sampled with :func:`cv2.remap`.
+    One GL pass draws the barycentric coordinates and triangle ids
+    (:meth:`photomodel.rendering.renderer.Renderer.rasterize_barycentric`, reading back only the
+    model's bounding box); uv, weights and camera-space points are interpolated at the covered
+    pixels in numpy, the textures sampled with
+    :func:`photomodel.rendering.sampling.sample_texture` (OpenCV's remap).
 
     Parameters
     ----------
@@ -402,195 +406,23 @@ def render_model(
     vertex_weights : (n, m) float, ``W``.
     background : (H, W, 3) float, optional, image under uncovered pixels (default 0).
     """
-    F = model.faces
     V = np.asarray(vertices, float)
     if V.shape != (model.geometry.shape[1], 3):
         raise ValueError(f"vertices must be ({model.geometry.shape[1]}, 3) mm, got {V.shape}")
     H, W = camera.height, camera.width
-    Xc = V @ camera.R.T + camera.t  # (n, 3) camera mm, float64 on the CPU
-    box, raw = _rasterizer(renderer).draw(camera, Xc, F)
-    pixels, corners, bary = _unpack(raw, box, W, F)
+    raster = renderer.rasterize_barycentric(camera, V, model.faces)
+    Xc = camera.to_camera(V)  # (n, 3) camera mm, float64 on the CPU
     groups = model.texture_groups()
     G = len(groups)
     Wg = np.column_stack([np.asarray(vertex_weights)[:, ks].sum(1) for _, ks in groups])
     # (n, 3 + 2G + G) per-vertex attributes, float32 (camera mm to ~1e-4 mm), interpolated at once
     table = np.concatenate([Xc, model.group_uv(), Wg], axis=1).astype(np.float32)
-    at = _interpolate(table, corners, bary)
+    at = raster.interpolate(table)
     X_cam, uv, Wpix = at[:, :3], at[:, 3 : 3 + 2 * G], at[:, 3 + 2 * G :]
     colors = [sample_texture(T, uv[:, 2 * g : 2 * g + 2]) for g, (T, _) in enumerate(groups)]
     out = Wpix[:, 0:1] * colors[0]
     for g in range(1, G):
         out += Wpix[:, g : g + 1] * colors[g]
     image = np.zeros((H, W, 3), np.float32) if background is None else np.array(background, np.float32, copy=True)
-    image.reshape(-1, 3)[pixels] = out
-    mask = np.zeros((H, W), bool)
-    mask.reshape(-1)[pixels] = True
-    return ModelRender(image, mask, pixels, corners, bary, X_cam, colors, box)
-
-
-def _unpack(raw: np.ndarray, box: tuple, width: int, faces: np.ndarray):
-    """Covered pixels of a barycentric render ``raw`` (h, w, 4) of the image rows/columns ``box``:
-    their flat indices in the (H, ``width``) image (N,), the corner vertices (N, 3) and the
-    barycentric coordinates (N, 3) float32. Both (N, 3) arrays are transposes of (3, N) ones, so
-    that each corner's column is contiguous for :func:`_interpolate`."""
-    y0, _, x0, x1 = box
-    ids = raw[..., 2].reshape(-1)  # face id + 1 (exact in float32); 0 is the cleared background
-    local = np.flatnonzero(ids > 0.5)
-    py, px = np.divmod(local, max(x1 - x0, 1))
-    pixels = (py + y0) * width + (px + x0)
-    fid = ids[local].astype(np.intp) - 1
-    B = np.empty((3, len(local)), np.float32)
-    B[1] = raw[..., 0].reshape(-1)[local]
-    B[2] = raw[..., 1].reshape(-1)[local]
-    np.subtract(1.0, B[1], out=B[0])
-    B[0] -= B[2]
-    corners = np.take(np.ascontiguousarray(faces.T), fid, axis=1)  # (3, N)
-    return pixels, corners.T, B.T
-
-
-def _interpolate(values: np.ndarray, corners: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """(N, C) barycentric interpolation of per-vertex ``values`` (n, C) at pixels with ``corners``
-    (N, 3) and ``bary`` (N, 3): three row gathers (``np.take``) accumulated in place."""
-    dtype = np.result_type(values.dtype, np.float32)
-    values = np.asarray(values, dtype)
-    c, b = corners.T, bary.T  # (3, N), contiguous rows when made by _unpack
-    at = np.take(values, c[0], axis=0)
-    at *= b[0][:, None]
-    t = np.take(values, c[1], axis=0)
-    t *= b[1][:, None]
-    at += t
-    np.take(values, c[2], axis=0, out=t)
-    t *= b[2][:, None]
-    at += t
-    return at
-
-
-# The barycentric pass: welded vertices (camera coordinates) and the triangle list stay in GL
-# buffers; a geometry shader gives each triangle's corners the barycentric basis and its id, so
-# the mesh need not be unwelded. The target is one RGBA32F image: (b1, b2, id + 1, 0).
-_BARY_VS = """
-#version 330
-uniform mat4 proj;
-in vec3 in_pos;
-void main() { gl_Position = proj * vec4(in_pos, 1.0); }
-"""
-_BARY_GS = """
-#version 330
-layout(triangles) in;
-layout(triangle_strip, max_vertices = 3) out;
-out vec2 g_bary;
-flat out float g_face;
-void main() {
-    for (int i = 0; i < 3; i++) {
-        gl_Position = gl_in[i].gl_Position;
-        g_bary = vec2(i == 1 ? 1.0 : 0.0, i == 2 ? 1.0 : 0.0);
-        g_face = float(gl_PrimitiveIDIn + 1);
-        EmitVertex();
-    }
-    EndPrimitive();
-}
-"""
-_BARY_FS = """
-#version 330
-in vec2 g_bary;
-flat in float g_face;
-out vec4 out_bary;
-void main() { out_bary = vec4(g_bary, g_face, 0.0); }
-"""
-
-
-class _BaryRasterizer:
-    """Barycentric/triangle-id rendering of one renderer's context, with buffers kept between
-    calls: the index buffer is uploaded when the triangle list changes, the vertex buffer is
-    rewritten per call (8k vertices, ~0.1 ms), and only the bounding box is cleared and read."""
-
-    def __init__(self, renderer):
-        self.renderer = renderer
-        ctx = renderer.ctx
-        with ctx:
-            self.prog = ctx.program(vertex_shader=_BARY_VS, geometry_shader=_BARY_GS, fragment_shader=_BARY_FS)
-        self._faces = None
-        self._n = -1
-        self.vbo = self.ibo = self.vao = None
-        self._fbos: dict = {}
-
-    def _buffers(self, n: int, faces: np.ndarray):
-        ctx = self.renderer.ctx
-        if self._faces is faces and self._n == n:
-            return
-        for obj in (self.vao, self.vbo, self.ibo):
-            if obj is not None:
-                obj.release()
-        self.vbo = ctx.buffer(reserve=n * 12)
-        self.ibo = ctx.buffer(np.ascontiguousarray(faces, np.int32).tobytes())
-        self.vao = ctx.vertex_array(self.prog, [(self.vbo, "3f", "in_pos")], index_buffer=self.ibo,
-                                    index_element_size=4)  # fmt: skip
-        self._faces, self._n = faces, n
-
-    def _framebuffer(self, W: int, H: int):
-        if (W, H) not in self._fbos:
-            ctx = self.renderer.ctx
-            color = ctx.renderbuffer((W, H), components=4, dtype="f4")
-            depth = ctx.depth_renderbuffer((W, H))
-            self._fbos[(W, H)] = (ctx.framebuffer([color], depth), color, depth)
-        return self._fbos[(W, H)][0]
-
-    def draw(self, camera: Camera, Xc: np.ndarray, faces: np.ndarray) -> tuple[tuple, np.ndarray]:
-        """Rasterise camera-space vertices ``Xc`` (n, 3) mm; returns the box (y0, y1, x0, x1) and
-        its (h, w, 4) float32 image of (b1, b2, id + 1, 0)."""
-        import moderngl
-
-        from photomodel.rendering.renderer import auto_near_far, gl_projection
-
-        self.renderer._check_usable()
-        W, H = camera.width, camera.height
-        z = Xc[:, 2]
-        planes = auto_near_far(z)
-        front = z > (planes[0] if planes else np.inf)
-        if planes is None or not np.any(front):
-            return (0, 0, 0, 0), np.zeros((0, 0, 4), np.float32)
-        if np.all(front):
-            uv = camera.f * Xc[:, :2] / z[:, None] + camera.principal_point
-            (u0, v0), (u1, v1) = uv.min(0), uv.max(0)
-            x0, x1 = int(np.clip(np.floor(u0), 0, W)), int(np.clip(np.ceil(u1) + 1, 0, W))
-            y0, y1 = int(np.clip(np.floor(v0), 0, H)), int(np.clip(np.ceil(v1) + 1, 0, H))
-        else:  # vertices behind the near plane: their projections say nothing; take the frame
-            x0, x1, y0, y1 = 0, W, 0, H
-        if x1 <= x0 or y1 <= y0:
-            return (0, 0, 0, 0), np.zeros((0, 0, 4), np.float32)
-        proj = gl_projection(camera, *planes)
-        ctx = self.renderer.ctx
-        out = np.empty((y1 - y0, x1 - x0, 4), np.float32)
-        with ctx:
-            self._buffers(len(Xc), faces)
-            fbo = self._framebuffer(W, H)
-            fbo.use()
-            fbo.viewport = (0, 0, W, H)
-            ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
-            ctx.enable(moderngl.DEPTH_TEST)
-            view = (x0, y0, x1 - x0, y1 - y0)  # framebuffer row i is image row i (gl_projection)
-            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=view)
-            self.prog["proj"].write(proj.T.astype(np.float32).tobytes())
-            self.vbo.write(np.ascontiguousarray(Xc, np.float32).tobytes())
-            self.vao.render(moderngl.TRIANGLES)
-            fbo.read_into(out, viewport=view, components=4, attachment=0, dtype="f4", alignment=1)
-        return (y0, y1, x0, x1), out
-
-
-def _rasterizer(renderer) -> _BaryRasterizer:
-    """The renderer's barycentric rasteriser (kept on the renderer: same context, same lifetime)."""
-    r = getattr(renderer, "_face_model_rasterizer", None)
-    if r is None:
-        r = renderer._face_model_rasterizer = _BaryRasterizer(renderer)
-    return r
-
-
-def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """(N, 3) float32 bilinear samples of ``texture`` (Ht, Wt, 3) at ``uv`` (N, 2) (v up, clamp to edge)."""
-    Ht, Wt = texture.shape[:2]
-    if len(uv) == 0:  # the model covers no pixel (cv2.remap refuses an empty map)
-        return np.zeros((0, 3), np.float32)
-    x = (uv[:, 0] * Wt - 0.5).astype(np.float32)
-    y = ((1.0 - uv[:, 1]) * Ht - 0.5).astype(np.float32)
-    out = cv2.remap(texture, x[None], y[None], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return out.reshape(-1, 3)
+    image.reshape(-1, 3)[raster.pixels] = out
+    return ModelRender(image, raster.mask, raster.pixels, raster.corners, raster.bary, X_cam, colors, raster.box)

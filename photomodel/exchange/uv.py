@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from photomodel.rendering.sampling import sample_texture
+
 
 def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     """Validated ``(vertices (n, 3) float64, faces (m, 3) int64)``; ``ValueError`` naming the problem."""
@@ -139,36 +141,6 @@ def merge_uv_seams(faces: np.ndarray, source: np.ndarray, split_faces: np.ndarra
     out = np.empty_like(corner)
     out[ia] = corner[ib]
     return out
-
-
-def sample_texture(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear texture look-up at ``uv``, clamped to the edge (as :mod:`photomodel.rendering.renderer`).
-
-    Parameters
-    ----------
-    texture : (H, W, C) uint8 or float, row 0 = top (``v = 1``).
-    uv : (..., 2) float, ``v`` up.
-
-    Returns
-    -------
-    (..., C) float
-        colours in the texture's units (``0..255`` for ``uint8``).
-    """
-    img = np.asarray(texture)
-    H, W = img.shape[:2]
-    uv = np.asarray(uv, dtype=float)
-    x = uv[..., 0] * W - 0.5  # texel centres at integers
-    y = (1.0 - uv[..., 1]) * H - 0.5
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    x0 = x0.astype(np.int64)
-    y0 = y0.astype(np.int64)
-    xa, xb = np.clip(x0, 0, W - 1), np.clip(x0 + 1, 0, W - 1)
-    ya, yb = np.clip(y0, 0, H - 1), np.clip(y0 + 1, 0, H - 1)
-    img = img.astype(float)
-    top = img[ya, xa] * (1 - fx) + img[ya, xb] * fx
-    bottom = img[yb, xa] * (1 - fx) + img[yb, xb] * fx
-    return top * (1 - fy) + bottom * fy
 
 
 def vertex_colors_from_texture(texture: np.ndarray, faces: np.ndarray, uv: np.ndarray,

@@ -38,6 +38,7 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
+from photomodel.rendering.renderer import vertex_normals
 from photomodel.samples.sample_data import Template, _load_npz, _save_npz, cache_dir, load_template
 
 #: Cache key of the built mesh; change it whenever the recipe below changes its output.
@@ -189,17 +190,6 @@ class GenericMesh:
     def vertex_normals(self) -> np.ndarray:
         """(n, 3) float unit normals (area-weighted face normals), pointing out of the face."""
         return vertex_normals(self.vertices, self.faces)
-
-
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(n, 3) area-weighted unit vertex normals of a triangle mesh."""
-    tri = vertices[faces]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # length = 2 × area
-    acc = np.zeros_like(vertices, dtype=float)
-    for k in range(3):
-        np.add.at(acc, faces[:, k], cross)
-    norm = np.linalg.norm(acc, axis=1, keepdims=True)
-    return acc / np.where(norm > 0, norm, 1.0)
 
 
 def load_generic_mesh() -> GenericMesh:

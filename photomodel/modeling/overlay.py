@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from photomodel.camera import Camera
+from photomodel.rendering.depth import depth_visible
 
 #: Segment kinds of :class:`MeshLines`.
 GRID, OUTLINE, CURVE = 0, 1, 2
@@ -193,21 +194,11 @@ def visible_points(camera: Camera, points: np.ndarray, depth: np.ndarray,
     tolerance_mm : float
         See :data:`DEPTH_TOLERANCE_MM`.
     """
-    import cv2
-
     P = np.asarray(points, dtype=float).reshape(-1, 3)
-    h, w = depth.shape
-    z = camera.depth(P)
-    uv = camera.project(P)
-    # pixel centres at integers in both images: scale about the -0.5 border
-    col = np.rint((uv[:, 0] + 0.5) * w / camera.width - 0.5).astype(np.int64)
-    row = np.rint((uv[:, 1] + 0.5) * h / camera.height - 0.5).astype(np.int64)
-    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h) & (z > 0)
-    d = np.where(np.isfinite(depth), depth, np.float32(1e9)).astype(np.float32)
-    d = cv2.dilate(d, np.ones((3, 3), np.uint8))  # 3×3 maximum: tolerant at silhouettes
-    out = np.zeros(P.shape[0], dtype=bool)
-    out[inside] = z[inside] <= d[row[inside], col[inside]] + tolerance_mm
-    return out
+    h, w = np.shape(depth)
+    if (w, h) != (camera.width, camera.height):  # the camera of the map, as project_lines renders it
+        camera = Camera(camera.R, camera.t, camera.f * w / camera.width, w, h)
+    return depth_visible(camera, P, depth, tol_mm=tolerance_mm, lookup="max3x3")
 
 
 def project_lines(

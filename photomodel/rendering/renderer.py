@@ -4,8 +4,14 @@ Texture extraction (Pighin et al. 2002, §5.2.1: "render the face model using th
 viewing parameters and save the resulting depth map from the Z-buffer" for visibility —
 ``RenderResult.depth`` / ``face_id``), tracking (§6.1: rendering the textured model at a pose,
 and per-vertex derivatives as float attributes for the Jacobian of §6.1.3), the GUI previews
-and the sample-project generator all draw through :meth:`Renderer.render`, so a pixel means
-the same thing everywhere.
+and the sample-project generator all draw through this renderer, so a pixel means the same
+thing everywhere. Public API: :meth:`Renderer.render` (colour, depth, face id, coverage),
+:meth:`Renderer.rasterize_barycentric` (the triangle and barycentric coordinates under each
+covered pixel, for per-vertex quantities interpolated in numpy: the tracker's face model),
+:meth:`Renderer.upload_texture`, and for shader code beside this module
+:meth:`Renderer.context`, :meth:`Renderer.program`, :meth:`Renderer.defer_release`. CPU twins
+of what the shaders compute: :func:`vertex_normals` (Lambert shading) here, the texture look-up
+in :mod:`photomodel.rendering.sampling`.
 
 Why moderngl
 ------------
@@ -41,6 +47,8 @@ keeps one :class:`Renderer` *per thread* (``threading.local``); a :class:`Render
 
 Code beside this module
 -----------------------
+:mod:`photomodel.rendering.barycentric` holds the barycentric pass that
+:meth:`Renderer.rasterize_barycentric` runs (shaders, buffers kept between calls, its result).
 :mod:`photomodel.rendering.view_dependent` (view-dependent texturing in fragment shaders) draws in the same
 context through public methods only: :meth:`Renderer.context` (the checked moderngl context),
 :meth:`Renderer.program` (programs compiled once per renderer) and
@@ -52,7 +60,7 @@ scan (colour, depth and face id read back), +10–35 ms when the 2400×1600 text
 per call instead of once with :meth:`Renderer.upload_texture`. Vertex and index buffers are
 uploaded per call: under 1 ms for meshes of this size, so they are not cached.
 
-Run ``python -m photomodel.rendering.renderer out.png`` to render the james sample scan from the front.
+``python benchmarks/bench_render.py out.png`` renders the james sample scan from the front and times it.
 """
 
 from __future__ import annotations
@@ -60,13 +68,15 @@ from __future__ import annotations
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from photomodel.camera import Camera
+from photomodel.rendering import barycentric
+from photomodel.rendering.barycentric import BarycentricRaster
 
 __all__ = [
+    "BarycentricRaster",
     "RenderResult",
     "Renderer",
     "GLTexture",
@@ -74,7 +84,6 @@ __all__ = [
     "gl_projection",
     "auto_near_far",
     "vertex_normals",
-    "write_png",
 ]
 
 #: Framebuffers of this many distinct image sizes are kept alive (least recently used first out).
@@ -209,23 +218,6 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
 
-def write_png(path, image: np.ndarray) -> Path:
-    """Write an RGB(A) or grey image as PNG, atomically, and return the path.
-
-    Parameters
-    ----------
-    path : str or Path
-        destination; missing parent folders are created.
-    image : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4)
-        ``uint8``, or float in ``[0, 1]`` (clipped, then rounded to 8 bits). Channels are RGB(A);
-        they are swapped to OpenCV's BGR(A) on the way out. NaN and ±inf are written as 0/255
-        after clipping (NaN → 0).
-    """
-    from photomodel.exchange.files import atomic_write_bytes, encode_png
-
-    return atomic_write_bytes(path, encode_png(image))
-
-
 # ----------------------------------------------------------------------------- result
 
 
@@ -331,7 +323,8 @@ class Renderer:
             self._prog["albedo"].value = _ALBEDO
             self.max_size = int(self.ctx.info["GL_MAX_RENDERBUFFER_SIZE"])
         self._fbos: OrderedDict[tuple[int, int], tuple] = OrderedDict()
-        self._programs: dict[tuple[str, str], object] = {}
+        self._programs: dict[tuple[str, str, str | None], object] = {}
+        self._barycentric: barycentric.BarycentricPass | None = None
         self._release_queue: list = []
         self.released = False
 
@@ -397,19 +390,19 @@ class Renderer:
             while self._release_queue:
                 self._release_queue.pop().release()
 
-    def program(self, vertex_shader: str, fragment_shader: str):
+    def program(self, vertex_shader: str, fragment_shader: str, geometry_shader: str | None = None):
         """A ``moderngl.Program`` of these shader sources, compiled once per renderer (cached).
 
         Compiling costs ~10–100 ms on llvmpipe; code beside this module asks for its programs
         here instead of compiling per object. Released with the renderer.
         """
         self._check_usable()
-        key = (vertex_shader, fragment_shader)
+        key = (vertex_shader, fragment_shader, geometry_shader)
         prog = self._programs.get(key)
         if prog is None:
             with self.ctx:
                 prog = self._programs[key] = self.ctx.program(
-                    vertex_shader=vertex_shader, fragment_shader=fragment_shader
+                    vertex_shader=vertex_shader, fragment_shader=fragment_shader, geometry_shader=geometry_shader
                 )
         return prog
 
@@ -421,6 +414,9 @@ class Renderer:
             for obj in objs:
                 obj.release()
         self._fbos.clear()
+        if self._barycentric is not None:
+            self._barycentric.release()
+            self._barycentric = None
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()
@@ -508,6 +504,64 @@ class Renderer:
         """
         self._check_usable()
         self._collect()
+        ss = self._check_frame(camera, supersample)
+        V, F = _check_mesh(vertices, faces)
+        if texture is not None and colors is not None:
+            raise ValueError("give either texture (with uv) or colors, not both")
+        if shading not in _SHADING:
+            raise ValueError(f"shading must be None, 'lambert' or 'flat', got {shading!r}")
+        channels = self._channels(len(V), uv, texture, colors)
+        bg = _background(background, channels.count)
+        Xc = camera.to_camera(V)  # float64 on the CPU, float32 on the GPU
+        near, far, F = _clip_planes(Xc, F, near, far)
+        normals = vertex_normals(V, F) @ camera.R.T if shading == "lambert" and len(F) else np.zeros((len(V), 3))
+        frame = camera if ss == 1 else Camera(camera.R, camera.t, camera.f * ss, camera.width * ss, camera.height * ss)
+        with self.ctx:
+            fbo = self._framebuffer(frame.width, frame.height)
+            self._set_state(fbo, gl_projection(frame, near, far), channels.mode, shading, cull_backfaces)
+            color, depth, face = self._draw(fbo, Xc, F, normals, channels)
+        return _resolve(color, depth, face, bg, ss, near, far)
+
+    def rasterize_barycentric(self, camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> BarycentricRaster:
+        """The triangle and the perspective-correct barycentric coordinates at every pixel centre
+        that a mesh covers (:mod:`photomodel.rendering.barycentric`).
+
+        The same rasterisation as :meth:`render` (z-buffer, fill rule, no culling, clipping planes
+        of :func:`auto_near_far`), drawn and read back over the mesh's bounding box only. The
+        index buffer is kept while the same triangle list comes again; the vertices are uploaded
+        per call.
+
+        Parameters
+        ----------
+        camera : Camera
+        vertices : (n, 3) float, world mm.
+        faces : (m, 3) int
+
+        Returns
+        -------
+        BarycentricRaster
+            interpolate per-vertex values at the covered pixels with its ``interpolate``.
+        """
+        self._check_usable()
+        self._collect()
+        self._check_frame(camera, 1)
+        V, F = _check_mesh(vertices, faces)
+        shape = (camera.height, camera.width)
+        Xc = camera.to_camera(V)
+        planes = auto_near_far(Xc[:, 2]) if len(F) else None
+        box = None if planes is None else barycentric.pixel_box(camera, Xc, planes[0])
+        if box is None:
+            return barycentric.empty(shape, F)
+        if self._barycentric is None:
+            prog = self.program(barycentric.VERTEX_SHADER, barycentric.FRAGMENT_SHADER, barycentric.GEOMETRY_SHADER)
+            self._barycentric = barycentric.BarycentricPass(self.ctx, prog)
+        proj = gl_projection(camera, *planes)
+        with self.ctx:
+            raw = self._barycentric.draw(proj, Xc, F, (camera.width, camera.height), box)
+        return barycentric.unpack(raw, box, shape, F)
+
+    def _check_frame(self, camera: Camera, supersample: int) -> int:
+        """The supersampling factor, once the camera and the frame size are known to be drawable."""
         if not isinstance(camera, Camera):
             raise TypeError(f"camera must be a photomodel.camera.Camera, got {type(camera).__name__}")
         W, H = camera.width, camera.height
@@ -520,167 +574,175 @@ class Renderer:
             raise ValueError(
                 f"{W}×{H} at supersample {ss} exceeds the GL renderbuffer limit of {self.max_size} px"
             )
+        return ss
 
-        V = np.asarray(vertices, dtype=float)
-        if V.ndim != 2 or V.shape[1] != 3:
-            raise ValueError(f"vertices must be (n, 3) mm, got shape {V.shape}")
-        if not np.all(np.isfinite(V)):
-            raise ValueError("vertices contain NaN or inf")
-        n = len(V)
-        F = np.asarray(faces)
-        if F.size == 0:
-            F = F.reshape(0, 3)
-        if F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer):
-            raise ValueError(f"faces must be (m, 3) integers, got shape {F.shape} dtype {F.dtype}")
-        if F.size and (F.min() < 0 or F.max() >= n):
-            raise ValueError(f"faces index vertices outside 0..{n - 1} (min {F.min()}, max {F.max()})")
-        if texture is not None and colors is not None:
-            raise ValueError("give either texture (with uv) or colors, not both")
-        if shading not in (None, "lambert", "flat"):
-            raise ValueError(f"shading must be None, 'lambert' or 'flat', got {shading!r}")
-
-        # -- what the colour channels are -------------------------------------------------
-        tex_data = None
+    def _channels(self, n: int, uv, texture, colors) -> _Channels:
+        """What the colour channels of a render are: a texture at ``uv``, ``colors`` or the albedo."""
         if texture is not None:
             if uv is None:
                 raise ValueError("texture needs uv (n, 2) texture coordinates")
             if isinstance(texture, GLTexture):
                 if texture.renderer is not self or texture.released:
                     raise ValueError("this GLTexture was released or uploaded by another Renderer")
-                C = texture.channels
+                data, count = None, texture.channels
             else:
-                tex_data, C = _texture_array(texture)
+                data, count = _texture_array(texture)
             uv = np.asarray(uv, dtype=np.float32)
             if uv.shape != (n, 2):
                 raise ValueError(f"uv must be (n, 2) = ({n}, 2), got {uv.shape}")
-            attr_passes = [np.column_stack([uv, np.zeros((n, 2), np.float32)])]
-            mode = 1
-        elif colors is not None:
+            attr = np.column_stack([uv, np.zeros((n, 2), np.float32)])
+            return _Channels(1, count, [attr], texture if data is None else None, data)
+        if colors is not None:
             A = np.asarray(colors, dtype=np.float32)
             if A.ndim == 1:
                 A = A[:, None]
             if A.ndim != 2 or A.shape[0] != n or A.shape[1] < 1:
                 raise ValueError(f"colors must be (n,) or (n, k) with n={n}, got {np.shape(colors)}")
-            C = A.shape[1]
-            attr_passes = []
-            for c0 in range(0, C, 4):
+            count = A.shape[1]
+            passes = []
+            for c0 in range(0, count, 4):
                 chunk = np.zeros((n, 4), np.float32)
-                chunk[:, : min(4, C - c0)] = A[:, c0 : c0 + 4]
-                attr_passes.append(chunk)
-            mode = 0
+                chunk[:, : min(4, count - c0)] = A[:, c0 : c0 + 4]
+                passes.append(chunk)
+            return _Channels(0, count, passes)
+        return _Channels(2, 3, [np.zeros((n, 4), np.float32)])
+
+    def _set_state(self, fbo, proj: np.ndarray, mode: int, shading: str | None, cull_backfaces: bool) -> None:
+        """Bind ``fbo`` and set the GL state and uniforms of :meth:`render`'s program."""
+        mgl, ctx = self._moderngl, self.ctx
+        fbo.use()
+        fbo.viewport = (0, 0, *fbo.size)
+        ctx.disable(mgl.BLEND)
+        ctx.enable(mgl.DEPTH_TEST)
+        if cull_backfaces:
+            ctx.enable(mgl.CULL_FACE)
+            ctx.front_face = "cw"  # our y-down projection mirrors the winding
+            ctx.cull_face = "back"
         else:
-            C = 3
-            attr_passes = [np.zeros((n, 4), np.float32)]
-            mode = 2
-        bg = np.asarray(background, dtype=np.float32).reshape(-1)
-        if bg.size not in (1, C):
-            raise ValueError(f"background must be a scalar or have {C} values, got {np.shape(background)}")
-        bg = np.broadcast_to(bg, (C,))
+            ctx.disable(mgl.CULL_FACE)
+        self._prog["proj"].write(proj.T.astype(np.float32).tobytes())
+        self._prog["mode"].value = mode
+        self._prog["shading"].value = _SHADING[shading]
 
-        # -- geometry in camera coordinates (float64 on the CPU, float32 on the GPU) ---
-        Xc = camera.to_camera(V)
-        if near is None or far is None:
-            auto = auto_near_far(Xc[:, 2]) if n else None
-            if auto is None:
-                auto = (1.0, 2.0)  # nothing in front of the camera: any valid planes
-                F = F[:0]
-            near = auto[0] if near is None else near
-            far = auto[1] if far is None else far
-        near, far = float(near), float(far)
-
-        cam = camera if ss == 1 else Camera(camera.R, camera.t, camera.f * ss, W * ss, H * ss)
-        Ws, Hs = cam.width, cam.height
-        proj = gl_projection(cam, near, far)
-        normals = (
-            vertex_normals(V, F) @ camera.R.T if shading == "lambert" and len(F) else np.zeros((n, 3))
-        )
-
-        with self.ctx:
-            fbo = self._framebuffer(Ws, Hs)
-            fbo.use()
-            fbo.viewport = (0, 0, Ws, Hs)
-            ctx = self.ctx
-            ctx.disable(self._moderngl.BLEND)
-            ctx.enable(self._moderngl.DEPTH_TEST)
-            if cull_backfaces:
-                ctx.enable(self._moderngl.CULL_FACE)
-                ctx.front_face = "cw"  # our y-down projection mirrors the winding
-                ctx.cull_face = "back"
-            else:
-                ctx.disable(self._moderngl.CULL_FACE)
-            self._prog["proj"].write(proj.T.astype(np.float32).tobytes())
-            self._prog["mode"].value = mode
-            self._prog["shading"].value = {None: 0, "lambert": 1, "flat": 2}[shading]
-
-            gl_objects = []
-            try:
-                if isinstance(texture, GLTexture):
-                    texture.gl.use(location=0)
-                elif tex_data is not None:
-                    tex = _upload_texture(ctx, tex_data)
-                    gl_objects.append(tex)
-                    tex.use(location=0)
+    def _draw(self, fbo, Xc: np.ndarray, F: np.ndarray, normals: np.ndarray, channels: _Channels):
+        """Draw the mesh once per four colour channels; returns colour (Hs, Ws, C), ``Z_cam``
+        (Hs, Ws) and face index + 1 (Hs, Ws, 0 = background) as read back."""
+        ctx, n = self.ctx, len(Xc)
+        Ws, Hs = fbo.size
+        C = channels.count
+        gl_objects = []
+        try:
+            if channels.texture is not None:
+                channels.texture.gl.use(location=0)
+            elif channels.data is not None:
+                tex = _upload_texture(ctx, channels.data)
+                gl_objects.append(tex)
+                tex.use(location=0)
+            if len(F):
+                pos_buf = ctx.buffer(Xc.astype(np.float32).tobytes())
+                attr_buf = ctx.buffer(reserve=n * 16)
+                nrm_buf = ctx.buffer(normals.astype(np.float32).tobytes())
+                idx_buf = ctx.buffer(np.ascontiguousarray(F, dtype=np.int32).tobytes())
+                gl_objects += [pos_buf, attr_buf, nrm_buf, idx_buf]
+                attributes = [(pos_buf, "3f", "in_pos"), (attr_buf, "4f", "in_attr"), (nrm_buf, "3f", "in_normal")]
+                vao = ctx.vertex_array(self._prog, attributes, index_buffer=idx_buf, index_element_size=4)
+                gl_objects.append(vao)
+            color = np.empty((Hs, Ws, C), np.float32)
+            depth = np.empty((Hs, Ws), np.float32)
+            face = np.empty((Hs, Ws), np.int32)
+            for i, chunk in enumerate(channels.passes):
+                fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)  # int target: float 0.0 bits = 0
                 if len(F):
-                    pos_buf = ctx.buffer(Xc.astype(np.float32).tobytes())
-                    nrm_buf = ctx.buffer(normals.astype(np.float32).tobytes())
-                    idx_buf = ctx.buffer(np.ascontiguousarray(F, dtype=np.int32).tobytes())
-                    attr_buf = ctx.buffer(reserve=n * 16)
-                    gl_objects += [pos_buf, nrm_buf, idx_buf, attr_buf]
-                    vao = ctx.vertex_array(
-                        self._prog,
-                        [
-                            (pos_buf, "3f", "in_pos"),
-                            (attr_buf, "4f", "in_attr"),
-                            (nrm_buf, "3f", "in_normal"),
-                        ],
-                        index_buffer=idx_buf,
-                        index_element_size=4,
-                    )
-                    gl_objects.append(vao)
-                color = np.empty((Hs, Ws, C), np.float32)
-                depth = np.empty((Hs, Ws), np.float32)
-                face = np.empty((Hs, Ws), np.int32)
-                for i, chunk in enumerate(attr_passes):
-                    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)  # int target: float 0.0 bits = 0
-                    if len(F):
-                        attr_buf.write(chunk.tobytes())
-                        vao.render(self._moderngl.TRIANGLES)
-                    c0, c1 = 4 * i, min(4 * i + 4, C)
-                    # GL packs the channels we want; read_into writes straight into numpy
-                    target = color if (c0, c1) == (0, C) else np.empty((Hs, Ws, c1 - c0), np.float32)
-                    fbo.read_into(target, components=c1 - c0, attachment=0, dtype="f4", alignment=1)
-                    if target is not color:
-                        color[..., c0:c1] = target
-                    if i == 0:
-                        fbo.read_into(depth, components=1, attachment=1, dtype="f4", alignment=1)
-                        fbo.read_into(face, components=1, attachment=2, dtype="i4", alignment=1)
-            finally:
-                for obj in gl_objects:
-                    obj.release()
+                    attr_buf.write(chunk.tobytes())
+                    vao.render(self._moderngl.TRIANGLES)
+                c0, c1 = 4 * i, min(4 * i + 4, C)
+                # GL packs the channels we want; read_into writes straight into numpy
+                target = color if (c0, c1) == (0, C) else np.empty((Hs, Ws, c1 - c0), np.float32)
+                fbo.read_into(target, components=c1 - c0, attachment=0, dtype="f4", alignment=1)
+                if target is not color:
+                    color[..., c0:c1] = target
+                if i == 0:
+                    fbo.read_into(depth, components=1, attachment=1, dtype="f4", alignment=1)
+                    fbo.read_into(face, components=1, attachment=2, dtype="i4", alignment=1)
+        finally:
+            for obj in gl_objects:
+                obj.release()
+        return color, depth, face
 
-        face -= 1
-        mask = face >= 0
-        background_px = ~mask
-        color[background_px] = bg
-        depth[background_px] = np.inf
-        if ss > 1:
-            color = _box_downsample(color, ss)
-            coverage = mask.reshape(H, ss, W, ss).mean(axis=(1, 3), dtype=np.float32)
-            c = ss // 2
-            depth = np.ascontiguousarray(depth[c::ss, c::ss])
-            face = np.ascontiguousarray(face[c::ss, c::ss])
-            mask = np.ascontiguousarray(mask[c::ss, c::ss])
-        else:
-            coverage = mask.astype(np.float32)
-        return RenderResult(
-            color=color,
-            depth=depth,
-            mask=mask,
-            face_id=face,
-            coverage=coverage,
-            near=near,
-            far=far,
-        )
+
+#: The fragment shader's ``shading`` uniform of each ``shading`` argument.
+_SHADING = {None: 0, "lambert": 1, "flat": 2}
+
+
+@dataclass
+class _Channels:
+    """What the colour channels of one :meth:`Renderer.render` are (:meth:`Renderer._channels`)."""
+
+    mode: int  # the fragment shader's mode: 0 interpolated attributes, 1 texture at uv, 2 albedo
+    count: int  # C, the channels of RenderResult.color
+    passes: list  # (n, 4) float32 vertex attributes, one draw each
+    texture: GLTexture | None = None  # a resident texture
+    data: np.ndarray | None = None  # a texture image uploaded for this call
+
+
+def _check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    """``vertices`` as (n, 3) float64 and ``faces`` as (m, 3) integers, or a ValueError naming the problem."""
+    V = np.asarray(vertices, dtype=float)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise ValueError(f"vertices must be (n, 3) mm, got shape {V.shape}")
+    if not np.all(np.isfinite(V)):
+        raise ValueError("vertices contain NaN or inf")
+    n = len(V)
+    F = np.asarray(faces)
+    if F.size == 0:
+        F = F.reshape(0, 3)
+    if F.ndim != 2 or F.shape[1] != 3 or not np.issubdtype(F.dtype, np.integer):
+        raise ValueError(f"faces must be (m, 3) integers, got shape {F.shape} dtype {F.dtype}")
+    if F.size and (F.min() < 0 or F.max() >= n):
+        raise ValueError(f"faces index vertices outside 0..{n - 1} (min {F.min()}, max {F.max()})")
+    return V, F
+
+
+def _background(background, count: int) -> np.ndarray:
+    """(count,) float32 colour of uncovered pixels from a scalar or a sequence."""
+    bg = np.asarray(background, dtype=np.float32).reshape(-1)
+    if bg.size not in (1, count):
+        raise ValueError(f"background must be a scalar or have {count} values, got {np.shape(background)}")
+    return np.broadcast_to(bg, (count,))
+
+
+def _clip_planes(Xc: np.ndarray, F: np.ndarray, near, far) -> tuple[float, float, np.ndarray]:
+    """The clipping planes (given, or :func:`auto_near_far` of the camera-space vertices ``Xc``)
+    and the faces to draw: none when nothing lies in front of the camera."""
+    if near is None or far is None:
+        auto = auto_near_far(Xc[:, 2]) if len(Xc) else None
+        if auto is None:
+            auto = (1.0, 2.0)  # nothing in front of the camera: any valid planes
+            F = F[:0]
+        near = auto[0] if near is None else near
+        far = auto[1] if far is None else far
+    return float(near), float(far), F
+
+
+def _resolve(color, depth, face, bg, ss: int, near: float, far: float) -> RenderResult:
+    """The :class:`RenderResult` of the read-back targets: background filled in, and with
+    supersampling the colour box-filtered and the rest taken at the central sub-sample."""
+    face -= 1
+    mask = face >= 0
+    background_px = ~mask
+    color[background_px] = bg
+    depth[background_px] = np.inf
+    if ss > 1:
+        H, W = face.shape[0] // ss, face.shape[1] // ss
+        color = _box_downsample(color, ss)
+        coverage = mask.reshape(H, ss, W, ss).mean(axis=(1, 3), dtype=np.float32)
+        c = ss // 2
+        depth = np.ascontiguousarray(depth[c::ss, c::ss])
+        face = np.ascontiguousarray(face[c::ss, c::ss])
+        mask = np.ascontiguousarray(mask[c::ss, c::ss])
+    else:
+        coverage = mask.astype(np.float32)
+    return RenderResult(color=color, depth=depth, mask=mask, face_id=face, coverage=coverage, near=near, far=far)
 
 
 def _box_downsample(image: np.ndarray, k: int) -> np.ndarray:
@@ -736,30 +798,3 @@ def get_renderer() -> Renderer:
     if r is None or r.released:
         r = _local.renderer = Renderer()
     return r
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m photomodel.rendering.renderer [out.png] [--size N]``: the james scan from the front."""
-    import argparse
-    import time
-
-    from photomodel.camera import orbit_camera
-    from photomodel.samples.sample_data import load_james_scan
-
-    parser = argparse.ArgumentParser(description=main.__doc__)
-    parser.add_argument("out", nargs="?", default="render_check.png")
-    parser.add_argument("--size", type=int, default=1000)
-    parser.add_argument("--azimuth", type=float, default=0.0, help="degrees, + towards subject's left")
-    args = parser.parse_args(argv)
-    scan = load_james_scan()
-    cam = orbit_camera(args.azimuth, args.size, args.size, distance_mm=900.0, target=(0.0, 10.0, 0.0))
-    renderer = get_renderer()
-    t0 = time.perf_counter()
-    res = renderer.render(cam, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture, background=1.0)
-    dt = time.perf_counter() - t0
-    print(f"{write_png(args.out, res.color)}  ({args.size}×{args.size} in {dt * 1000:.0f} ms)")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

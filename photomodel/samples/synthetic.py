@@ -37,6 +37,8 @@ from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, orbit_camera, rodrigues
+from photomodel.rendering.renderer import vertex_normals
+from photomodel.texturing import visibility
 
 if TYPE_CHECKING:  # imported lazily at run time: only these functions need the sample data
     from photomodel.modeling.generic_mesh import GenericMesh
@@ -146,13 +148,10 @@ class ScanSurface:
         self._samples = np.concatenate(samples)
         self._owner = np.concatenate(owner)
         self._tree = cKDTree(self._samples)
-        # outward vertex normals (area-weighted), for normals at closest points
         cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         self.face_normals = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-12)
-        acc = np.zeros_like(self.vertices)
-        for k in range(3):
-            np.add.at(acc, self.faces[:, k], cross)
-        self.vertex_normals = acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-12)
+        # outward vertex normals (area-weighted), for normals at closest points
+        self.vertex_normals = vertex_normals(self.vertices, self.faces)
 
     def closest(self, points: np.ndarray, k: int = 24) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest surface points.
@@ -310,8 +309,6 @@ def _correspondence_arrays(mesh: GenericMesh, scan: Scan, use_cache: bool) -> di
 
 
 def _build_correspondence(mesh: GenericMesh, scan: Scan) -> tuple[np.ndarray, np.ndarray]:
-    from photomodel.modeling.generic_mesh import vertex_normals
-
     V, F, L = np.asarray(mesh.vertices, float), np.asarray(mesh.faces), np.asarray(mesh.landmarks)
     target = np.asarray(scan.landmarks, float)
     surf = scan_surface(scan)
@@ -490,7 +487,8 @@ def visible(
     behind the scan's rendered depth there (bilinear between the four surrounding covered
     pixels, so sloped surfaces are not penalised by rounding; a point *in front* of the
     rendered depth lies on a silhouette, where the pixel already shows what is behind
-    it), and the surface faces the camera: ``n · (c − p)/‖c − p‖ > min_cos``.
+    it), and the surface faces the camera: ``n · (c − p)/‖c − p‖ > min_cos``. This is
+    :func:`photomodel.texturing.visibility.visible` with the ``"covered"`` depth lookup.
 
     Parameters
     ----------
@@ -510,30 +508,9 @@ def visible(
     points = _points3(points, "points")
     if depth is None:
         depth = scan_depth(camera, scan)
-    depth = np.asarray(depth, float)
-    if depth.shape != (camera.height, camera.width):
-        raise ValueError(f"depth map is {depth.shape}, camera image is {(camera.height, camera.width)}")
     if normals is None:
         normals = surface_normals(points, scan)
-    uv = camera.project(points)
-    z = camera.depth(points)
-    W, H = camera.width, camera.height
-    inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
-    u = np.clip(uv[:, 0], 0, W - 1)
-    v = np.clip(uv[:, 1], 0, H - 1)
-    u0 = np.minimum(np.floor(u).astype(int), W - 2)
-    v0 = np.minimum(np.floor(v).astype(int), H - 2)
-    fu, fv = u - u0, v - v0
-    corners = np.stack([depth[v0, u0], depth[v0, u0 + 1], depth[v0 + 1, u0], depth[v0 + 1, u0 + 1]], 1)
-    wts = np.stack([(1 - fu) * (1 - fv), fu * (1 - fv), (1 - fu) * fv, fu * fv], 1)
-    finite = np.isfinite(corners)
-    wts = np.where(finite, wts, 0.0)
-    has = wts.sum(1) > 0
-    total = np.where(has, wts.sum(1), 1.0)
-    interp = np.where(has, (np.where(finite, corners, 0.0) * wts).sum(1) / total, np.inf)
-    to_cam = camera.center - points
-    facing = np.einsum("ij,ij->i", normals, to_cam) / np.linalg.norm(to_cam, axis=1) > min_cos
-    return inside & has & (z - interp < tol_mm) & facing
+    return visibility.visible(camera, points, normals, depth, tol_mm=tol_mm, min_cos=min_cos, lookup="covered")
 
 
 # ----------------------------------------------------------------------------- the artist

@@ -71,14 +71,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from photomodel.camera import Camera
+from photomodel.rendering.depth import DEPTH_TOL_MM, FAR_SENTINEL_MM, project_points
+from photomodel.rendering.sampling import sample_image
 from photomodel.texturing.cylindrical import check_photos
-from photomodel.texturing.visibility import (
-    DEPTH_TOL_MM,
-    FAR_SENTINEL_MM,
-    project_points,
-    render_depth,
-    sample_image,
-)
+from photomodel.texturing.visibility import render_depth
 from photomodel.texturing.weights import (
     FEATHER_WIDTH_MM,
     apply_single_view,
