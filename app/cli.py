@@ -190,7 +190,7 @@ def cmd_texture(args) -> int:
 
 def _frames_saved(out_dir) -> int:
     """Frames listed in ``out_dir``'s track.json (0 if none or unreadable)."""
-    from tracking.batch import load_track_results
+    from tracking.results import load_track_results
 
     try:
         doc = load_track_results(out_dir)
@@ -200,7 +200,8 @@ def _frames_saved(out_dir) -> int:
 
 
 def cmd_track(args) -> int:
-    from tracking.batch import default_out_dir, track_video
+    from tracking.results import default_out_dir
+    from tracking.run import track_video
 
     if args.frames is not None and args.frames < 1:
         raise FaceStudioError(f"--frames {args.frames}: track at least one frame")

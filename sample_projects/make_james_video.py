@@ -38,7 +38,7 @@ CLICK_NOISE_PX = 0.5
 
 
 def first_pose_clicks(truth) -> dict:
-    """The first-pose JSON of the sample video (:func:`tracking.batch.load_first_pose`): the focal
+    """The first-pose JSON of the sample video (:func:`tracking.first_pose.load_first_pose`): the focal
     length and the project's pose features clicked in frame 0 (true positions + noise)."""
     project = load_project(PROJECT)
     names = project.feature_names(pose_only=True)

@@ -38,6 +38,18 @@ def fitted_project_copy(tmp_path, fitted_sample):
     return dst / fitted_sample.name
 
 
+@pytest.fixture(scope="session")
+def straight(tmp_path_factory, fitted_sample):
+    """One uninterrupted ``facestudio track`` run (:func:`tracking.run.track_video`) of the fitted
+    sample over the first 6 frames of the sample video (``FRAMES`` in the tracking tests), with the
+    plots and the overlay video: its :class:`tracking.run.TrackResult` (made once; read its folder,
+    do not change it — a test that continues or corrects it works on a copy)."""
+    from tracking.run import track_video
+
+    out = tmp_path_factory.mktemp("straight")
+    return track_video(fitted_sample, SAMPLE_PROJECT / "video" / "james_track.mp4", out, max_frames=6)
+
+
 # ----------------------------------------------------------------------------- sample data
 # Loaded once per run. The loaders build new objects from the on-disk cache on every call, so
 # sharing one across modules is safe only while no test changes it: read them, do not change

@@ -10,9 +10,14 @@ import pytest
 
 from photomodel.camera import Camera, rodrigues
 from photomodel.errors import FitError, ProjectError
-from photomodel.project import load_project, save_project
+from photomodel.project import load_project, new_project, save_project
 from tracking.facemodel import CONTROL_REGIONS, render_model
-from tracking.project_model import face_model_from_project, model_expressions, register_expression
+from tracking.project_model import (
+    face_model_from_project,
+    model_expressions,
+    project_face_model,
+    register_expression,
+)
 from tracking.samples.ground_truth import (
     fitted_sample_model,
     model_gauge,
@@ -142,3 +147,13 @@ def test_fitted_sample_model_is_cached_and_consistent(built):
     assert model is fitted_sample_model()
     assert model.names == ("neutral", "smile", "open_mouth", "brows_raised")
     np.testing.assert_allclose(model.geometry[0], built[0].geometry[0])
+
+
+def test_the_model_is_built_from_the_projects_fitted_expressions(fitted_sample, project_copy):
+    with pytest.raises(ProjectError, match="at least two expressions"):
+        project_face_model(new_project("someone"))
+    with pytest.raises(FitError, match=r"not fitted: neutral, smile.*facestudio fit"):
+        project_face_model(load_project(project_copy))  # the sample as shipped: photos and clicks only
+    model, source = project_face_model(load_project(fitted_sample))
+    assert model.names[0] == "neutral" and source.startswith("project:")
+    assert set(model.names) == {e.name for e in load_project(fitted_sample).expressions}

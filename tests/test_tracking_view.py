@@ -20,7 +20,7 @@ from PySide6.QtWidgets import QFileDialog, QMessageBox  # noqa: E402
 
 from app.qt.main_window import MainWindow  # noqa: E402
 from app.qt.tracking_view import MARKER_COLOR, plot_with_marker  # noqa: E402
-from tracking.batch import default_out_dir, load_track_results  # noqa: E402
+from tracking.results import default_out_dir, load_track_results  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
@@ -189,8 +189,8 @@ def test_first_pose_dialog_click_solve_save(qtbot, window, errors, fitted_projec
 def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, fitted_project_copy):
     import json
 
-    from tracking.batch import VideoFrames
     from tracking.samples.ground_truth import VideoTruth, sample_face_model
+    from tracking.video import VideoFrames
 
     view = window.tracking_view
     assert not view.correct_button.isEnabled()

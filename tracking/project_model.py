@@ -50,7 +50,8 @@ from photomodel.alignment import similarity_transform
 from photomodel.errors import FitError, ProjectError
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions, smooth_membership
 
-__all__ = ["MODEL_TEXTURE_SIZE", "face_model_from_project", "model_expressions", "register_expression"]
+__all__ = ["MODEL_TEXTURE_SIZE", "face_model_from_project", "project_face_model", "model_expressions",
+           "register_expression"]
 
 #: Texels per side of the textures in the tracking model (see the module notes).
 MODEL_TEXTURE_SIZE = 512
@@ -264,6 +265,23 @@ def face_model_from_project(project, names: Sequence[str] | None = None, *, text
               "regions": {CONTROL_REGIONS[r]: [n for n, u in zip(names[1:], use[r, 1:], strict=True) if u]
                           for r in range(1, len(CONTROL_REGIONS))}}
     return model, report
+
+
+def project_face_model(project, names=None) -> tuple[FaceModel, str]:
+    """The face model to track ``project`` with, and a sentence saying where it comes from: the
+    blend-shape model of its fitted and textured expressions (:func:`face_model_from_project`;
+    ``names`` picks them, E_1 first).
+
+    Raises
+    ------
+    FitError, ProjectError
+        fewer than two expressions, or one not fitted or textured (the message says which and the
+        command that does it), or a missing or damaged mesh or texture file.
+    """
+    model, report = face_model_from_project(project, names)
+    reg = "; ".join(f"{n} {r['rms_mm']:.2f} mm" for n, r in report["registration"].items())
+    return model, (f"project: the expressions {', '.join(model.names)} fitted and textured from the project's "
+                   f"photos (§6.1.1), registered onto {model.names[0]} by their rest of the face (RMS: {reg})")
 
 
 def _shares_cameras(project, name: str, source: str) -> bool:

@@ -1,12 +1,12 @@
 """The studio's tracking view: track a video in a worker, then scrub through the result (§6.2).
 
 :class:`TrackingView` (docked by the main window, *Tracking → Track video…* / *Open results…*)
-runs :func:`tracking.batch.track_video` in its own :class:`~app.qt.workers.JobController` behind a
-cancellable progress dialog; the results land in :func:`tracking.batch.default_out_dir`
+runs :func:`tracking.run.track_video` in its own :class:`~app.qt.workers.JobController` behind a
+cancellable progress dialog; the results land in :func:`tracking.results.default_out_dir`
 (``<project folder>/results/track_<video stem>``), cancel-safe and resumable, exactly as
 ``facestudio track`` writes them. It then shows
 
-* the footage frame with the model rendered over it — :func:`tracking.batch.overlay_frame`, the
+* the footage frame with the model rendered over it — :func:`tracking.overlay_video.overlay_frame`, the
   code path of ``overlay.mp4`` — or the bare frame (a switch);
 * a frame scrubber (slider, frame label; ←/→ step a frame, Home/End jump);
 * the parameter curves of :func:`tracking.plots.track_plots` (weights per region, rotation,
@@ -16,12 +16,13 @@ cancellable progress dialog; the results land in :func:`tracking.batch.default_o
 A frame that diverged or drifted is corrected where it is shown: *Correct pose here…* opens the
 click dialog of the first pose (:class:`FirstPoseDialog`) on that frame, its pose features placed
 where the tracked model puts them, so the user only drags the wrong ones; accepting re-tracks from
-that frame in the worker (:func:`tracking.batch.track_video`'s ``correct_frame``/``correct_pose``),
+that frame in the worker (:func:`tracking.run.track_video`'s ``correct_frame``/``correct_pose``),
 behind the same cancellable progress dialog as *Track video…*.
 
-Nothing here computes tracking itself: the view reads ``track.json`` (:func:`load_track_results`)
-and renders overlays on the GUI thread with a :class:`tracking.frame_fit.FrameFitter` of the run's model
-and camera (the renderer is per thread).
+Nothing here computes tracking itself: the state of the shown results — ``track.json``, the frame
+records, the footage, the plots and the :class:`tracking.frame_fit.FrameFitter` of the run's model
+and camera that renders overlays on the GUI thread (the renderer is per thread) — is a Qt-free
+:class:`tracking.review.TrackReview`; the view shows it.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import json
 import math
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -63,6 +65,9 @@ from app.qt.texture_views import to_qimage
 from app.qt.workers import JobController
 from photomodel.errors import FaceStudioError
 from tracking.plots import MARGINS
+
+if TYPE_CHECKING:
+    from tracking.review import TrackReview
 
 __all__ = ["MARKER_COLOR", "plot_with_marker", "TrackingView", "ClickCanvas", "FirstPoseDialog"]
 
@@ -110,8 +115,9 @@ class TrackingView(QWidget):
 
     Attributes
     ----------
-    doc : dict or None, the shown ``track.json``.
-    out_dir : Path or None, the folder it came from.
+    review : TrackReview or None, the shown results (``track.json``, records, footage, plots).
+    doc : dict or None, the shown ``track.json`` (``review.doc``).
+    out_dir : Path or None, the folder it came from (``review.out_dir``).
     image : (H, W, 3) float32 or None, the image now shown (overlay or bare frame).
     jobs : JobController, the tracking worker.
     """
@@ -119,15 +125,9 @@ class TrackingView(QWidget):
     def __init__(self, model: StudioModel, parent=None):
         super().__init__(parent)
         self.model = model
-        self.doc: dict | None = None
-        self.out_dir: Path | None = None
+        self.review: TrackReview | None = None
         self.image: np.ndarray | None = None
         self._pixmap: QPixmap | None = None
-        self._records: list[dict] = []
-        self._footage: list[np.ndarray] = []  # uint8 RGB, one per tracked frame
-        self._footage_error = ""
-        self._plots: dict[str, np.ndarray] = {}
-        self._fitter = None
         self._progress: QProgressDialog | None = None
         self._pending_out: Path | None = None
         self.last_message = ""
@@ -213,6 +213,20 @@ class TrackingView(QWidget):
 
     # ------------------------------------------------------------------ state
     @property
+    def doc(self) -> dict | None:
+        """The shown ``track.json`` (None without results)."""
+        return None if self.review is None else self.review.doc
+
+    @property
+    def out_dir(self) -> Path | None:
+        """The folder of the shown results (None without results)."""
+        return None if self.review is None else self.review.out_dir
+
+    @property
+    def _records(self) -> list[dict]:
+        return [] if self.review is None else self.review.records
+
+    @property
     def frame_count(self) -> int:
         """Frames tracked in the shown results."""
         return len(self._records)
@@ -255,7 +269,7 @@ class TrackingView(QWidget):
         if project_path is None:
             self._error("Cannot track", "save the project first: tracking reads the project file")
             return False
-        from tracking.batch import default_out_dir
+        from tracking.results import default_out_dir
 
         video = Path(video).absolute()
         self._run(project_path, video, default_out_dir(project_path, video), max_frames, f"Tracking {video.name}…")
@@ -264,7 +278,7 @@ class TrackingView(QWidget):
     def start_correction(self, frame: int, pose: dict, max_frames: int | None = None) -> bool:
         """Re-track the shown results from ``frame`` on, frame ``frame`` fitted from ``pose`` (the
         first-pose JSON object: clicks of that frame, or R/t), in the worker behind the progress
-        dialog (:func:`tracking.batch.track_video` with ``correct_frame``/``correct_pose``).
+        dialog (:func:`tracking.run.track_video` with ``correct_frame``/``correct_pose``).
 
         The run's settings come from the shown ``track.json`` (video, expressions, first pose, focal
         length) and its results folder; ``max_frames`` None uses the "frames to track" box (0: the
@@ -281,22 +295,21 @@ class TrackingView(QWidget):
         if project_path is None:
             self._error("Cannot correct", "save the project first: tracking reads the project file")
             return False
-        d = self.doc
-        video = Path(d["video"]["path"])
+        settings = self.review.correction_settings()
+        video = settings.pop("video")
         self._pending_frame = int(frame)
         self._run(project_path, video, self.out_dir, max_frames, f"Re-tracking {video.name} from frame {frame}…",
-                  correct_frame=int(frame), correct_pose=pose, expressions=list(d["model"]["expressions"]),
-                  first_pose=d["first_pose"]["spec"], focal_px=float(d["camera"]["focal_px"]))  # fmt: skip
+                  correct_frame=int(frame), correct_pose=pose, **settings)  # fmt: skip
         return True
 
     def _run(self, project_path, video: Path, out: Path, max_frames: int | None, label: str, **kwargs) -> None:
-        """:func:`tracking.batch.track_video` into ``out`` in the worker, behind the progress dialog."""
+        """:func:`tracking.run.track_video` into ``out`` in the worker, behind the progress dialog."""
         if max_frames is None:
             max_frames = self.limit_box.value() or None
         self._pending_out = out
 
         def work(progress, cancel):
-            from tracking.batch import track_video
+            from tracking.run import track_video
 
             def report(done, total):
                 frac = done / total if total else 0.0
@@ -312,20 +325,8 @@ class TrackingView(QWidget):
     def tracked_feature_positions(self, index: int) -> dict[str, tuple[float, float]]:
         """{feature: (u, v)} image px: the project's pose features where the tracked model puts them
         in frame ``index`` (its pose and expression there, projected by the video camera; clamped to
-        the image so that a model that left it still has markers to drag)."""
-        from tracking.frame_fit import FrameState
-
-        rec = self._records[index]
-        fitter = self._overlay_fitter()
-        model = fitter.model
-        st = FrameState(np.array(rec["R"], float), np.array(rec["centre_mm"], float), np.array(rec["alpha"], float))
-        project = self.model.project
-        names = project.feature_names(pose_only=True)
-        X = model.blend_geometry(model.vertex_weights(model.region_weights(st.alpha)))[project.feature_vertices(names)]
-        uv = fitter.camera(st).project(X)
-        uv[:, 0] = np.clip(uv[:, 0], -0.5, fitter.W - 0.5)
-        uv[:, 1] = np.clip(uv[:, 1], -0.5, fitter.H - 0.5)
-        return {n: (float(u), float(v)) for n, (u, v) in zip(names, uv, strict=True)}
+        the image so that a model that left it still has markers to drag; :meth:`TrackReview.feature_positions`)."""
+        return self.review.feature_positions(index, self.model.project)
 
     def correct_pose_dialog(self, frame: int | None = None, modal: bool = True) -> FirstPoseDialog | None:
         """Open :class:`FirstPoseDialog` in correction mode on tracked frame ``frame`` (default: the
@@ -349,7 +350,7 @@ class TrackingView(QWidget):
             clicks = self.tracked_feature_positions(frame)
             dlg = FirstPoseDialog(self.model.project, self.doc["video"]["path"], parent=self, frame=frame,
                                   clicks=clicks, focal_px=float(self.doc["camera"]["focal_px"]),
-                                  model=self._overlay_fitter().model, correct=True)  # fmt: skip
+                                  model=self.review.fitter().model, correct=True)  # fmt: skip
         except FaceStudioError as exc:
             self._error("Cannot correct the pose", str(exc))
             return None
@@ -432,32 +433,13 @@ class TrackingView(QWidget):
     # ------------------------------------------------------------------ results
     def load_results(self, out_dir: str | Path) -> bool:
         """Show the tracking results in ``out_dir`` (its ``track.json``); False (with a dialog) if none."""
-        from tracking.batch import VideoFrames, load_track_results
-        from tracking.frame_fit import DIVERGED_RMS
-        from tracking.plots import track_plots
+        from tracking.review import TrackReview
 
-        out = Path(out_dir).absolute()
         try:
-            doc = load_track_results(out)
+            self.review = TrackReview.open(out_dir)
         except FaceStudioError as exc:
             self._error("Cannot open the tracking results", str(exc))
             return False
-        if doc is None:
-            self._error("Cannot open the tracking results", f"{out} holds no track.json (run Track video… first)")
-            return False
-        self.doc, self.out_dir = doc, out
-        self._records = list(doc["frames"])
-        self._fitter = None
-        self._footage, self._footage_error = [], ""
-        if self._records:
-            try:
-                video = VideoFrames(doc["video"]["path"])
-                self._footage = [np.round(f * 255).astype(np.uint8) for _, f in video.frames(0, len(self._records))]
-            except FaceStudioError as exc:
-                self._footage_error = str(exc)
-        regions = doc["model"]["regions_with_parameters"]
-        self._plots = track_plots(self._records, regions, doc["model"]["expressions"], DIVERGED_RMS) \
-            if self._records else {}  # fmt: skip
         self.slider.blockSignals(True)
         self.slider.setRange(0, max(len(self._records) - 1, 0))
         self.slider.setValue(0)
@@ -476,18 +458,6 @@ class TrackingView(QWidget):
         total = d["video"].get("frames")
         state = "complete" if d.get("complete") else f"{n} of {total if total else '?'} frames"
         return f"<b>{Path(d['video']['path']).name}</b>: {n} frames tracked ({state}) — {self.out_dir}"
-
-    def _overlay_fitter(self):
-        """A :class:`FrameFitter` of the run's model and camera, built once per results."""
-        if self._fitter is None:
-            from photomodel.project import load_project
-            from tracking.batch import project_face_model
-            from tracking.frame_fit import FrameFitter
-
-            cam = self.doc["camera"]
-            model, _ = project_face_model(load_project(self.doc["project"]))
-            self._fitter = FrameFitter(model, cam["focal_px"], cam["width"], cam["height"])
-        return self._fitter
 
     def _fit_pixmap(self) -> None:
         """The frame scaled to the label (aspect kept, nearest pixel: the footage's pixels stay visible)."""
@@ -513,25 +483,23 @@ class TrackingView(QWidget):
         self.index_label.setText(f"frame {index} / {len(self._records) - 1}   rms {rec['rms']:.3f}"
                                  + ("  DIVERGED" if rec["diverged"] else "")
                                  + ("  corrected" if rec.get("start") == "user" else ""))  # fmt: skip
-        if index < len(self._footage):
-            frame = self._footage[index].astype(np.float32) / 255.0
+        frame = self.review.footage_frame(index)
+        if frame is not None:
             if self.overlay_box.isChecked():
-                from tracking.batch import overlay_frame
-
                 try:
-                    frame = overlay_frame(self._overlay_fitter(), frame, rec)
+                    frame = self.review.overlay(index, frame)
                 except FaceStudioError as exc:
-                    self._footage_error = f"no overlay: {exc}"
+                    self.review.footage_error = f"no overlay: {exc}"
                     self.overlay_box.setChecked(False)
             self.image = frame
             self._pixmap = QPixmap.fromImage(to_qimage(np.round(np.clip(frame, 0, 1) * 255).astype(np.uint8)))
             self._fit_pixmap()
         else:
             self.image = self._pixmap = None
-            self.frame_label.setText(self._footage_error or f"frame {index} of the footage could not be read")
+            self.frame_label.setText(self.review.footage_error or f"frame {index} of the footage could not be read")
         x = np.array([r["frame"] for r in self._records], float)
         for name, label in self.plot_labels.items():
-            plot = self._plots.get(name)
+            plot = self.review.plots.get(name)
             if plot is None:
                 label.clear()
             else:
@@ -634,11 +602,11 @@ class FirstPoseDialog(QDialog):
 
     Shows a frame, the project's pose features (``project.feature_names(pose_only=True)``) and a
     focal length. *Solve* runs :func:`tracking.frame_fit.pose_from_clicks` (≥ 6 clicks) and shows the
-    model over the frame (:func:`tracking.batch.overlay_frame`).
+    model over the frame (:func:`tracking.overlay_video.overlay_frame`).
 
     * **First pose** (default): frame 0, pre-filled from an existing first-pose JSON
-      (:func:`tracking.batch.load_first_pose` format); *Save* writes ``{"focal_px", "clicks"}``
-      atomically to :attr:`path` (default :func:`tracking.batch.default_first_pose_path`).
+      (:func:`tracking.first_pose.load_first_pose` format); *Save* writes ``{"focal_px", "clicks"}``
+      atomically to :attr:`path` (default :func:`tracking.first_pose.default_first_pose_path`).
     * **Correction** (``correct=True``, :meth:`TrackingView.correct_pose_dialog`): frame ``frame``,
       pre-filled with ``clicks`` (where the tracked model puts the features), the focal length fixed
       to the run's; *Re-track from here* solves (the clicks must give a pose) and accepts; the
@@ -653,7 +621,7 @@ class FirstPoseDialog(QDialog):
     clicks : {feature: (u, v)} px, optional, initial marker positions (instead of the file's).
     focal_px : float, optional, the video camera's focal length (fixed when correcting).
     model : tracking.facemodel.FaceModel, optional, the face model to solve with (default: the
-        project's, :func:`tracking.batch.project_face_model`, built on the first *Solve*).
+        project's, :func:`tracking.project_model.project_face_model`, built on the first *Solve*).
     correct : bool, correction mode (see above).
 
     Attributes
@@ -673,7 +641,8 @@ class FirstPoseDialog(QDialog):
                  clicks: dict | None = None, focal_px: float | None = None, model=None,
                  correct: bool = False):  # fmt: skip
         super().__init__(parent)
-        from tracking.batch import VideoError, VideoFrames, default_first_pose_path
+        from tracking.first_pose import default_first_pose_path
+        from tracking.video import VideoError, VideoFrames
 
         self.project = project
         self.video = Path(video).absolute()
@@ -784,8 +753,8 @@ class FirstPoseDialog(QDialog):
         """Pose from the clicks (:func:`tracking.frame_fit.pose_from_clicks`) and its overlay on the frame.
 
         False (with a message box) with fewer than 6 clicks or when no pose is found."""
-        from tracking.batch import overlay_frame
         from tracking.frame_fit import FrameFitter, pose_from_clicks
+        from tracking.overlay_video import overlay_frame
 
         names = list(self.canvas.clicks)
         if len(names) < 6:
@@ -841,7 +810,7 @@ class FirstPoseDialog(QDialog):
 
     def _face_model(self):
         if self._model is None:
-            from tracking.batch import project_face_model
+            from tracking.project_model import project_face_model
 
             self._model, _ = project_face_model(self.project)
         return self._model

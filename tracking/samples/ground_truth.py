@@ -1,8 +1,7 @@
 """The sample tracking data: the james face model and a synthetic video with its ground truth.
 
 Tests, benchmarks and ``sample_projects/make_james_video.py`` use this module; the tracker
-(:mod:`tracking.frame_fit`) never does, and :mod:`tracking.batch` only for the sample project's face model
-(until expressions are modeled from a project's photos).
+(:mod:`tracking.frame_fit`, :mod:`tracking.run`) never does.
 
 * :func:`sample_face_model` — the blend-shape model (§6.1.1) of the james basic expressions
   (:mod:`tracking.samples.expressions`) on the generic mesh, from their **true** geometries (the generic

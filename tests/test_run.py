@@ -1,5 +1,7 @@
-"""Tests of tracking.batch (and its plots): ``facestudio track`` on the first frames of the sample video,
-and the user's correction of a tracked frame (``--correct FRAME --pose FILE``)."""
+"""Tests of tracking.run: ``facestudio track`` on the first frames of the sample video (the run
+follows the true motion; Ctrl-C, cancel and a rerun continue exactly), and the user's correction of
+a tracked frame (``--correct FRAME --pose FILE``). ``straight`` (tests/conftest.py) is one
+uninterrupted run over the first FRAMES frames."""
 
 from __future__ import annotations
 
@@ -14,21 +16,13 @@ import cv2
 import numpy as np
 import pytest
 
-import tracking.batch as batch
+import tracking.run as run
 from app.cli import main
 from photomodel.camera import rotation_angle_deg
-from photomodel.errors import FaceStudioError, FitError, ProjectError
-from photomodel.exchange.files import decode_png
-from photomodel.project import load_project, new_project
-from tracking.batch import (
-    CSV_COLUMNS,
-    VideoError,
-    VideoFrames,
-    load_first_pose,
-    load_track_results,
-    project_face_model,
-    track_video,
-)
+from photomodel.errors import FaceStudioError, FitError
+from photomodel.project import load_project
+from tracking.results import load_track_results
+from tracking.run import track_video
 from tracking.samples.ground_truth import VideoTruth, fitted_sample_model, model_gauge, sample_face_model
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -42,13 +36,6 @@ CORRECT = 3
 @pytest.fixture(scope="module")
 def truth():
     return VideoTruth.from_dict(json.loads((SAMPLE / "video_truth.json").read_text()))
-
-
-@pytest.fixture(scope="module")
-def straight(tmp_path_factory, fitted_sample):
-    """One uninterrupted run over the first FRAMES frames, with plots and the overlay video."""
-    out = tmp_path_factory.mktemp("straight")
-    return track_video(fitted_sample, VIDEO, out, max_frames=FRAMES)
 
 
 @pytest.fixture(scope="module")
@@ -101,45 +88,6 @@ def test_results_are_valid_and_follow_the_true_motion(straight, truth, gauge):
         assert_near_truth(f, truth, gauge)
 
 
-def test_csv_matches_json(straight):
-    doc = load_track_results(straight.out_dir)
-    with open(straight.out_dir / "track.csv", newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    assert len(rows) == len(doc["frames"])
-    head, tail = CSV_COLUMNS
-    assert list(rows[0])[: len(head)] == head and list(rows[0])[-len(tail):] == tail
-    for row, f in zip(rows, doc["frames"], strict=True):
-        assert int(row["frame"]) == f["frame"]
-        got = [float(row[c]) for c in ("rx_rad", "ry_rad", "rz_rad", "tx_mm", "ty_mm", "tz_mm", "cx_mm", "cy_mm")]
-        np.testing.assert_allclose(got, f["rotation_vector"] + f["t_mm"] + f["centre_mm"][:2], rtol=0, atol=1e-12)
-        for r, ws in f["weights"].items():
-            for e, w in ws.items():
-                assert float(row[f"w_{r}_{e}"]) == w
-        assert float(row["rms"]) == f["rms"] and int(row["diverged"]) == int(f["diverged"])
-
-
-def test_plots_and_overlay_are_written(straight, tmp_path):
-    for name in ("weights", "rotation", "translation", "rms"):
-        img = decode_png(straight.files[name].read_bytes())
-        assert img.ndim == 3 and img.shape[0] >= 200 and img.shape[1] >= 600, name
-        assert img.std() > 10 and (img < 128).any(), name  # curves and text, not a blank canvas
-    cap = cv2.VideoCapture(str(straight.files["overlay"]))
-    n = 0
-    while True:
-        ok, bgr = cap.read()
-        if not ok:
-            break
-        assert bgr.shape == (300, 300, 3)
-        n += 1
-    cap.release()
-    assert n == FRAMES
-    last = decode_png(straight.files["overlay_last"].read_bytes())
-    assert last.shape == (300, 300, 3)
-    # the silhouette is outlined in green: many pixels green-dominant
-    g = last.astype(int)
-    assert ((g[..., 1] > 150) & (g[..., 0] < 120) & (g[..., 2] < 120)).sum() > 200
-
-
 def test_ctrl_c_and_cancel_save_valid_results_and_a_rerun_continues(straight, tmp_path, capsys, fitted_sample):
     out = tmp_path / "run"
     seen = []
@@ -173,89 +121,6 @@ def test_ctrl_c_and_cancel_save_valid_results_and_a_rerun_continues(straight, tm
         np.testing.assert_allclose(a["centre_mm"], b["centre_mm"], atol=1e-4)
         np.testing.assert_allclose(a["alpha"], b["alpha"], atol=1e-5)
         assert abs(a["rms"] - b["rms"]) < 1e-6
-
-
-def test_a_frame_folder_tracks_like_the_video(straight, tmp_path, fitted_sample):
-    folder = tmp_path / "frames"
-    folder.mkdir()
-    for i, frame in VideoFrames(VIDEO).frames(0, 2):  # lossless copies of the decoded frames
-        cv2.imwrite(str(folder / f"f{i + 8}.png"), cv2.cvtColor(np.round(frame * 255).astype(np.uint8),
-                                                                 cv2.COLOR_RGB2BGR))  # fmt: skip
-    # f8 before f9 in natural order (and f10 would come after f9)
-    shutil.copy(VIDEO.with_name("james_track.first_pose.json"), folder / "first_pose.json")
-    res = track_video(fitted_sample, folder, tmp_path / "out", overlay=False, plots=False)
-    doc = load_track_results(res.out_dir)
-    assert doc["complete"] and doc["video"]["kind"] == "frames" and len(doc["frames"]) == 2
-    for a, b in zip(doc["frames"], straight.frames, strict=False):
-        np.testing.assert_allclose(a["centre_mm"], b["centre_mm"], atol=1e-4)
-
-
-@pytest.mark.parametrize("kind", ["missing", "corrupt", "empty_folder", "bad_frame"])
-def test_unreadable_video_is_named(tmp_path, kind, fitted_sample):
-    if kind == "missing":
-        path, words = tmp_path / "nope.mp4", "does not exist"
-    elif kind == "corrupt":
-        path, words = tmp_path / "broken.mp4", "cannot be opened"
-        path.write_bytes(b"\x00not a video" * 50)
-    elif kind == "empty_folder":
-        path, words = tmp_path / "frames", "no PNG or JPG"
-        path.mkdir()
-    else:
-        path, words = tmp_path / "frames", "not an image"
-        path.mkdir()
-        (path / "0001.png").write_bytes(b"garbage")
-    with pytest.raises(VideoError, match=words) as err:
-        track_video(fitted_sample, path, tmp_path / "out")
-    assert str(path.name) in str(err.value)
-
-
-def test_cli_reports_a_bad_video_with_exit_code_2(tmp_path, capsys, fitted_sample):
-    assert main(["track", str(fitted_sample), "--video", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o")]) == 2
-    assert "none.mp4 does not exist" in capsys.readouterr().err
-
-
-def test_other_settings_in_the_folder_are_refused(straight, fitted_sample):
-    with pytest.raises(Exception, match="other settings .*camera"):
-        track_video(fitted_sample, VIDEO, straight.out_dir, max_frames=FRAMES, focal_px=500.0)
-
-
-def test_first_pose_files(truth, tmp_path, fitted_sample):
-    project = load_project(fitted_sample)
-    model = sample_face_model()
-    R, t = truth.R[0], truth.t[0]
-    fp = load_first_pose({"focal_px": 560.0, "R": R.tolist(), "t_mm": t.tolist(),
-                          "weights": {"mouth": {"smile": 0.5}}}, project, model, 300, 300)  # fmt: skip
-    np.testing.assert_allclose(fp.state.t, t + R @ model.centre)
-    assert abs(model.region_weights(fp.state.alpha)[1, 1] - 0.5) < 1e-9
-    fp = load_first_pose({"focal_mm": 50.0, "rotation_vector": [0.0, 0.0, 0.0], "t_mm": [0, 0, 600]},
-                         project, model, 300, 300)  # fmt: skip
-    assert fp.focal_px == pytest.approx(50.0 * 300 / 36.0)
-    clicks = json.loads(VIDEO.with_name("james_track.first_pose.json").read_text())["clicks"]
-    few = dict(list(clicks.items())[:4])
-    cases = [
-        ({"clicks": clicks}, "focal length is missing"),
-        ({"focal_px": 560, "clicks": few}, "at least 6"),
-        ({"focal_px": 560, "clicks": {**clicks, "nose_tipp": [1, 2]}}, "nose_tipp"),
-        ({"focal_px": 560, "R": np.eye(3).tolist()}, "t_mm"),
-        ({"focal_px": 560, "R": (2 * np.eye(3)).tolist(), "t_mm": [0, 0, 1]}, "not a rotation"),
-        ({"focal_px": 560}, "either 'clicks'"),
-        ({"focal_px": -1, "clicks": clicks}, "positive"),
-    ]
-    for spec, words in cases:
-        with pytest.raises(FitError, match=words):
-            load_first_pose(spec, project, model, 300, 300)
-    with pytest.raises(FitError, match="does not exist"):
-        load_first_pose(tmp_path / "missing.json", project, model, 300, 300)
-
-
-def test_the_model_is_built_from_the_projects_fitted_expressions(fitted_sample, project_copy):
-    with pytest.raises(ProjectError, match="at least two expressions"):
-        project_face_model(new_project("someone"))
-    with pytest.raises(FitError, match=r"not fitted: neutral, smile.*facestudio fit"):
-        project_face_model(load_project(project_copy))  # the sample as shipped: photos and clicks only
-    model, source = project_face_model(load_project(fitted_sample))
-    assert model.names[0] == "neutral" and source.startswith("project:")
-    assert set(model.names) == {e.name for e in load_project(fitted_sample).expressions}
 
 
 # ----------------------------------------------------------------------------- correcting a frame
@@ -343,7 +208,7 @@ def test_a_cancelled_correction_continues_like_an_uninterrupted_one(corrected, s
         raise KeyboardInterrupt
 
     # Ctrl-C while frame CORRECT is being fitted: the earlier frames and the correction are saved
-    monkeypatch.setattr(batch, "track_frames", ctrl_c)
+    monkeypatch.setattr(run, "track_frames", ctrl_c)
     with pytest.raises(KeyboardInterrupt):
         track(correct_frame=CORRECT, correct_pose=true_pose_file)
     monkeypatch.undo()

@@ -1,0 +1,375 @@
+"""Tracking one video of a project, cancel-safe and resumable: ``facestudio track`` (Pighin et al. 2002, §6.2).
+
+:func:`track_video` reads the footage (:mod:`tracking.video`), fits the face model to every frame with
+:class:`tracking.frame_fit.FrameFitter` (pose, then expression; each frame predicted from the two before,
+§6.2) and writes into an output folder:
+
+* ``track.json`` and ``track.csv`` — the run's settings and one record per frame
+  (:mod:`tracking.results`); ``track.json`` is the source of truth for continuing;
+* ``weights.png``, ``rotation.png``, ``translation.png``, ``rms.png`` — plots like Figs. 12–19
+  (:mod:`tracking.plots`);
+* ``overlay.mp4`` — the model rendered over the footage, alpha blended, with its silhouette
+  outlined (written when the whole video is tracked), and ``overlay_last.png``, its last frame
+  (:mod:`tracking.overlay_video`).
+
+Cancel-safe and resumable: the results are written atomically every :data:`SAVE_EVERY` frames,
+when ``cancel()`` says stop and on Ctrl-C, so the files on disk are always complete and valid for
+the frames they list. A second run with the same settings on the same folder continues after the
+last saved frame, its prediction restored from the last two saved frames (the JSON keeps the
+parameters at full precision, so a resumed run computes what an uninterrupted one would). Other
+settings in the folder are refused unless ``restart``.
+
+Correcting a frame: when frame N diverged or drifted, ``correct_frame=N`` with ``correct_pose`` (that
+frame's clicks or pose, the first-pose format) keeps frames 0 .. N−1, fits frame N from the user's
+pose in several rounds like frame 0, and tracks on from there; ``track.json`` records the correction
+(``corrections``) so that continuing reproduces it (see :func:`track_video`).
+
+Where the pieces come from
+--------------------------
+* **Video**: a file OpenCV decodes or a folder of PNG/JPG frames (:class:`tracking.video.VideoFrames`).
+* **Face model**: the blend-shape model of the project's fitted and textured expressions
+  (:func:`tracking.project_model.project_face_model`; ``facestudio fit`` then ``facestudio texture``
+  make them), recorded with its source in ``track.json``. A caller may pass its own
+  :class:`tracking.facemodel.FaceModel` with a ``model_source``.
+* **First frame's pose** (the user's part, §6.2): a JSON file (:mod:`tracking.first_pose`) with the
+  video camera's focal length and either a pose or the image positions of at least six of the
+  project's features in frame 0; by default ``<video stem>.first_pose.json`` beside a video file,
+  or ``first_pose.json`` in a frame folder.
+
+:func:`track_video` is a sequence of steps: read and check what the run tracks with (:class:`_Run`),
+make the ``track.json`` document and take the earlier results of the folder into it, apply a
+correction, find where fits start from a pose, track the frames (saving as it goes), then write
+the final results, plots and overlay video.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from photomodel.errors import FaceStudioError, FitError
+from photomodel.exchange.files import atomic_write_bytes, encode_png
+from photomodel.project import load_project
+from tracking.facemodel import FaceModel
+from tracking.first_pose import (
+    FirstPose,
+    default_first_pose_path,
+    load_first_pose,
+    pose_from_spec,
+    read_pose_spec,
+    spec_focal,
+)
+from tracking.frame_fit import DIVERGED_RMS, FrameFitter, TrackOptions, track_frames
+from tracking.overlay_video import write_overlay_video
+from tracking.plots import track_plots
+from tracking.project_model import project_face_model
+from tracking.results import (
+    continue_results,
+    default_out_dir,
+    frame_record,
+    load_track_results,
+    new_results,
+    record_correction,
+    save_results,
+    state_of,
+)
+from tracking.video import VideoFrames
+
+__all__ = ["SAVE_EVERY", "TrackResult", "track_video"]
+
+#: Results are written after every this many tracked frames (and at the end, on cancel, on Ctrl-C).
+SAVE_EVERY = 5
+
+
+@dataclass
+class TrackResult:
+    """What :func:`track_video` did.
+
+    Attributes
+    ----------
+    out_dir : Path
+    frames : list of dict, every saved frame record (earlier runs' included), in frame order.
+    resumed_from : int, frames already in ``out_dir`` when this run started.
+    tracked : int, frames tracked by this run.
+    complete : bool, the whole video (or its first ``max_frames``) is tracked; ``track.json``'s
+        ``complete`` says whether the whole video is.
+    cancelled : bool, stopped by ``cancel()``.
+    seconds : float, fitting time of this run.
+    files : dict name → Path of the files written.
+    corrected : int or None, the frame this run corrected (re-tracked from the user's pose), if any.
+    """
+
+    out_dir: Path
+    frames: list
+    resumed_from: int
+    tracked: int
+    complete: bool
+    cancelled: bool
+    seconds: float
+    files: dict
+    corrected: int | None = None
+
+    @property
+    def fps(self) -> float:
+        return self.tracked / self.seconds if self.seconds > 0 else 0.0
+
+    @property
+    def diverged(self) -> int:
+        return sum(bool(f["diverged"]) for f in self.frames)
+
+
+def track_video(
+    project_path: str | os.PathLike,
+    video: str | os.PathLike,
+    out_dir: str | os.PathLike | None = None,
+    *,
+    model: FaceModel | None = None,
+    model_source: str | None = None,
+    expressions=None,
+    first_pose: dict | str | os.PathLike | None = None,
+    focal_px: float | None = None,
+    max_frames: int | None = None,
+    options: TrackOptions | None = None,
+    save_every: int = SAVE_EVERY,
+    restart: bool = False,
+    correct_frame: int | None = None,
+    correct_pose: dict | str | os.PathLike | None = None,
+    plots: bool = True,
+    overlay: bool = True,
+    progress: Callable[[int, int | None], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> TrackResult:
+    """Track ``video`` with the face model of the project at ``project_path``; write the results.
+
+    Parameters
+    ----------
+    project_path : the project file (``*.facestudio.json``).
+    video : a video file or a folder of PNG/JPG frames (:class:`tracking.video.VideoFrames`).
+    out_dir : output folder (default ``<project folder>/results/track_<video stem>``); created.
+    model, model_source : the face model and a sentence on its origin (default
+        :func:`tracking.project_model.project_face_model` of the project's ``expressions``, default
+        all, neutral first).
+    first_pose : first-pose JSON path or dict (:func:`tracking.first_pose.load_first_pose`); default
+        :func:`tracking.first_pose.default_first_pose_path`.
+    focal_px : the video camera's focal length in pixels, overriding the first-pose file's.
+    max_frames : track frames 0 .. max_frames − 1 only (a later run may raise it and continue).
+    options : :class:`tracking.frame_fit.TrackOptions`.
+    save_every : write the results after every this many frames.
+    restart : discard results of other settings in ``out_dir`` instead of refusing to continue.
+    correct_frame, correct_pose : the user's correction of a tracked frame N = ``correct_frame``
+        (both or neither): ``correct_pose`` is frame N's pose in the first-pose format (a path or the
+        parsed dict, :func:`tracking.first_pose.load_first_pose`: usually ≥ 6 features clicked in
+        frame N; its focal length, if given, must be the run's). The results in ``out_dir`` (same settings) keep frames
+        0 .. N−1 unchanged; frame N is fitted from that pose in several rounds, like frame 0
+        (:func:`tracking.frame_fit.track_frames`' ``first_rounds``), and recorded with
+        ``start: "user"``; the frames after it are tracked from there as usual. ``track.json`` keeps the list of
+        corrections (``corrections``: frame, source, spec); corrections of frames ≥ N are dropped
+        with those frames. Prediction does not reach back across a corrected frame (frame N + 1
+        starts from frame N alone, like frame 1 from frame 0), so a later rerun continues exactly.
+    plots, overlay : write the plots (at the end of every run, cancelled or not) and the overlay
+        video (only once the video, or its first ``max_frames``, is tracked).
+    progress : ``progress(done, total)`` after each frame (``total`` None if the video does not say).
+    cancel : ``cancel() -> bool`` checked after each frame; True saves and stops.
+
+    Returns
+    -------
+    TrackResult
+
+    Raises
+    ------
+    ProjectError, VideoError, FitError, FaceStudioError naming what is wrong (a correction: no
+    results to correct, the frame out of range or beyond the tracked frames, a malformed pose file);
+    KeyboardInterrupt after saving the frames tracked so far.
+    """
+    _check_request(correct_frame, correct_pose, restart)
+    run = _Run.open(project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames,
+                    options)  # fmt: skip
+    doc = new_results(project_path, run.video, run.model, run.model_source, run.first, run.options, max_frames)
+    _take_earlier_results(run, doc, restart, correct_frame)
+    if correct_frame is not None:
+        correct_frame = _apply_correction(run, doc, correct_frame, correct_pose)
+    start = len(doc["frames"])
+    starts = _fit_starts(run, doc, start)
+    run.out.mkdir(parents=True, exist_ok=True)
+    fitter = FrameFitter(run.model, run.first.focal_px, run.video.width, run.video.height, run.options)
+    ended, cancelled, seconds = _fit_frames(run, doc, fitter, starts, start, save_every, progress, cancel)
+    files = _write_outputs(run, doc, fitter, ended, plots, overlay)
+    records = doc["frames"]
+    return TrackResult(run.out, records, start, len(records) - start, ended, cancelled, seconds, files, correct_frame)
+
+
+def _check_request(correct_frame, correct_pose, restart: bool) -> None:
+    """A correction needs its frame and its pose, and is not a restart."""
+    if (correct_frame is None) != (correct_pose is None):
+        raise FaceStudioError("a correction needs both the frame (--correct) and its pose (--pose)")
+    if correct_frame is not None and restart:
+        raise FaceStudioError("--restart discards the results a correction keeps: restart or correct, not both")
+
+
+@dataclass
+class _Run:
+    """What a run tracks with, read and checked before anything is written (:meth:`open`)."""
+
+    project: object  # photomodel.project.Project
+    video: VideoFrames
+    model: FaceModel
+    model_source: str
+    first: FirstPose
+    options: TrackOptions
+    max_frames: int | None
+    out: Path
+
+    @classmethod
+    def open(cls, project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames,
+             options) -> _Run:  # fmt: skip
+        """The project, the footage, the face model, the first pose and the output folder of
+        :func:`track_video`'s arguments (the same names); raises what they raise."""
+        project = load_project(project_path)
+        frames_in = VideoFrames(video)
+        if model is None:
+            model, model_source = project_face_model(project, expressions)
+        model_source = model_source or "given by the caller"
+        if first_pose is None:
+            first_pose = default_first_pose_path(frames_in.path)
+        fp = load_first_pose(first_pose, project, model, frames_in.width, frames_in.height, focal_px)
+        options = options or TrackOptions()
+        if max_frames is not None and max_frames < 1:
+            raise FaceStudioError(f"the frame limit must be at least 1, got {max_frames}")
+        out = Path(out_dir).absolute() if out_dir is not None else default_out_dir(project_path, video)
+        return cls(project, frames_in, model, model_source, fp, options, max_frames, out)
+
+    @property
+    def json_path(self) -> Path:
+        return self.out / "track.json"
+
+    def pose(self, spec: dict, where: str, frame: int) -> FirstPose:
+        """Frame ``frame``'s pose from a parsed pose JSON (:func:`tracking.first_pose.pose_from_spec`),
+        with the run's camera."""
+        return pose_from_spec(spec, where, self.project, self.model, self.video.width, self.video.height,
+                              self.first.focal_px, frame)  # fmt: skip
+
+
+def _take_earlier_results(run: _Run, doc: dict, restart: bool, correct_frame: int | None) -> None:
+    """The frames and corrections already in the output folder, into ``doc`` (unless ``restart``)."""
+    old = None if restart else load_track_results(run.out)
+    if old is not None:
+        continue_results(doc, old, run.json_path)
+    elif correct_frame is not None:
+        raise FaceStudioError(f"{run.out} holds no tracking results to correct: track the video first")
+
+
+def _check_correct_frame(frame, tracked: int, max_frames: int | None, path: Path) -> int:
+    """``frame`` as the index of a tracked frame a correction may restart from; FaceStudioError otherwise."""
+    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
+        raise FaceStudioError(f"the frame to correct must be a frame index (an integer), got {frame!r}")
+    frame = int(frame)
+    if tracked == 0:
+        raise FaceStudioError(f"{path}: no frames tracked yet, nothing to correct; track the video first")
+    if not 0 <= frame < tracked:
+        raise FaceStudioError(f"frame {frame} is out of range: {path} holds frames 0..{tracked - 1}; correct one of "
+                              f"those (track further first to reach a later frame)")  # fmt: skip
+    if max_frames is not None and frame >= max_frames:
+        raise FaceStudioError(f"frame {frame} is beyond the frame limit {max_frames} (frames 0..{max_frames - 1})")
+    return frame
+
+
+def _apply_correction(run: _Run, doc: dict, frame, pose) -> int:
+    """The user's pose ``pose`` of tracked frame ``frame``, checked and recorded in ``doc`` (the
+    frames from ``frame`` on dropped); returns the frame index."""
+    frame = _check_correct_frame(frame, len(doc["frames"]), run.max_frames, run.json_path)
+    spec, where = read_pose_spec(pose, frame)
+    given = spec_focal(spec, where, run.video.width)
+    focal = run.first.focal_px
+    if given is not None and abs(given - focal) > 1e-9 * focal:
+        raise FitError(f"{where}: focal length {given} px, but the video camera of these results has "
+                       f"{focal} px (one camera per video; leave the focal length out)")  # fmt: skip
+    cp = run.pose(spec, where, frame)
+    record_correction(doc, frame, cp.source, cp.spec)
+    return frame
+
+
+def _fit_starts(run: _Run, doc: dict, start: int) -> dict[int, tuple[str, FirstPose | None]]:
+    """Where fits start from a pose instead of the prediction: frame 0 and the user's corrections,
+    ``{frame: (start kind, pose)}``. The poses of the corrections still ahead (the one just given,
+    or one whose frame an interrupted run did not reach) are solved from their recorded JSON, as
+    when they were given; those behind keep None."""
+    starts: dict[int, tuple[str, FirstPose | None]] = {0: ("first_pose", run.first)}
+    for c in doc["corrections"]:
+        starts[c["frame"]] = ("user", None)
+    for c in doc["corrections"]:
+        if c["frame"] >= start:
+            starts[c["frame"]] = ("user", run.pose(c["spec"], f"{run.json_path}: correction of frame {c['frame']}",
+                                                   c["frame"]))  # fmt: skip
+    return starts
+
+
+def _fit_frames(run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: int, save_every: int,
+                  progress, cancel) -> tuple[bool, bool, float]:  # fmt: skip
+    """Fit frames ``start`` .. (to the end or the frame limit) into ``doc["frames"]``, saving every
+    ``save_every`` frames and on Ctrl-C (re-raised). Returns (ended: the loop ran out of frames,
+    cancelled, seconds of fitting)."""
+    records = doc["frames"]
+    count, limit = run.video.count, run.max_frames
+    total = count if limit is None else (limit if count is None else min(limit, count))
+    # the prediction restored from the last two saved frames, not reaching back across a start
+    anchor = max((f for f in starts if f < start), default=0)
+    states = [state_of(r) for r in records[max(anchor, start - 2) : start]]
+    cancelled, ended, seconds = False, False, 0.0
+    unsaved = 0
+    try:
+        for i, frame in run.video.frames(start, limit):
+            t0 = time.perf_counter()
+            if i in starts:  # fitted from the pose in several rounds (track_frames' first_rounds)
+                kind, pose = starts[i]
+                (res,) = track_frames(fitter, [frame], pose.state)
+                states = []
+            else:
+                kind = "predicted"
+                (res,) = track_frames(fitter, [frame], run.first.state, previous=states)
+            dt = time.perf_counter() - t0
+            seconds += dt
+            records.append(frame_record(i, res, run.model, dt, kind))
+            states = (states + [res.state])[-2:]
+            unsaved += 1
+            if unsaved >= save_every:
+                save_results(run.out, doc, False)
+                unsaved = 0
+            if progress is not None:
+                progress(i + 1, total)
+            if cancel is not None and cancel():
+                cancelled = True
+                break
+        else:
+            ended = True
+    except KeyboardInterrupt:
+        save_results(run.out, doc, False)
+        raise
+    return ended, cancelled, seconds
+
+
+def _write_outputs(run: _Run, doc: dict, fitter: FrameFitter, ended: bool, plots: bool,
+                   overlay: bool) -> dict[str, Path]:  # fmt: skip
+    """The final ``track.json``/``track.csv`` (``complete`` when the whole video is tracked), the
+    plots, and the overlay video once the loop ``ended``; returns {name: path} of the files written."""
+    records = doc["frames"]
+    # a finished loop stopped at the frame limit or at the end of the video
+    n, count, limit = len(records), run.video.count, run.max_frames
+    whole = ended and (limit is None or n < limit or (count is not None and n >= count))
+    if whole:
+        doc["video"]["frames"] = n
+    files = save_results(run.out, doc, whole)
+    if plots and records:
+        regions = doc["model"]["regions_with_parameters"]
+        for name, img in track_plots(records, regions, list(run.model.names), DIVERGED_RMS).items():
+            files[name.removesuffix(".png")] = atomic_write_bytes(run.out / name, encode_png(img))
+    if overlay and ended and records:
+        last = write_overlay_video(run.out / "overlay.mp4", run.video, fitter, records)
+        files["overlay"] = run.out / "overlay.mp4"
+        if last is not None:
+            files["overlay_last"] = atomic_write_bytes(run.out / "overlay_last.png", encode_png(last))
+    return files

@@ -1,0 +1,128 @@
+"""Reading the footage to track: a video file or a folder of frame images, as RGB in [0, 1].
+
+* **A video file**: anything OpenCV's :class:`cv2.VideoCapture` decodes; its frame count and frame
+  rate are read from the container when it says (:data:`DEFAULT_FPS` otherwise).
+* **A frame folder**: PNG/JPG images (:data:`IMAGE_SUFFIXES`) in natural name order (``f2.png``
+  before ``f10.png``), all of the first one's size.
+
+Errors are :class:`VideoError` naming the file.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from photomodel.errors import FaceStudioError
+
+__all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "VideoError", "VideoFrames"]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+#: Frame rate of a frame folder, or of a video file whose container gives none.
+DEFAULT_FPS = 10.0
+
+
+class VideoError(FaceStudioError):
+    """The video (file or frame folder) is missing, unreadable or inconsistent."""
+
+
+def _natural_key(path: Path):
+    return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", path.name)]
+
+
+class VideoFrames:
+    """Frames of a video file or of a folder of images, as (H, W, 3) float32 RGB in [0, 1].
+
+    Parameters
+    ----------
+    path : a video file (anything :class:`cv2.VideoCapture` decodes) or a folder of PNG/JPG frames.
+
+    Attributes
+    ----------
+    path : Path (absolute); is_folder : bool; files : list of Path (a folder's frames, in order);
+    count : int or None, the number of frames (None when the container does not say);
+    fps : float; width, height : int, the first frame's size.
+
+    Raises
+    ------
+    VideoError naming the path when it is missing, not decodable, empty, or (folders) holds a frame
+    that is unreadable or of another size than the first.
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path).absolute()
+        if not self.path.exists():
+            raise VideoError(f"the video {self.path} does not exist")
+        self.is_folder = self.path.is_dir()
+        self.fps = DEFAULT_FPS
+        if self.is_folder:
+            self.files = sorted((p for p in self.path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES),
+                                key=_natural_key)  # fmt: skip
+            if not self.files:
+                raise VideoError(f"the frame folder {self.path} holds no PNG or JPG images")
+            self.count: int | None = len(self.files)
+            first = self._read_image(self.files[0])
+        else:
+            self.files = []
+            cap = self._open()
+            try:
+                ok, bgr = cap.read()
+                if not ok or bgr is None:
+                    raise VideoError(f"the video {self.path} has no frame OpenCV can decode (empty or corrupt)")
+                n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+                self.count = n if n > 0 else None  # containers may not say
+                fps = float(cap.get(cv2.CAP_PROP_FPS))
+                self.fps = fps if math.isfinite(fps) and fps > 0 else DEFAULT_FPS
+            finally:
+                cap.release()
+            first = bgr
+        self.height, self.width = first.shape[:2]
+
+    def _open(self):
+        cap = cv2.VideoCapture(str(self.path))
+        if not cap.isOpened():
+            cap.release()
+            raise VideoError(f"the video {self.path} cannot be opened by OpenCV (corrupt or unknown format); "
+                             f"a folder of PNG/JPG frames works too")  # fmt: skip
+        return cap
+
+    def _read_image(self, path: Path) -> np.ndarray:
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if img is None:
+            raise VideoError(f"the frame {path} is not an image OpenCV can read (corrupt or unknown format)")
+        return img
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
+        """Yield ``(index, frame)`` for frames ``start`` .. ``stop − 1`` (to the end if None)."""
+        if self.is_folder:
+            for i in range(start, len(self.files) if stop is None else min(stop, len(self.files))):
+                bgr = self._read_image(self.files[i])
+                if bgr.shape[:2] != (self.height, self.width):
+                    raise VideoError(f"the frame {self.files[i]} is {bgr.shape[1]}x{bgr.shape[0]}, but the first "
+                                     f"frame is {self.width}x{self.height}")  # fmt: skip
+                yield i, _to_rgb(bgr)
+            return
+        cap = self._open()
+        try:
+            for _ in range(start):  # decoding from the start is the reliable way to reach a frame
+                if not cap.grab():
+                    return
+            i = start
+            while stop is None or i < stop:
+                ok, bgr = cap.read()
+                if not ok or bgr is None:
+                    return
+                yield i, _to_rgb(bgr)
+                i += 1
+        finally:
+            cap.release()
+
+
+def _to_rgb(bgr: np.ndarray) -> np.ndarray:
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
