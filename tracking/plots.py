@@ -2,7 +2,7 @@
 
 The paper shows, for each tracked sequence, the expression weights of each region, the head's
 rotation and translation, and the fitting error over the frames. :func:`track_plots` draws the
-same from tracking records (:mod:`tracking.batch`):
+same from tracking records (:mod:`tracking.results`):
 
 * ``weights.png`` — one panel per control region with parameters, one curve per basic expression
   (the neutral one included: in each region the weights sum to 1);
@@ -73,57 +73,86 @@ def line_panel(x: np.ndarray, series: list[tuple[str, np.ndarray]], *, title: st
     (height, width, 3) uint8 RGB
     """
     W, H = size
-    ml, mr, mt, mb = MARGINS
     img = np.full((H, W, 3), 255, np.uint8)
     x = np.asarray(x, float)
     ys = [np.asarray(v, float) for _, v in series]
-    finite = np.concatenate([v[np.isfinite(v)] for v in ys] + [np.zeros(0)])
-    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
-    if ylim is not None:
-        lo, hi = min(lo, ylim[0]), max(hi, ylim[1])
+    axes = _Axes(x, ys, ylim, hline, size)
+    axes.draw_frame(img, title, ylabel, xlabel)
     if hline is not None:
-        lo, hi = min(lo, hline), max(hi, hline)
-    yt = nice_ticks(lo, hi)
-    y0, y1 = float(yt[0]), float(yt[-1])
-    x0, x1 = (float(x.min()), float(x.max())) if x.size else (0.0, 1.0)
-    if x1 - x0 < 1e-9:
-        x0, x1 = x0 - 0.5, x1 + 0.5
-    xt = nice_ticks(x0, x1, 8)
-    xt = xt[(xt >= x0 - 1e-9) & (xt <= x1 + 1e-9)]
-    pw, ph = W - ml - mr, H - mt - mb
+        axes.draw_threshold(img, hline)
+    for k, ((label, _), y) in enumerate(zip(series, ys, strict=True)):
+        axes.draw_curve(img, k, label, x, y)
+    if marks is not None and ys:
+        u, v = axes.px(x, ys[0])
+        for i in np.flatnonzero(np.asarray(marks, bool) & np.isfinite(v)):
+            cv2.circle(img, (int(round(u[i])), int(round(v[i]))), 4, (220, 0, 0), -1, cv2.LINE_AA)
+    return img
 
-    def px(xv, yv):
-        u = ml + (np.asarray(xv, float) - x0) / (x1 - x0) * pw
-        v = mt + (y1 - np.asarray(yv, float)) / (y1 - y0) * ph
+
+class _Axes:
+    """The plot area of a :func:`line_panel`: data ranges, ticks and the data → pixel mapping."""
+
+    def __init__(self, x: np.ndarray, ys: list[np.ndarray], ylim, hline, size: tuple):
+        self.W, self.H = size
+        self.ml, mr, self.mt, mb = MARGINS
+        finite = np.concatenate([v[np.isfinite(v)] for v in ys] + [np.zeros(0)])
+        lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        if ylim is not None:
+            lo, hi = min(lo, ylim[0]), max(hi, ylim[1])
+        if hline is not None:
+            lo, hi = min(lo, hline), max(hi, hline)
+        self.yt = nice_ticks(lo, hi)
+        self.y0, self.y1 = float(self.yt[0]), float(self.yt[-1])
+        x0, x1 = (float(x.min()), float(x.max())) if x.size else (0.0, 1.0)
+        if x1 - x0 < 1e-9:
+            x0, x1 = x0 - 0.5, x1 + 0.5
+        self.x0, self.x1 = x0, x1
+        xt = nice_ticks(x0, x1, 8)
+        self.xt = xt[(xt >= x0 - 1e-9) & (xt <= x1 + 1e-9)]
+        self.pw, self.ph = self.W - self.ml - mr, self.H - self.mt - mb
+
+    def px(self, xv, yv):
+        """Pixel (u, v) of data (x, y)."""
+        u = self.ml + (np.asarray(xv, float) - self.x0) / (self.x1 - self.x0) * self.pw
+        v = self.mt + (self.y1 - np.asarray(yv, float)) / (self.y1 - self.y0) * self.ph
         return u, v
 
-    grey, black = (225, 225, 225), (0, 0, 0)
-    for t in yt:
-        _, v = px(x0, t)
-        cv2.line(img, (ml, int(round(v))), (ml + pw, int(round(v))), grey, 1)
-        label = _fmt(t, float(yt[1] - yt[0]) if len(yt) > 1 else 1.0)
-        (tw, th), _ = cv2.getTextSize(label, FONT, 0.4, 1)
-        cv2.putText(img, label, (ml - tw - 6, int(round(v)) + th // 2), FONT, 0.4, black, 1, cv2.LINE_AA)
-    for t in xt:
-        u, _ = px(t, y0)
-        cv2.line(img, (int(round(u)), mt), (int(round(u)), mt + ph), grey, 1)
-        label = _fmt(t, float(xt[1] - xt[0]) if len(xt) > 1 else 1.0)
-        (tw, th), _ = cv2.getTextSize(label, FONT, 0.4, 1)
-        cv2.putText(img, label, (int(round(u)) - tw // 2, mt + ph + th + 6), FONT, 0.4, black, 1, cv2.LINE_AA)
-    cv2.rectangle(img, (ml, mt), (ml + pw, mt + ph), black, 1)
-    cv2.putText(img, title, (ml, mt - 10), FONT, 0.5, black, 1, cv2.LINE_AA)
-    if ylabel:  # above the tick labels, left of the title
-        cv2.putText(img, ylabel, (6, mt - 10), FONT, 0.4, (90, 90, 90), 1, cv2.LINE_AA)
-    (tw, _), _ = cv2.getTextSize(xlabel, FONT, 0.4, 1)
-    cv2.putText(img, xlabel, (ml + pw - tw, H - 6), FONT, 0.4, (90, 90, 90), 1, cv2.LINE_AA)
-    if hline is not None:
-        _, v = px(x0, hline)
+    def draw_frame(self, img: np.ndarray, title: str, ylabel: str, xlabel: str) -> None:
+        """Grid lines with their tick labels, the box, the title and the axis labels."""
+        ml, mt, pw, ph, yt, xt = self.ml, self.mt, self.pw, self.ph, self.yt, self.xt
+        grey, black = (225, 225, 225), (0, 0, 0)
+        for t in yt:
+            _, v = self.px(self.x0, t)
+            cv2.line(img, (ml, int(round(v))), (ml + pw, int(round(v))), grey, 1)
+            label = _fmt(t, float(yt[1] - yt[0]) if len(yt) > 1 else 1.0)
+            (tw, th), _ = cv2.getTextSize(label, FONT, 0.4, 1)
+            cv2.putText(img, label, (ml - tw - 6, int(round(v)) + th // 2), FONT, 0.4, black, 1, cv2.LINE_AA)
+        for t in xt:
+            u, _ = self.px(t, self.y0)
+            cv2.line(img, (int(round(u)), mt), (int(round(u)), mt + ph), grey, 1)
+            label = _fmt(t, float(xt[1] - xt[0]) if len(xt) > 1 else 1.0)
+            (tw, th), _ = cv2.getTextSize(label, FONT, 0.4, 1)
+            cv2.putText(img, label, (int(round(u)) - tw // 2, mt + ph + th + 6), FONT, 0.4, black, 1, cv2.LINE_AA)
+        cv2.rectangle(img, (ml, mt), (ml + pw, mt + ph), black, 1)
+        cv2.putText(img, title, (ml, mt - 10), FONT, 0.5, black, 1, cv2.LINE_AA)
+        if ylabel:  # above the tick labels, left of the title
+            cv2.putText(img, ylabel, (6, mt - 10), FONT, 0.4, (90, 90, 90), 1, cv2.LINE_AA)
+        (tw, _), _ = cv2.getTextSize(xlabel, FONT, 0.4, 1)
+        cv2.putText(img, xlabel, (ml + pw - tw, self.H - 6), FONT, 0.4, (90, 90, 90), 1, cv2.LINE_AA)
+
+    def draw_threshold(self, img: np.ndarray, hline: float) -> None:
+        """A dashed horizontal line at ``hline``, labelled in the legend column."""
+        ml, pw = self.ml, self.pw
+        _, v = self.px(self.x0, hline)
         for s in range(ml, ml + pw, 12):
             cv2.line(img, (s, int(round(v))), (min(s + 6, ml + pw), int(round(v))), (120, 120, 120), 1, cv2.LINE_AA)
         cv2.putText(img, "threshold", (ml + pw + 12, int(round(v)) + 4), FONT, 0.4, (120, 120, 120), 1, cv2.LINE_AA)
-    for k, ((label, _), y) in enumerate(zip(series, ys, strict=True)):
+
+    def draw_curve(self, img: np.ndarray, k: int, label: str, x: np.ndarray, y: np.ndarray) -> None:
+        """Curve ``k`` (colour ``COLORS[k]``) and its legend entry."""
+        ml, mt, pw = self.ml, self.mt, self.pw
         color = COLORS[k % len(COLORS)]
-        u, v = px(x, y)
+        u, v = self.px(x, y)
         ok = np.isfinite(v)
         pts = np.column_stack([u, v])
         # polylines over each run of finite values (NaN: gap); lone points as dots
@@ -136,12 +165,7 @@ def line_panel(x: np.ndarray, series: list[tuple[str, np.ndarray]], *, title: st
                 cv2.polylines(img, [np.round(seg * 16).astype(np.int32)], False, color, 2, cv2.LINE_AA, shift=4)
         ly = mt + 14 + 18 * k
         cv2.line(img, (ml + pw + 12, ly - 4), (ml + pw + 34, ly - 4), color, 2, cv2.LINE_AA)
-        cv2.putText(img, label, (ml + pw + 40, ly), FONT, 0.42, black, 1, cv2.LINE_AA)
-    if marks is not None and ys:
-        u, v = px(x, ys[0])
-        for i in np.flatnonzero(np.asarray(marks, bool) & np.isfinite(v)):
-            cv2.circle(img, (int(round(u[i])), int(round(v[i]))), 4, (220, 0, 0), -1, cv2.LINE_AA)
-    return img
+        cv2.putText(img, label, (ml + pw + 40, ly), FONT, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
 
 
 def stack_panels(panels: list[np.ndarray]) -> np.ndarray:
@@ -155,7 +179,7 @@ def track_plots(frames: list[dict], regions: list[str], expressions: list[str],
 
     Parameters
     ----------
-    frames : list of per-frame records (:mod:`tracking.batch` format: ``frame``, ``weights``
+    frames : list of per-frame records (:func:`tracking.results.frame_record`: ``frame``, ``weights``
         {region: {expression: w}}, ``head_rotation_deg`` (3,), ``centre_mm`` (3,), ``rms``, ``diverged``).
     regions : control regions to plot (those with expression parameters).
     expressions : basic expression names, neutral first.
