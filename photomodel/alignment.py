@@ -11,12 +11,24 @@ import numpy as np
 from photomodel.camera import Camera, rotation_angle_deg
 
 
-def similarity_transform(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Least-squares similarity ``dst ≈ s R src + t`` (Umeyama 1991).
+def similarity_transform(
+    src: np.ndarray, dst: np.ndarray, weights: np.ndarray | None = None, *, scale: bool = True
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """Least-squares similarity ``dst ≈ s R src + t`` (Umeyama 1991), optionally weighted.
+
+    Minimises ``Σ_i w_i |dst_i − (s R src_i + t)|²`` over rotations ``R`` (det +1), ``t`` and, when
+    ``scale``, ``s``: with ``w``-weighted means ``μ``, deviations ``a = src − μ_src``,
+    ``b = dst − μ_dst``, covariance ``Σ = Σ_i w_i b_i a_iᵀ / Σ w = U S Vᵀ`` and ``D = diag(1, 1,
+    ±1)`` (−1 when ``det U det V < 0``, a reflection otherwise): ``R = U D Vᵀ``,
+    ``s = tr(S D) / (Σ_i w_i |a_i|² / Σ w)``, ``t = μ_dst − s R μ_src``.
 
     Parameters
     ----------
-    src, dst : (n, 3) float, corresponding points (n ≥ 3, not collinear).
+    src, dst : (n, 3) float, corresponding points (n ≥ 3 with non-zero weight, not collinear).
+    weights : (n,) float ≥ 0, optional
+        each pair's weight (default: all equal, the plain Umeyama).
+    scale : bool
+        estimate ``s``; ``False`` keeps ``s = 1`` (a rigid motion, weighted Kabsch).
 
     Returns
     -------
@@ -24,14 +36,25 @@ def similarity_transform(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.nd
     """
     src = np.asarray(src, float)
     dst = np.asarray(dst, float)
-    mu_s, mu_d = src.mean(0), dst.mean(0)
-    a, b = src - mu_s, dst - mu_d
-    U, S, Vt = np.linalg.svd(b.T @ a / len(src))
+    if weights is None:
+        mu_s, mu_d = src.mean(0), dst.mean(0)
+        a, b = src - mu_s, dst - mu_d
+        cov = b.T @ a / len(src)
+    else:
+        w = np.asarray(weights, float)
+        w = w / w.sum()
+        mu_s, mu_d = w @ src, w @ dst
+        a, b = src - mu_s, dst - mu_d
+        cov = (b * w[:, None]).T @ a
+    U, S, Vt = np.linalg.svd(cov)
     D = np.eye(3)
     if np.linalg.det(U) * np.linalg.det(Vt) < 0:
         D[2, 2] = -1.0
     R = U @ D @ Vt
-    s = float(np.trace(np.diag(S) @ D) / ((a**2).sum() / len(src)))
+    if not scale:
+        return 1.0, R, mu_d - R @ mu_s
+    var = (a**2).sum() / len(src) if weights is None else w @ (a**2).sum(1)
+    s = float(np.trace(np.diag(S) @ D) / var)
     return s, R, mu_d - s * R @ mu_s
 
 

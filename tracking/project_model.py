@@ -168,11 +168,11 @@ def register_expression(E: np.ndarray, E1: np.ndarray, weight: np.ndarray, *, sc
     # plain least-squares motion of every weighted vertex (a head that moved, another gauge);
     # iteratively re-weighted from each, the lower robust cost wins
     best = None
-    for start in ((1.0, np.eye(3), np.zeros(3)), _weighted_similarity(E, E1, w0, scale)):
+    for start in ((1.0, np.eye(3), np.zeros(3)), similarity_transform(E, E1, w0, scale=scale)):
         motion = start
         for _ in range(iterations):
             w, _ = robust(*motion)
-            motion = _weighted_similarity(E, E1, w, scale)
+            motion = similarity_transform(E, E1, w, scale=scale)
         cost = robust(*motion)[1]
         if best is None or cost < best[0]:
             best = (cost, motion)
@@ -184,23 +184,6 @@ def register_expression(E: np.ndarray, E1: np.ndarray, weight: np.ndarray, *, sc
               "agreeing": float(sel.sum() / np.count_nonzero(w0 > 0)), "scale": float(s),
               "rotation_deg": float(rotation_angle_deg(R, np.eye(3))), "translation_mm": float(np.linalg.norm(t))}
     return moved, report
-
-
-def _weighted_similarity(src, dst, w, scale: bool):
-    """Weighted Umeyama: ``dst ≈ s R src + t`` (s = 1 unless ``scale``)."""
-    if not scale:
-        w = w / w.sum()
-        mu_s, mu_d = w @ src, w @ dst
-        a, b = src - mu_s, dst - mu_d
-        U, _, Vt = np.linalg.svd((b * w[:, None]).T @ a)
-        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0])
-        R = U @ D @ Vt
-        return 1.0, R, mu_d - R @ mu_s
-    # similarity: Umeyama on the weighted points (weights as repetition counts)
-    sw = np.sqrt(w / w.sum() * len(w))
-    mu_s, mu_d = (w @ src) / w.sum(), (w @ dst) / w.sum()
-    s, R, _ = similarity_transform((src - mu_s) * sw[:, None] + mu_s, (dst - mu_d) * sw[:, None] + mu_d)
-    return s, R, mu_d - s * R @ mu_s
 
 
 def face_model_from_project(project, names: Sequence[str] | None = None, *, texture_size: int = MODEL_TEXTURE_SIZE,
