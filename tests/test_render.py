@@ -76,6 +76,18 @@ def ray_plane_points(camera: Camera, uv: np.ndarray, point, normal) -> np.ndarra
 BIG_TRIANGLE = np.array([[-90.0, -70.0, 10.0], [110.0, -40.0, -30.0], [-20.0, 100.0, 25.0]])
 
 
+def bumpy_mesh(n: int = 21, half: float = 80.0):
+    """A height field ``2 half`` mm wide: ``n × n`` vertices, many small triangles, self-occlusion from the side."""
+    g = np.linspace(-half, half, n)
+    X, Y = np.meshgrid(g, g)
+    Z = 25.0 * np.sin(X / 23.0) * np.cos(Y / 31.0)
+    V = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    i = np.arange(n - 1)
+    a = (i[:, None] * n + i[None, :]).ravel()
+    F = np.concatenate([np.column_stack([a, a + 1, a + n + 1]), np.column_stack([a, a + n + 1, a + n])])
+    return V, F
+
+
 # ----------------------------------------------------------------------------- geometry
 
 
@@ -108,14 +120,7 @@ def test_interpolated_world_position_projects_to_its_pixel(renderer, name):
     colour targets are float and unclamped (positions are ±100 mm).
     """
     cam = CAMERAS[name]
-    # a bumpy height field, 160 mm wide: many small triangles, self-occlusion from the side
-    g = np.linspace(-80.0, 80.0, 21)
-    X, Y = np.meshgrid(g, g)
-    Z = 25.0 * np.sin(X / 23.0) * np.cos(Y / 31.0)
-    V = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
-    i = np.arange(20)
-    a = (i[:, None] * 21 + i[None, :]).ravel()
-    F = np.concatenate([np.column_stack([a, a + 1, a + 22]), np.column_stack([a, a + 22, a + 21])])
+    V, F = bumpy_mesh()  # 160 mm wide: many small triangles, self-occlusion from the side
 
     res = renderer.render(cam, V, F, colors=V)
     assert res.color.dtype == np.float32 and res.color.shape == (cam.height, cam.width, 3)
@@ -444,18 +449,6 @@ def test_james_scan_front_view_is_upright_and_not_mirrored(renderer):
 
 
 # ----------------------------------------------------------------------------- barycentric rasterisation
-
-
-def bumpy_mesh(n: int = 21, half: float = 80.0):
-    """A height field ``half`` mm wide each way: many small triangles, self-occlusion from the side."""
-    g = np.linspace(-half, half, n)
-    X, Y = np.meshgrid(g, g)
-    Z = 25.0 * np.sin(X / 23.0) * np.cos(Y / 31.0)
-    V = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
-    i = np.arange(n - 1)
-    a = (i[:, None] * n + i[None, :]).ravel()
-    F = np.concatenate([np.column_stack([a, a + 1, a + n + 1]), np.column_stack([a, a + n + 1, a + n])])
-    return V, F
 
 
 @pytest.mark.parametrize("name", CAMERAS)

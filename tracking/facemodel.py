@@ -47,7 +47,7 @@ import numpy as np
 import scipy.sparse as sparse
 
 from photomodel.camera import Camera
-from photomodel.rendering.barycentric import interpolate
+from photomodel.rendering.barycentric import BarycentricRaster
 from photomodel.rendering.sampling import sample_texture
 
 __all__ = [
@@ -355,30 +355,32 @@ class ModelRender:
         ``Î`` where the model covers the pixel; ``background`` (the target frame, when given)
         elsewhere.
     mask : (H, W) bool, covered pixels.
-    pixels : (N,) int, flat indices of the covered pixels (row-major order).
-    corners : (N, 3) int, vertex of each corner of the triangle under each covered pixel.
-    bary : (N, 3) float32, perspective-correct barycentric coordinates at the pixel centres.
+    raster : BarycentricRaster
+        what the renderer's barycentric pass saw; its fields are also this object's:
+        ``pixels`` (N,) flat indices of the covered pixels (row-major order), ``corners`` (N, 3)
+        the vertex at each corner of the triangle under each covered pixel, ``bary`` (N, 3)
+        float32 perspective-correct barycentric coordinates at the pixel centres, ``box``
+        (y0, y1, x0, x1) the image rows/columns holding the projected model (clipped to the
+        image; every covered pixel lies inside).
     X_cam : (N, 3) float, camera-space point (mm) under each covered pixel.
     texture_colors : list of (N, 3) float32, each distinct texture sampled at the pixels
         (``model.texture_groups()`` order).
-    box : (y0, y1, x0, x1) int, the image rows/columns holding the projected model (clipped to
-        the image); every covered pixel lies inside.
     """
 
     image: np.ndarray
     mask: np.ndarray
-    pixels: np.ndarray
-    corners: np.ndarray
-    bary: np.ndarray
+    raster: BarycentricRaster
     X_cam: np.ndarray
     texture_colors: list
-    box: tuple = (0, 0, 0, 0)
+
+    pixels = property(lambda self: self.raster.pixels)
+    corners = property(lambda self: self.raster.corners)
+    bary = property(lambda self: self.raster.bary)
+    box = property(lambda self: self.raster.box)
 
     def interpolate(self, values: np.ndarray) -> np.ndarray:
         """(N, ...) per-pixel interpolation of per-vertex ``values`` (n, ...)."""
-        values = np.asarray(values)
-        flat = interpolate(values.reshape(len(values), -1), self.corners, self.bary)
-        return flat.reshape((len(self.bary),) + values.shape[1:])
+        return self.raster.interpolate(values)
 
 
 def render_model(
@@ -425,4 +427,4 @@ def render_model(
         out += Wpix[:, g : g + 1] * colors[g]
     image = np.zeros((H, W, 3), np.float32) if background is None else np.array(background, np.float32, copy=True)
     image.reshape(-1, 3)[raster.pixels] = out
-    return ModelRender(image, raster.mask, raster.pixels, raster.corners, raster.bary, X_cam, colors, raster.box)
+    return ModelRender(image, raster.mask, raster, X_cam, colors)

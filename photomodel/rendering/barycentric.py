@@ -18,7 +18,6 @@ barycentric basis and its id, so the mesh need not be unwelded. The target is on
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,10 +55,6 @@ flat in float g_face;
 out vec4 out_bary;
 void main() { out_bary = vec4(g_bary, g_face, 0.0); }
 """
-
-#: Framebuffers of this many distinct image sizes are kept alive (least recently used first out).
-_MAX_CACHED_SIZES = 4
-
 
 @dataclass
 class BarycentricRaster:
@@ -165,7 +160,8 @@ class BarycentricPass:
     """The GL side of barycentric rasterisation in one renderer's context, with buffers kept
     between calls: the index buffer is uploaded when the triangle list changes, the vertex
     buffer is rewritten per call (8k vertices, ~0.1 ms), and only the bounding box is cleared
-    and read. Made and called by the renderer inside its context."""
+    and read. Made and called by the renderer inside its context, into a framebuffer of its
+    cache."""
 
     def __init__(self, ctx, program):
         self.ctx = ctx
@@ -173,7 +169,6 @@ class BarycentricPass:
         self._faces: np.ndarray | None = None
         self._n = -1
         self.vbo = self.ibo = self.vao = None
-        self._fbos: OrderedDict[tuple[int, int], tuple] = OrderedDict()
 
     def _buffers(self, n: int, faces: np.ndarray) -> None:
         if self._n == n and self._faces is not None and np.array_equal(self._faces, faces):
@@ -187,30 +182,17 @@ class BarycentricPass:
                                          index_element_size=4)  # fmt: skip
         self._faces, self._n = np.array(faces, copy=True), n
 
-    def _framebuffer(self, size: tuple[int, int]):
-        if size in self._fbos:
-            self._fbos.move_to_end(size)
-            return self._fbos[size][0]
-        color = self.ctx.renderbuffer(size, components=4, dtype="f4")
-        depth = self.ctx.depth_renderbuffer(size)
-        self._fbos[size] = (self.ctx.framebuffer([color], depth), color, depth)
-        while len(self._fbos) > _MAX_CACHED_SIZES:
-            _, old = self._fbos.popitem(last=False)
-            for obj in old:
-                obj.release()
-        return self._fbos[size][0]
-
-    def draw(self, proj: np.ndarray, Xc: np.ndarray, faces: np.ndarray, size: tuple[int, int], box: tuple):
+    def draw(self, fbo, proj: np.ndarray, Xc: np.ndarray, faces: np.ndarray, box: tuple):
         """Rasterise camera-space vertices ``Xc`` (n, 3) mm with the GL projection ``proj`` (4, 4)
-        into a ``size`` = (W, H) frame; returns the (h, w, 4) float32 read-back of ``box``."""
+        into ``fbo`` (one RGBA32F colour attachment and a depth buffer, the frame's size); returns
+        the (h, w, 4) float32 read-back of ``box``."""
         import moderngl
 
         y0, y1, x0, x1 = box
         out = np.empty((y1 - y0, x1 - x0, 4), np.float32)
         self._buffers(len(Xc), faces)
-        fbo = self._framebuffer(size)
         fbo.use()
-        fbo.viewport = (0, 0, *size)
+        fbo.viewport = (0, 0, *fbo.size)
         self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
         self.ctx.enable(moderngl.DEPTH_TEST)
         view = (x0, y0, x1 - x0, y1 - y0)  # framebuffer row i is image row i (gl_projection)
@@ -222,13 +204,9 @@ class BarycentricPass:
         return out
 
     def release(self) -> None:
-        """Free the buffers and framebuffers (the program belongs to the renderer's cache)."""
+        """Free the buffers (the program and the framebuffers belong to the renderer's caches)."""
         for obj in (self.vao, self.vbo, self.ibo):
             if obj is not None:
                 obj.release()
         self.vbo = self.ibo = self.vao = None
         self._faces, self._n = None, -1
-        for objs in self._fbos.values():
-            for obj in objs:
-                obj.release()
-        self._fbos.clear()

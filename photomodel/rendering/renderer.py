@@ -86,8 +86,9 @@ __all__ = [
     "vertex_normals",
 ]
 
-#: Framebuffers of this many distinct image sizes are kept alive (least recently used first out).
-_MAX_CACHED_SIZES = 4
+#: Framebuffers of this many (kind, image size) pairs are kept alive (least recently used first
+#: out): four sizes of both the render and the barycentric target.
+_MAX_CACHED_TARGETS = 8
 #: Ambient term of the head-light Lambert shading: a face seen edge-on is not black.
 _AMBIENT = 0.15
 #: Albedo of an untextured, uncoloured mesh under ``shading``.
@@ -322,7 +323,7 @@ class Renderer:
             self._prog["ambient"].value = _AMBIENT
             self._prog["albedo"].value = _ALBEDO
             self.max_size = int(self.ctx.info["GL_MAX_RENDERBUFFER_SIZE"])
-        self._fbos: OrderedDict[tuple[int, int], tuple] = OrderedDict()
+        self._fbos: OrderedDict[tuple[str, int, int], tuple] = OrderedDict()
         self._programs: dict[tuple[str, str, str | None], object] = {}
         self._barycentric: barycentric.BarycentricPass | None = None
         self._release_queue: list = []
@@ -338,21 +339,26 @@ class Renderer:
                 "in this thread instead of sharing a Renderer between threads"
             )
 
-    def _framebuffer(self, width: int, height: int):
-        key = (width, height)
+    def _framebuffer(self, kind: str, size: tuple[int, int]):
+        """The framebuffer of ``kind`` (``"render"``: colour, ``Z_cam``, face id; ``"barycentric"``:
+        :mod:`photomodel.rendering.barycentric`'s target) and ``size`` = (W, H), made on first use;
+        the :data:`_MAX_CACHED_TARGETS` most recently used are kept."""
+        key = (kind, *size)
         if key in self._fbos:
             self._fbos.move_to_end(key)
             return self._fbos[key][0]
-        size = (width, height)
-        attachments = (
-            self.ctx.renderbuffer(size, components=4, dtype="f4"),  # colour
-            self.ctx.renderbuffer(size, components=1, dtype="f4"),  # Z_cam
-            self.ctx.renderbuffer(size, components=1, dtype="i4"),  # face index + 1
-        )
+        if kind == "render":
+            attachments = [
+                self.ctx.renderbuffer(size, components=4, dtype="f4"),  # colour
+                self.ctx.renderbuffer(size, components=1, dtype="f4"),  # Z_cam
+                self.ctx.renderbuffer(size, components=1, dtype="i4"),  # face index + 1
+            ]
+        else:
+            attachments = [self.ctx.renderbuffer(size, components=4, dtype="f4")]  # (b1, b2, id + 1, 0)
         depth = self.ctx.depth_renderbuffer(size)
-        fbo = self.ctx.framebuffer(list(attachments), depth)
+        fbo = self.ctx.framebuffer(attachments, depth)
         self._fbos[key] = (fbo, *attachments, depth)
-        while len(self._fbos) > _MAX_CACHED_SIZES:
+        while len(self._fbos) > _MAX_CACHED_TARGETS:
             _, old = self._fbos.popitem(last=False)
             for obj in old:
                 obj.release()
@@ -517,7 +523,7 @@ class Renderer:
         normals = vertex_normals(V, F) @ camera.R.T if shading == "lambert" and len(F) else np.zeros((len(V), 3))
         frame = camera if ss == 1 else Camera(camera.R, camera.t, camera.f * ss, camera.width * ss, camera.height * ss)
         with self.ctx:
-            fbo = self._framebuffer(frame.width, frame.height)
+            fbo = self._framebuffer("render", (frame.width, frame.height))
             self._set_state(fbo, gl_projection(frame, near, far), channels.mode, shading, cull_backfaces)
             color, depth, face = self._draw(fbo, Xc, F, normals, channels)
         return _resolve(color, depth, face, bg, ss, near, far)
@@ -557,7 +563,8 @@ class Renderer:
             self._barycentric = barycentric.BarycentricPass(self.ctx, prog)
         proj = gl_projection(camera, *planes)
         with self.ctx:
-            raw = self._barycentric.draw(proj, Xc, F, (camera.width, camera.height), box)
+            fbo = self._framebuffer("barycentric", (camera.width, camera.height))
+            raw = self._barycentric.draw(fbo, proj, Xc, F, box)
         return barycentric.unpack(raw, box, shape, F)
 
     def _check_frame(self, camera: Camera, supersample: int) -> int:
