@@ -340,26 +340,8 @@ class ViewDependentGL:
             raise ValueError(f"photos of {Wm}×{Hm} px exceed the GL texture size limit")
         self.array_size = (Wm, Hm)
 
-        stack = np.zeros((k, Hm, Wm, 3), np.uint8)
-        geo = np.zeros((k, Hm, Wm, 2), np.float32)
-        geo[..., 0] = far_sentinel_mm
-        for i, (cam, ph, d, fm) in enumerate(zip(cameras, photos, depths, feather_maps, strict=True)):
-            h, w = cam.height, cam.width
-            stack[i, :h, :w] = ph
-            geo[i, :h, :w, 0] = np.where(np.isfinite(d), d, np.float32(far_sentinel_mm))
-            geo[i, :h, :w, 1] = fm
-
-        # per-photograph uniforms: X_k = R (X - c) + (R c + t), composed in float64
-        self._cam_uniforms = [
-            {
-                "R": np.ascontiguousarray(c.R.T, np.float32).tobytes(),  # GL matrices are column-major
-                "t": tuple(float(x) for x in c.R @ self.centre + c.t),
-                "c": tuple(float(x) for x in c.center - self.centre),
-                "k": (c.f, *(float(x) for x in c.principal_point)),
-                "max": (c.width - 1.0, c.height - 1.0, float(i)),
-            }
-            for i, c in enumerate(cameras)
-        ]
+        stack, geo = _photo_layers(cameras, photos, depths, feather_maps, (Wm, Hm), far_sentinel_mm)
+        self._cam_uniforms = _camera_uniforms(cameras, self.centre)
         n = len(self.vertices)
         s = np.zeros(n, np.float32) if single_view is None else np.asarray(single_view, np.float32).reshape(n)
         ns = np.column_stack([np.asarray(normals, np.float32).reshape(n, 3), s]).astype(np.float32)
@@ -497,23 +479,9 @@ class ViewDependentGL:
         """
         if not self.usable:
             raise RuntimeError("this ViewDependentGL was released")
-        renderer = self.renderer
-        ctx = renderer.context()
-        mgl = self._mgl
-        if not isinstance(camera, Camera):
-            raise TypeError(f"camera must be a photomodel.camera.Camera, got {type(camera).__name__}")
-        W, H = camera.width, camera.height
-        if W < 1 or H < 1 or max(W, H) > renderer.max_size:
-            raise ValueError(f"cannot render a {W}×{H} frame (GL limit {renderer.max_size} px)")
-        sel = [int(i) for i in selected]
-        vw = [float(v) for v in weights]
-        if len(sel) not in (1, 2) or len(vw) != len(sel) or not all(0 <= i < self.k for i in sel):
-            raise ValueError(f"select one or two photographs with their weights, got {selected}, {weights}")
-        if len(sel) == 2 and sel[0] > sel[1]:
-            sel, vw = sel[::-1], vw[::-1]
-        two = len(sel) == 2
-        if not two:
-            sel, vw = [sel[0], sel[0]], [vw[0], 0.0]
+        ctx = self.renderer.context()
+        W, H = self._check_frame(camera)
+        sel, vw, two = self._selection(selected, weights)
         reduce = max(1, int(flow_reduce))
         bg = tuple(float(x) for x in np.broadcast_to(np.asarray(background, np.float32).reshape(-1), (3,)))
 
@@ -531,77 +499,154 @@ class ViewDependentGL:
             t["out_depth"].use()
             t["out_depth"].clear(float("inf"))
             if box is not None:
-                x0, y0, x1, y1 = box
-                ctx.disable(mgl.BLEND | mgl.CULL_FACE)
-                # -- 1: the G-buffer (inside the model's bounding box) ----------------------
-                fbo = t["gbuffer"]
-                fbo.use()
-                fbo.viewport = (0, 0, W, H)
-                fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=(x0, y0, x1 - x0, y1 - y0))  # uint: bits 0
-                ctx.enable(mgl.DEPTH_TEST)
-                self._pos.write(Xc.astype(np.float32).tobytes())
-                self._gbuffer["proj"].write(gl_projection(camera, *auto).T.astype(np.float32).tobytes())
-                self._vao.render(mgl.TRIANGLES, vertices=3 * len(self.faces))
-                ctx.disable(mgl.DEPTH_TEST)
-                t["gbuf"].use(location=0)
-                self._geo_sampler.use(location=2)
-                wf, hf = t["flow_size"]
-                # -- 2: the grey levels for the optical flow, reduced -------------------------
+                self._gbuffer_pass(ctx, t, camera, Xc, auto, box)
                 if align:
-                    self._mip_sampler.use(location=3)
-                    p = self._flow
-                    self._set_photos(p, sel, vw)
-                    _set(p, "reduce", reduce)
-                    _set(p, "last", (W - 1, H - 1))
-                    fx0, fy0 = max(x0 // reduce - _FLOW_MARGIN, 0), max(y0 // reduce - _FLOW_MARGIN, 0)
-                    fx1 = min(-(-x1 // reduce) + _FLOW_MARGIN, wf)
-                    fy1 = min(-(-y1 // reduce) + _FLOW_MARGIN, hf)
-                    fw, fh = fx1 - fx0, fy1 - fy0
-                    fbo = t["gray"]
-                    fbo.use()
-                    fbo.viewport = (0, 0, wf, hf)
-                    ctx.scissor = (fx0, fy0, fw, fh)
-                    self._flow_vao.render(mgl.TRIANGLES, vertices=3)
-                    ctx.scissor = None
-                    gray = np.empty((fh, fw, 2), np.uint8)
-                    fbo.read_into(gray, viewport=(fx0, fy0, fw, fh), components=2, attachment=0, dtype="f1",
-                                  alignment=1)
-                    f_ab = flow(np.ascontiguousarray(gray[..., 0]), np.ascontiguousarray(gray[..., 1]))
-                    f_ab = np.ascontiguousarray(f_ab, np.float32) * np.float32(reduce)  # in pixels of the frame
-                    t["flow"].write(f_ab.tobytes(), viewport=(fx0, fy0, fw, fh))
-                # -- 3: weights, registration and blend, per pixel of the bounding box ---------
-                self._photo_sampler.use(location=3)
-                t["flow"].use(location=4)
-                p = self._blend
-                self._set_photos(p, sel, vw)
-                _set(p, "align", 1.0 if align else 0.0)
-                _set(p, "flow_scale", (1.0 / (wf * reduce), 1.0 / (hf * reduce)))
-                # its NDC depth: behind every surface (the farthest vertex), in front of the clear (1)
-                near, far = auto
-                ndc_far = (far + near) / (far - near) - 2.0 * far * near / ((far - near) * float(Xc[:, 2].max()))
-                _set(p, "depth", 0.5 * (min(ndc_far, 1.0) + 1.0))
-                fbo = t["out"]
-                fbo.use()
-                fbo.viewport = (0, 0, W, H)
-                fbo.depth_mask = False
-                ctx.enable(mgl.DEPTH_TEST)
-                ctx.depth_func = ">"  # passes where the G-buffer holds a surface, fails on its clear value
-                ctx.scissor = (x0, y0, x1 - x0, y1 - y0)
-                self._blend_vao.render(mgl.TRIANGLES, vertices=3)
-                ctx.scissor = None
-                ctx.depth_func = "<"
-                ctx.disable(mgl.DEPTH_TEST)
-                fbo.depth_mask = True
+                    self._flow_pass(ctx, t, sel, vw, reduce, box, flow, (W, H))
+                self._blend_pass(ctx, t, sel, vw, align, reduce, auto, float(Xc[:, 2].max()), box)
             t["out"].read_into(color, components=3, attachment=0, dtype="f4", alignment=1)
             t["out"].read_into(depth, components=1, attachment=1, dtype="f4", alignment=1)
-        fallback = np.flatnonzero(depth.reshape(-1) < 0.0)
-        c = color.reshape(-1, 3)[fallback]
-        length = np.sqrt(np.einsum("ij,ij->i", c, c))
-        depth.reshape(-1)[fallback] *= -1.0
-        return GLFrame(
-            color, depth < np.inf, depth, fallback, c / np.maximum(length, 1e-12)[:, None],
-            np.clip(length - 1.0, 0.0, 1.0).astype(np.float32),
-        )
+        return _frame(color, depth)
+
+    def _check_frame(self, camera: Camera) -> tuple[int, int]:
+        """(W, H) of a camera the renderer can draw."""
+        if not isinstance(camera, Camera):
+            raise TypeError(f"camera must be a photomodel.camera.Camera, got {type(camera).__name__}")
+        W, H = camera.width, camera.height
+        if W < 1 or H < 1 or max(W, H) > self.renderer.max_size:
+            raise ValueError(f"cannot render a {W}×{H} frame (GL limit {self.renderer.max_size} px)")
+        return W, H
+
+    def _selection(self, selected, weights) -> tuple[list[int], list[float], bool]:
+        """The two photographs (in index order; one twice, weight 0, when only one is selected),
+        their weights, and whether there are two."""
+        sel = [int(i) for i in selected]
+        vw = [float(v) for v in weights]
+        if len(sel) not in (1, 2) or len(vw) != len(sel) or not all(0 <= i < self.k for i in sel):
+            raise ValueError(f"select one or two photographs with their weights, got {selected}, {weights}")
+        if len(sel) == 2 and sel[0] > sel[1]:
+            sel, vw = sel[::-1], vw[::-1]
+        two = len(sel) == 2
+        if not two:
+            sel, vw = [sel[0], sel[0]], [vw[0], 0.0]
+        return sel, vw, two
+
+    def _gbuffer_pass(self, ctx, t: dict, camera: Camera, Xc: np.ndarray, planes, box) -> None:
+        """Pass 1: the G-buffer (triangle and barycentrics) inside the model's bounding box; then
+        the G-buffer and the depth/feather maps bound for the passes that read them."""
+        mgl = self._mgl
+        W, H = camera.width, camera.height
+        x0, y0, x1, y1 = box
+        ctx.disable(mgl.BLEND | mgl.CULL_FACE)
+        fbo = t["gbuffer"]
+        fbo.use()
+        fbo.viewport = (0, 0, W, H)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=(x0, y0, x1 - x0, y1 - y0))  # uint: bits 0
+        ctx.enable(mgl.DEPTH_TEST)
+        self._pos.write(Xc.astype(np.float32).tobytes())
+        self._gbuffer["proj"].write(gl_projection(camera, *planes).T.astype(np.float32).tobytes())
+        self._vao.render(mgl.TRIANGLES, vertices=3 * len(self.faces))
+        ctx.disable(mgl.DEPTH_TEST)
+        t["gbuf"].use(location=0)
+        self._geo_sampler.use(location=2)
+
+    def _flow_pass(self, ctx, t: dict, sel, vw, reduce: int, box, flow: FlowFunction, size: tuple[int, int]) -> None:
+        """Pass 2: the two photographs' grey levels seen from the view, reduced, read back around
+        the bounding box; their optical flow (pixels of the frame) written to the flow texture."""
+        mgl = self._mgl
+        x0, y0, x1, y1 = box
+        wf, hf = t["flow_size"]
+        self._mip_sampler.use(location=3)
+        p = self._flow
+        self._set_photos(p, sel, vw)
+        _set(p, "reduce", reduce)
+        _set(p, "last", (size[0] - 1, size[1] - 1))
+        fx0, fy0 = max(x0 // reduce - _FLOW_MARGIN, 0), max(y0 // reduce - _FLOW_MARGIN, 0)
+        fx1 = min(-(-x1 // reduce) + _FLOW_MARGIN, wf)
+        fy1 = min(-(-y1 // reduce) + _FLOW_MARGIN, hf)
+        fw, fh = fx1 - fx0, fy1 - fy0
+        fbo = t["gray"]
+        fbo.use()
+        fbo.viewport = (0, 0, wf, hf)
+        ctx.scissor = (fx0, fy0, fw, fh)
+        self._flow_vao.render(mgl.TRIANGLES, vertices=3)
+        ctx.scissor = None
+        gray = np.empty((fh, fw, 2), np.uint8)
+        fbo.read_into(gray, viewport=(fx0, fy0, fw, fh), components=2, attachment=0, dtype="f1", alignment=1)
+        f_ab = flow(np.ascontiguousarray(gray[..., 0]), np.ascontiguousarray(gray[..., 1]))
+        f_ab = np.ascontiguousarray(f_ab, np.float32) * np.float32(reduce)  # in pixels of the frame
+        t["flow"].write(f_ab.tobytes(), viewport=(fx0, fy0, fw, fh))
+
+    def _blend_pass(self, ctx, t: dict, sel, vw, align: bool, reduce: int, planes, z_max: float, box) -> None:
+        """Pass 3: weights, registration and blend, per pixel of the bounding box that the
+        G-buffer covers (``z_max``: the farthest vertex's ``Z_cam``)."""
+        mgl = self._mgl
+        x0, y0, x1, y1 = box
+        wf, hf = t["flow_size"]
+        self._photo_sampler.use(location=3)
+        t["flow"].use(location=4)
+        p = self._blend
+        self._set_photos(p, sel, vw)
+        _set(p, "align", 1.0 if align else 0.0)
+        _set(p, "flow_scale", (1.0 / (wf * reduce), 1.0 / (hf * reduce)))
+        # its NDC depth: behind every surface (the farthest vertex), in front of the clear (1)
+        near, far = planes
+        ndc_far = (far + near) / (far - near) - 2.0 * far * near / ((far - near) * z_max)
+        _set(p, "depth", 0.5 * (min(ndc_far, 1.0) + 1.0))
+        fbo = t["out"]
+        fbo.use()
+        fbo.viewport = (0, 0, *fbo.size)
+        fbo.depth_mask = False
+        ctx.enable(mgl.DEPTH_TEST)
+        ctx.depth_func = ">"  # passes where the G-buffer holds a surface, fails on its clear value
+        ctx.scissor = (x0, y0, x1 - x0, y1 - y0)
+        self._blend_vao.render(mgl.TRIANGLES, vertices=3)
+        ctx.scissor = None
+        ctx.depth_func = "<"
+        ctx.disable(mgl.DEPTH_TEST)
+        fbo.depth_mask = True
+
+
+def _frame(color: np.ndarray, depth: np.ndarray) -> GLFrame:
+    """The :class:`GLFrame` of the read-back output: a negative depth marks a pixel of the
+    single-view fallback, whose colour then carries its direction and weight."""
+    fallback = np.flatnonzero(depth.reshape(-1) < 0.0)
+    c = color.reshape(-1, 3)[fallback]
+    length = np.sqrt(np.einsum("ij,ij->i", c, c))
+    depth.reshape(-1)[fallback] *= -1.0
+    return GLFrame(
+        color, depth < np.inf, depth, fallback, c / np.maximum(length, 1e-12)[:, None],
+        np.clip(length - 1.0, 0.0, 1.0).astype(np.float32),
+    )
+
+
+def _photo_layers(cameras, photos, depths, feather_maps, size: tuple[int, int], far_sentinel_mm: float):
+    """The texture-array layers: (k, Hm, Wm, 3) uint8 photographs and (k, Hm, Wm, 2) float32
+    (depth with the far sentinel off the model, feather), each photo in the top-left corner of
+    its layer of ``size`` = (Wm, Hm)."""
+    k, (Wm, Hm) = len(cameras), size
+    stack = np.zeros((k, Hm, Wm, 3), np.uint8)
+    geo = np.zeros((k, Hm, Wm, 2), np.float32)
+    geo[..., 0] = far_sentinel_mm
+    for i, (cam, ph, d, fm) in enumerate(zip(cameras, photos, depths, feather_maps, strict=True)):
+        h, w = cam.height, cam.width
+        stack[i, :h, :w] = ph
+        geo[i, :h, :w, 0] = np.where(np.isfinite(d), d, np.float32(far_sentinel_mm))
+        geo[i, :h, :w, 1] = fm
+    return stack, geo
+
+
+def _camera_uniforms(cameras, centre: np.ndarray) -> list[dict]:
+    """Per-photograph uniforms: ``X_k = R (X - c) + (R c + t)``, composed in float64."""
+    return [
+        {
+            "R": np.ascontiguousarray(c.R.T, np.float32).tobytes(),  # GL matrices are column-major
+            "t": tuple(float(x) for x in c.R @ centre + c.t),
+            "c": tuple(float(x) for x in c.center - centre),
+            "k": (c.f, *(float(x) for x in c.principal_point)),
+            "max": (c.width - 1.0, c.height - 1.0, float(i)),
+        }
+        for i, c in enumerate(cameras)
+    ]
 
 
 def _set(prog, name, value) -> None:
