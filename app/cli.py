@@ -19,8 +19,16 @@ import signal
 import sys
 from pathlib import Path
 
+from tqdm import tqdm
+
 from photomodel.errors import FaceStudioError, ProjectError
-from photomodel.texturing.job import TEXTURE_SIZES
+from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.project import load_project, record_fit, save_results
+from photomodel.samples.sample_data import sample_data_dir
+from photomodel.texturing.job import TEXTURE_SIZES, encode_texture_outputs, fitted_expressions, texture_expression
+from tracking.results import default_out_dir, load_track_results
+from tracking.run import track_video
 
 #: Texture sizes ``facestudio texture`` accepts (texels per side).
 
@@ -29,7 +37,6 @@ def _progress_bar(enabled: bool):
     """A tqdm bar over pipeline stages on stderr (silent with --json unless a TTY)."""
     if not enabled:
         return None, lambda stage, frac: None
-    from tqdm import tqdm
 
     bar = tqdm(total=100, file=sys.stderr, bar_format="{desc:<32} {bar} {percentage:3.0f}%", leave=False)
 
@@ -74,9 +81,6 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
 
 
 def cmd_fit(args) -> int:
-    from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
-    from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.project import load_project, record_fit, save_results
 
     project = load_project(args.project)
     if args.expression is not None:
@@ -133,9 +137,6 @@ def _sigint_deferred():
 
 
 def cmd_texture(args) -> int:
-    from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.project import load_project, save_results
-    from photomodel.texturing.job import encode_texture_outputs, fitted_expressions, texture_expression
 
     lo, hi = TEXTURE_SIZES
     if not lo <= args.size <= hi:
@@ -190,7 +191,6 @@ def cmd_texture(args) -> int:
 
 def _frames_saved(out_dir) -> int:
     """Frames listed in ``out_dir``'s track.json (0 if none or unreadable)."""
-    from tracking.results import load_track_results
 
     try:
         doc = load_track_results(out_dir)
@@ -199,9 +199,7 @@ def _frames_saved(out_dir) -> int:
     return 0 if doc is None else len(doc["frames"])
 
 
-def cmd_track(args) -> int:
-    from tracking.results import default_out_dir
-    from tracking.run import track_video
+def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of the command, each with its message
 
     if args.frames is not None and args.frames < 1:
         raise FaceStudioError(f"--frames {args.frames}: track at least one frame")
@@ -219,7 +217,6 @@ def cmd_track(args) -> int:
         if not show:
             return
         if bar is None:
-            from tqdm import tqdm
 
             bar = tqdm(total=total, initial=done - 1, unit="frame", file=sys.stderr, desc="tracking", leave=False)
         bar.update(done - bar.n)
@@ -277,7 +274,6 @@ def cmd_track(args) -> int:
 
 
 def cmd_sample_data(args) -> int:
-    from photomodel.samples.sample_data import sample_data_dir
 
     print(sample_data_dir())
     return 0
@@ -285,10 +281,10 @@ def cmd_sample_data(args) -> int:
 
 def cmd_studio(args) -> int:
     try:  # Qt is imported here only
-        from app.qt.qt_compat import check_pyside
+        from app.qt.qt_compat import check_pyside  # noqa: PLC0415 - the Qt stack loads only for the studio
 
         check_pyside()
-        from app.qt.main_window import run_studio
+        from app.qt.main_window import run_studio  # noqa: PLC0415 - as above
     except ImportError as exc:
         raise FaceStudioError(f"the studio cannot start: {exc}") from exc
     return run_studio(args.project)

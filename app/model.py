@@ -28,10 +28,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
-from photomodel.errors import FaceStudioError, ProjectError
+from photomodel.errors import FaceStudioError, FitError, ProjectError
+from photomodel.exchange.mesh import read_mesh
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.modeling.overlay import mesh_lines, photo_overlay
+from photomodel.modeling.refit import Refitter
 from photomodel.photos.exif import focal_mm_guess_from_exif
 from photomodel.project import (
     CurveDef,
@@ -46,6 +51,8 @@ from photomodel.project import (
     save_results,
     texture_files,
 )
+from photomodel.texturing.job import load_stored_texture, load_texture_photos, texture_expression
+from photomodel.texturing.view_dependent import ViewDependentTexture
 
 #: Suffix of the autosave file written next to the project (``<file>.autosave``).
 AUTOSAVE_SUFFIX = ".autosave"
@@ -107,11 +114,9 @@ class TextureState:
         A stored texture's photographs are read now (:class:`ProjectError` names a missing one).
         """
         if self._view_dependent is None:
-            from photomodel.texturing.view_dependent import ViewDependentTexture
 
             i = self.job.inputs
             if i.photos is None:
-                from photomodel.texturing.job import load_texture_photos
 
                 if self.photos_from is None:
                     raise ProjectError(f"the photographs of the texture of {i.expression!r} are not known")
@@ -219,7 +224,6 @@ class StudioModel:
         """The generic face mesh (:class:`photomodel.modeling.generic_mesh.GenericMesh`), loaded once."""
         if self._mesh is None:
             if self._mesh_loader is None:
-                from photomodel.modeling.generic_mesh import load_generic_mesh
 
                 self._mesh_loader = load_generic_mesh
             self._mesh = self._mesh_loader()
@@ -229,7 +233,6 @@ class StudioModel:
     def overlay_lines(self):
         """The wireframe overlay's lines on the generic mesh (:func:`photomodel.modeling.overlay.mesh_lines`)."""
         if self._lines is None:
-            from photomodel.modeling.overlay import mesh_lines
 
             self._lines = mesh_lines(self.mesh.vertices, self.mesh.faces, curves=self.mesh.curves)
         return self._lines
@@ -238,7 +241,6 @@ class StudioModel:
     def refitter(self):
         """The :class:`photomodel.modeling.refit.Refitter` shared by every fit of this model."""
         if self._refitter is None:
-            from photomodel.modeling.refit import Refitter
 
             self._refitter = Refitter(self.mesh)
         return self._refitter
@@ -498,7 +500,6 @@ class StudioModel:
         file's EXIF records (:func:`photomodel.photos.exif.focal_mm_guess_from_exif`), else none.
         Raises :class:`ProjectError` naming the file when it is missing or not an image.
         """
-        import cv2
 
         path = Path(path).absolute()
         if not path.is_file():
@@ -591,7 +592,6 @@ class StudioModel:
         -------
         dict photo id → photomodel.modeling.overlay.PhotoOverlay, for :meth:`apply_fit` ``overlays``.
         """
-        from photomodel.modeling.overlay import photo_overlay
 
         cams = dict(zip(result.photo_ids, result.cameras, strict=True))
         faces = self.mesh.faces
@@ -608,7 +608,6 @@ class StudioModel:
             return None
         found = fit.overlays.get(photo_id)
         if found is None:
-            from photomodel.modeling.overlay import photo_overlay
 
             found = fit.overlays[photo_id] = photo_overlay(fit.cameras[photo_id], fit.vertices, self.mesh.faces,
                                                            self.overlay_lines)
@@ -640,7 +639,6 @@ class StudioModel:
         Returns ``(snapshot Project, expression name, vertices (N, 3), faces, face_mask)``;
         :class:`ProjectError` / :class:`FitError` when the expression is not fitted with a mesh.
         """
-        from photomodel.errors import FitError
 
         name = expression or self.expression_name
         fit = self.fit(name)
@@ -653,7 +651,6 @@ class StudioModel:
     @staticmethod
     def compute_texture(inputs, size: int, *, progress=None, cancel=None):
         """Extract the texture of :meth:`texture_inputs` (worker thread): a TextureJob."""
-        from photomodel.texturing.job import texture_expression
 
         snapshot, name, vertices, faces, face_mask = inputs
         return texture_expression(snapshot, name, size, face_mask=face_mask, vertices=vertices, faces=faces,
@@ -705,7 +702,6 @@ class StudioModel:
         try:
             if fit.vertices is None:
                 raise ProjectError(f"expression {name!r}: its fitted mesh {e.result.mesh_obj} could not be read")
-            from photomodel.texturing.job import load_stored_texture
 
             job = load_stored_texture(self.project, name, fit.vertices, self.mesh.faces,
                                       face_mask=self.mesh.face_mask)
@@ -802,7 +798,6 @@ class StudioModel:
             f = project.resolve(rel) if folder is None else (folder / rel).absolute()
             if f.is_file():
                 try:
-                    from photomodel.exchange.mesh import read_mesh
 
                     v, _ = read_mesh(f)
                 except Exception:  # a broken result mesh loses the overlay, not the project

@@ -43,6 +43,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from photomodel.modeling.fit import fit_expression
+
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -61,7 +63,6 @@ def main(argv=None) -> int:
 
     from app.qt.commands import SetPointCommand
     from app.qt.main_window import MainWindow
-    from photomodel.modeling.fit import fit_expression
 
     app = QApplication.instance() or QApplication([])
     tmp = Path(tempfile.mkdtemp(prefix="bench_gui_"))

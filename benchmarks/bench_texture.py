@@ -63,6 +63,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from photomodel.camera import rodrigues
 from photomodel.exchange.files import atomic_write_bytes, encode_png  # noqa: E402
 from photomodel.modeling.fit import fit_expression  # noqa: E402
 from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
@@ -225,7 +226,6 @@ def main(argv=None) -> int:
               cylindrical_texture(welded.vertices, welded.faces, true_cams, photos, 1024).image)
     vdt = ViewDependentTexture(Vf, F, fit_cams, photos, single_view=single)
     new_view = fit_cams[2].copy()  # a frame between the photos: the front camera turned 20° about the head
-    from photomodel.camera import rodrigues
 
     c = vdt.centre
     Rz = rodrigues(np.array([0.0, np.radians(20.0), 0.0]))

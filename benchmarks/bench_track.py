@@ -49,6 +49,7 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
@@ -56,6 +57,9 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 from photomodel.camera import rotation_angle_deg  # noqa: E402
+from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
+from photomodel.rendering.renderer import get_renderer  # noqa: E402
+from photomodel.samples.synthetic import ScanSurface  # noqa: E402
 from tracking.facemodel import render_model  # noqa: E402
 from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, pose_from_clicks, track_frames  # noqa: E402
 from tracking.samples.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS  # noqa: E402
@@ -65,6 +69,7 @@ from tracking.samples.ground_truth import (  # noqa: E402
     model_gauge,
     render_video_frame,
     sample_face_model,
+    true_scan_vertices,
     video_truth,
 )
 
@@ -80,7 +85,6 @@ def _device() -> str:
 
 
 def frames_for(name: str, truth, model) -> list[np.ndarray]:
-    from photomodel.rendering.renderer import get_renderer
 
     out = []
     rng = np.random.default_rng(1)
@@ -107,8 +111,6 @@ GEOM_SUBSAMPLE = 4
 def true_surface(name: str, truth, model, i: int):
     """ScanSurface of frame ``i``'s true geometry (head frame): the model's own mesh for (a), the
     deformed scan that the video shows for (b)–(e)."""
-    from photomodel.samples.synthetic import ScanSurface
-    from tracking.samples.ground_truth import true_scan_vertices
 
     if name == "a":
         return ScanSurface(model.blend_geometry(model.vertex_weights(truth.weights[i])), model.faces)
@@ -117,7 +119,6 @@ def true_surface(name: str, truth, model, i: int):
 
 def first_pose(model, true_model, truth):
     """The first frame's pose from the 13 initial features clicked with 0.5 px noise."""
-    from photomodel.modeling.generic_mesh import load_generic_mesh
 
     mesh = load_generic_mesh()
     ids = np.array([mesh.features[n] for n in mesh.initial_features])
@@ -172,7 +173,6 @@ def jacobian_accuracy(frames: int = 4) -> list[dict]:
     per phase (pose: unfiltered ω, t; expression: bandpassed α), the cosine between each analytic
     column and its finite-difference counterpart over the pixels 3 px inside the silhouette, the
     norm ratio, and the time to compute the Jacobian once."""
-    import cv2
 
     truth = video_truth(max(frames, 2))
     model = sample_face_model(EXPRESSION_NAMES)  # at the true parameters: the true model

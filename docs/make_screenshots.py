@@ -66,7 +66,7 @@ def tracking_screenshot(window, settle, save) -> None:
     window.tracking_dock.hide()
 
 
-def main(argv=None) -> int:
+def main(argv=None) -> int:  # noqa: C901 - one optional screenshot after another
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=REPO / "docs" / "screenshots")
     ap.add_argument("--only", choices=("all", "tracking"), default="all", help="make every screenshot, or one")

@@ -6,6 +6,12 @@ from pathlib import Path
 
 import pytest
 
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.samples.sample_data import load_james_scan, load_template
+from photomodel.samples.synthetic import load_ground_truth
+from tracking.run import track_video
+from tracking.samples.ground_truth import fitted_sample_project
+
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
 REPO = Path(__file__).resolve().parents[1]
@@ -24,7 +30,6 @@ def project_copy(tmp_path):
 def fitted_sample():
     """The sample project with every expression fitted and textured (made once, cached:
     :func:`tracking.samples.ground_truth.fitted_sample_project`); read it, do not change it."""
-    from tracking.samples.ground_truth import fitted_sample_project
 
     return fitted_sample_project()
 
@@ -44,7 +49,6 @@ def straight(tmp_path_factory, fitted_sample):
     sample over the first 6 frames of the sample video (``FRAMES`` in the tracking tests), with the
     plots and the overlay video: its :class:`tracking.run.TrackResult` (made once; read its folder,
     do not change it — a test that continues or corrects it works on a copy)."""
-    from tracking.run import track_video
 
     out = tmp_path_factory.mktemp("straight")
     return track_video(fitted_sample, SAMPLE_PROJECT / "video" / "james_track.mp4", out, max_frames=6)
@@ -59,7 +63,6 @@ def straight(tmp_path_factory, fitted_sample):
 @pytest.fixture(scope="session")
 def template():
     """The menpo3d template (:func:`photomodel.samples.sample_data.load_template`); read it, do not change it."""
-    from photomodel.samples.sample_data import load_template
 
     return load_template()
 
@@ -67,7 +70,6 @@ def template():
 @pytest.fixture(scope="session")
 def mesh():
     """The generic face mesh (:func:`photomodel.modeling.generic_mesh.load_generic_mesh`); read it, do not change it."""
-    from photomodel.modeling.generic_mesh import load_generic_mesh
 
     return load_generic_mesh()
 
@@ -76,7 +78,6 @@ def mesh():
 def scan():
     """The james scan in the head frame (:func:`photomodel.samples.sample_data.load_james_scan`); read it,
     do not change it."""
-    from photomodel.samples.sample_data import load_james_scan
 
     return load_james_scan()
 
@@ -85,7 +86,6 @@ def scan():
 def sample_truth():
     """The sample project's ``ground_truth.json`` as a :class:`photomodel.samples.synthetic.GroundTruth`;
     read it, do not change it."""
-    from photomodel.samples.synthetic import load_ground_truth
 
     return load_ground_truth(SAMPLE_PROJECT / "ground_truth.json")
 

@@ -15,6 +15,10 @@ import numpy as np
 import pygltflib
 import trimesh
 
+from photomodel.camera import orbit_camera
+from photomodel.exchange.uv import split_uv_seams
+from photomodel.rendering.renderer import get_renderer
+
 POS_TOL_MM = 1e-4  # see module docstring
 RADIUS = 80.0
 
@@ -68,9 +72,6 @@ def glb_accessor(g: pygltflib.GLTF2, index: int) -> np.ndarray:
 def assert_reopened_renders_like_the_original(path, scale, v, f, corner_uv, texture_img):
     """The exported file at ``path``, reopened with trimesh (positions × ``scale`` → mm) and drawn
     by our renderer from the front, looks like the mesh that was exported."""
-    from photomodel.camera import orbit_camera
-    from photomodel.exchange.uv import split_uv_seams
-    from photomodel.rendering.renderer import get_renderer
 
     cam = orbit_camera(0.0, 160, 160, distance_mm=400.0)  # from the front: no seam in view
     r = get_renderer()

@@ -6,8 +6,12 @@ work at any size.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
+import os
 import shutil
+import signal
 from pathlib import Path
 
 import cv2
@@ -15,6 +19,8 @@ import numpy as np
 import pytest
 import trimesh
 
+import photomodel.exchange.files as files
+import photomodel.texturing.job
 from app.cli import main
 from photomodel.exchange.gltf import METRES_PER_MM
 from photomodel.exchange.mesh import read_mesh
@@ -47,8 +53,6 @@ def textured(fitted, tmp_path_factory):
     folder = tmp_path_factory.mktemp("textured") / "james"
     shutil.copytree(fitted, folder)
     project = folder / "james.facestudio.json"
-    import contextlib
-    import io
 
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
@@ -145,12 +149,11 @@ def test_bad_size_is_refused(project_copy, capsys):
 
 
 def test_ctrl_c_cancels_cleanly_with_nothing_written(project_copy, capsys, monkeypatch):
-    import photomodel.texturing.cylindrical
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(photomodel.texturing.cylindrical, "cylindrical_texture", interrupted)
+    monkeypatch.setattr(photomodel.texturing.job, "cylindrical_texture", interrupted)  # where the job looks it up
     before = _snapshot(project_copy.parent)
     assert main(["texture", str(project_copy), "--size", "64"]) == 130
     assert "nothing was written" in capsys.readouterr().err
@@ -166,10 +169,7 @@ def test_a_new_fit_drops_the_texture_record(textured, tmp_path):
 
 
 def test_ctrl_c_while_saving_waits_until_everything_is_saved(project_copy, capsys, monkeypatch):
-    import os
-    import signal
 
-    import photomodel.exchange.files as files
 
     real = files.write_files
 

@@ -27,7 +27,7 @@ from exchange_data import (
 )
 from PIL import Image
 
-from photomodel.exchange.files import decode_png
+from photomodel.exchange.files import decode_png, encode_png
 from photomodel.exchange.gltf import METRES_PER_MM, encode_glb, write_glb
 from photomodel.exchange.uv import split_uv_seams
 from photomodel.rendering.sampling import sample_texture
@@ -190,7 +190,6 @@ def test_glb_without_texture_and_bad_input(tmp_path, sphere):
 
 def test_glb_from_encoded_png_bytes_is_the_same_file(sphere, texture):
     """Already-encoded PNG bytes (as the texture job passes them) give byte-identical output."""
-    from photomodel.exchange.files import encode_png
 
     v, f, uv = sphere
     png = encode_png(texture)

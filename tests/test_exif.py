@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
+from PIL.TiffImagePlugin import IFDRational
 
 from app.model import StudioModel
 from photomodel.photos.exif import (
@@ -134,7 +135,6 @@ def test_garbage_is_none_never_an_error(tmp_path):
         img.getexif().get_ifd(EXIF_IFD)
     assert focal_mm_36_from_exif(broken) is None
     # tags of the wrong type: a zero-denominator rational (reads back as nan), text, bytes
-    from PIL.TiffImagePlugin import IFDRational
 
     cases = {
         "nan": {TAG_FOCAL_LENGTH: IFDRational(35, 0), TAG_FOCAL_PLANE_X_RES: 100.0},

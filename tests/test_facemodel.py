@@ -3,6 +3,9 @@
 import numpy as np
 import pytest
 
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.rendering.renderer import get_renderer
+from photomodel.samples.sample_data import load_james_scan
 from tracking.facemodel import CONTROL_REGIONS, expression_basis, render_model
 from tracking.samples.expressions import EXPRESSION_NAMES, true_expression_geometry
 from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth
@@ -51,8 +54,6 @@ def test_neutral_parameters_give_the_neutral_geometry(model):
 
 
 def test_full_expression_in_its_region_matches_the_true_geometry(model):
-    from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.samples.sample_data import load_james_scan
 
     E = true_expression_geometry(load_generic_mesh(), load_james_scan())
     k = EXPRESSION_NAMES.index("smile")
@@ -69,7 +70,6 @@ def test_rendered_model_matches_the_video_frame_at_the_true_parameters(model):
     truth = video_truth(8)
     i = 4
     frame = render_video_frame(truth, i)
-    from photomodel.rendering.renderer import get_renderer
 
     cam = truth.camera(i)
     Wv = model.vertex_weights(truth.weights[i])
@@ -86,7 +86,6 @@ def test_rendered_model_matches_the_video_frame_at_the_true_parameters(model):
 
 def test_barycentric_render_agrees_with_the_renderer(model):
     """render_model's own pass (bounding box only, geometry shader) sees what Renderer.render sees."""
-    from photomodel.rendering.renderer import get_renderer
 
     truth = video_truth(8)
     cam = truth.camera(3)

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from photomodel.alignment import align_to_truth, camera_errors
+from photomodel.alignment import align_to_truth, camera_errors, similarity_transform
 from photomodel.errors import FitError
-from photomodel.modeling.fit import FitOptions, fit_expression
+from photomodel.modeling.fit import Cancelled, FitOptions, fit_expression
 from photomodel.project import load_project
 from photomodel.samples.synthetic import surface_distance, true_correspondence
 
@@ -32,7 +32,6 @@ def _aligned(result, truth):
     """The fit moved onto the truth by the similarity of its 3D feature points."""
     true_pts = truth.true_points(result.feature_names)
     cams, pts = align_to_truth(result.cameras, result.points_3d, true_pts)
-    from photomodel.alignment import similarity_transform
 
     s, R, t = similarity_transform(result.points_3d, true_pts)
     return cams, pts, true_pts, (s, R, t)
@@ -130,7 +129,6 @@ def test_one_photo_is_a_fit_error(mesh):
 
 
 def test_fit_can_be_cancelled(mesh):
-    from photomodel.modeling.fit import Cancelled
 
     project = load_project(PROJECT)
     with pytest.raises(Cancelled):

@@ -18,9 +18,13 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
+import subprocess
+import sys
+
 from PySide6.QtCore import QPoint, QPointF, QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
+from app.cli import main
 from app.model import autosave_path  # noqa: E402
 from app.qt.main_window import MainWindow, guess_preset  # noqa: E402
 from photomodel.alignment import align_to_truth, camera_errors  # noqa: E402
@@ -242,8 +246,6 @@ def test_autosave_is_offered_for_recovery(qtbot, tmp_path, project_copy, message
 
 def _crashed_instance_lock(path: Path) -> None:
     """Leave ``<path>.lock`` as a studio that crashed leaves it: taken by a process that then died."""
-    import subprocess
-    import sys
 
     code = ("import os, sys; from PySide6.QtCore import QLockFile; "
             "l = QLockFile(sys.argv[1]); l.setStaleLockTime(0); assert l.tryLock(0); os._exit(0)")
@@ -331,12 +333,10 @@ def test_3d_view_picks_a_feature(qtbot, studio_window, project_copy):
 
 def test_studio_command_opens_the_project(qtbot, qapp, project_copy, monkeypatch, messages):
     """``facestudio studio PROJECT`` (also ``python -m app PROJECT``) opens a window on the project."""
-    import sys
 
     from PySide6.QtCore import QEventLoop, QTimer
     from PySide6.QtWidgets import QApplication
 
-    from app.cli import main
 
     monkeypatch.setattr(sys, "excepthook", sys.excepthook)  # run_studio installs its own
     monkeypatch.setattr("app.qt.main_window.QSettings", lambda *a: QSettings(str(project_copy.parent / "s.ini"),

@@ -20,7 +20,7 @@ from photomodel.camera import (
     rotation_angle_deg,
 )
 from photomodel.errors import FitError
-from photomodel.modeling.pose import _rodrigues_batch, recover_poses, reprojection_residuals
+from photomodel.modeling.pose import recover_poses, reprojection_residuals, rodrigues_batch
 
 W, H = 1000, 1333
 
@@ -267,7 +267,7 @@ def test_callback_can_stop_early():
 def test_batched_rodrigues_matches_camera_rodrigues():
     rng = np.random.default_rng(0)
     v = np.vstack([rng.normal(size=(5, 3)), [[0.0, 0.0, 0.0], [1e-10, 0.0, 0.0], [0.0, 0.0, np.pi]]])
-    Rb = _rodrigues_batch(v)
+    Rb = rodrigues_batch(v)
     for vi, Ri in zip(v, Rb, strict=True):
         np.testing.assert_allclose(Ri, rodrigues(vi), atol=1e-14)
         np.testing.assert_allclose(Ri @ Ri.T, np.eye(3), atol=1e-14)

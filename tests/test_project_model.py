@@ -11,6 +11,8 @@ import pytest
 from photomodel.camera import Camera, rodrigues
 from photomodel.errors import FitError, ProjectError
 from photomodel.project import load_project, new_project, save_project
+from photomodel.rendering.renderer import get_renderer
+from photomodel.samples.synthetic import ScanSurface
 from tracking.facemodel import CONTROL_REGIONS, render_model
 from tracking.project_model import (
     face_model_from_project,
@@ -60,7 +62,6 @@ def test_the_sample_model_is_its_expressions_modeled_from_photos(built):
 
 
 def test_blend_shapes_move_the_face_as_the_true_expressions_do(built):
-    from photomodel.samples.synthetic import ScanSurface
 
     model, _ = built
     true = sample_face_model(model.names)
@@ -83,7 +84,6 @@ def test_blend_shapes_move_the_face_as_the_true_expressions_do(built):
 def test_rendering_the_model_looks_like_the_video(built):
     """Eq. (5) with per-expression textures and cylinders: the fitted model at the true pose and
     weights of a sample-video frame reproduces the frame."""
-    from photomodel.rendering.renderer import get_renderer
 
     model, _ = built
     truth = video_truth(40)

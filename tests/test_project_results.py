@@ -161,7 +161,7 @@ def test_a_failed_result_file_leaves_the_project_file_as_it_was(saved, tmp_path,
             raise OSError(28, "No space left on device")
         return real(path, vertices, faces)
 
-    monkeypatch.setattr(photomodel.exchange.mesh, "write_mesh", disk_full_at_the_ply)
+    monkeypatch.setattr(photomodel.project.results, "write_mesh", disk_full_at_the_ply)  # where results looks it up
     with pytest.raises(ProjectError) as ei:
         save_results(saved, fits={"neutral": VERTICES}, faces=FACES)
     assert str(ei.value).startswith(f"{tmp_path / 'results' / 'neutral.ply'}: could not write the fitted mesh: "

@@ -8,6 +8,7 @@ import json
 from importlib import resources
 from pathlib import Path
 
+import jsonschema
 import numpy as np
 import pytest
 from project_samples import (
@@ -25,6 +26,7 @@ from project_samples import (
 from photomodel.camera import PRESET_AZIMUTH_DEG, orbit_camera
 from photomodel.errors import ProjectError
 from photomodel.project import load_project, project_schema, save_project
+from photomodel.project.validate import _validator
 
 
 @pytest.fixture
@@ -139,7 +141,6 @@ def test_slightly_outside_point_is_accepted(tmp_path, saved):
 
 
 def test_schema_is_shipped_and_valid():
-    import jsonschema
 
     assert resources.files("photomodel.project").joinpath("schema.json").is_file()
     jsonschema.Draft202012Validator.check_schema(project_schema())
@@ -177,9 +178,7 @@ LEAF_VALUES = {
 def test_fast_leaf_checks_agree_with_the_shipped_schema(saved, kind):
     """The loader checks coordinate maps in Python for speed (validate._validator); the shipped
     schema, read by a standard validator, must accept and reject exactly the same values."""
-    import jsonschema
 
-    from photomodel.project.validate import _validator
 
     standard = jsonschema.Draft202012Validator(project_schema())
     _, d = saved

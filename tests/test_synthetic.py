@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from trimesh.proximity import closest_point_naive
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, orbit_camera
 from photomodel.project import load_project
@@ -38,7 +39,6 @@ def truth(mesh, scan):
 def test_surface_distance_is_exact(scan):
     """Points pushed off the surface along the normal: our distance equals trimesh's
     brute-force closest point (exact to rounding) and is at most the push."""
-    from trimesh.proximity import closest_point_naive
 
     rng = np.random.default_rng(0)
     idx = rng.choice(len(scan.vertices), 300, replace=False)

@@ -14,6 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from photomodel.camera import Camera, orbit_camera
 from photomodel.modeling.generic_mesh import load_generic_mesh
@@ -223,7 +224,6 @@ def test_single_view_weights_ramp_away_from_the_face():
     mesh = load_generic_mesh()
     s = single_view_weights(mesh.vertices, mesh.face_mask, offset_mm=20.0, ramp_mm=15.0)
     assert s[mesh.face_mask].max() == 0.0  # the face itself is always blended
-    from scipy.spatial import cKDTree
 
     dist, _ = cKDTree(mesh.vertices[mesh.face_mask]).query(mesh.vertices)
     assert s[dist >= 20.0].min() == 1.0 and s[dist <= 5.0].max() == 0.0

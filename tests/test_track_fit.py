@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from photomodel.camera import rodrigues, rotation_angle_deg
+from photomodel.modeling.generic_mesh import load_generic_mesh
 from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, nearest_rotation, pose_from_clicks, predict
 from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth
 
@@ -144,7 +145,6 @@ def test_fit_follows_a_fast_head_movement(setup):
 
 def test_first_pose_from_clicks(setup):
     model, truth = setup
-    from photomodel.modeling.generic_mesh import load_generic_mesh
 
     mesh = load_generic_mesh()
     ids = np.array([mesh.features[n] for n in mesh.initial_features])

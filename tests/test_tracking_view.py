@@ -15,12 +15,17 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
+import json
+
 from PySide6.QtCore import QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QFileDialog, QMessageBox  # noqa: E402
 
 from app.qt.main_window import MainWindow  # noqa: E402
 from app.qt.tracking_view import MARKER_COLOR, plot_with_marker  # noqa: E402
+from photomodel.camera import rotation_angle_deg
 from tracking.results import default_out_dir, load_track_results  # noqa: E402
+from tracking.samples.ground_truth import VideoTruth, sample_face_model
+from tracking.video import VideoFrames
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
@@ -131,7 +136,6 @@ def test_plot_marker_at_frame():
 
 
 def test_first_pose_dialog_click_solve_save(qtbot, window, errors, fitted_project_copy, tmp_path):
-    import json
 
     from PySide6.QtCore import QPoint
 
@@ -187,10 +191,7 @@ def test_first_pose_dialog_click_solve_save(qtbot, window, errors, fitted_projec
 
 
 def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, fitted_project_copy):
-    import json
 
-    from tracking.samples.ground_truth import VideoTruth, sample_face_model
-    from tracking.video import VideoFrames
 
     view = window.tracking_view
     assert not view.correct_button.isEnabled()
@@ -238,7 +239,6 @@ def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, 
     # predicted frame), and lands by the earlier result, where the clicks came from (measured 0.16°
     # and 0.08 mm apart: the fit stops on 0.1 mm steps and started from a neutral face)
     assert after[2]["evaluations"] > before[2]["evaluations"]
-    from photomodel.camera import rotation_angle_deg
 
     for a, b in zip(after[2:], before[2:], strict=True):
         assert rotation_angle_deg(np.array(a["R"]), np.array(b["R"])) < 0.5

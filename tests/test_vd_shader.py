@@ -21,7 +21,12 @@ import numpy as np
 import pytest
 
 from photomodel.camera import orbit_camera, rodrigues
+from photomodel.modeling.fit import fit_expression
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.project import load_project
 from photomodel.rendering.renderer import get_renderer
+from photomodel.rendering.view_dependent import ViewDependentGL
+from photomodel.texturing.cylindrical import single_view_weights
 from photomodel.texturing.view_dependent import ViewDependentTexture, render_view_dependent
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -38,10 +43,6 @@ def psnr(a, b, mask) -> float:
 @pytest.fixture(scope="module")
 def sample():
     """The fitted sample model, its photos and a new view 20° from the front photo."""
-    from photomodel.modeling.fit import fit_expression
-    from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.project import load_project
-    from photomodel.texturing.cylindrical import single_view_weights
 
     project = load_project(SAMPLE / "james.facestudio.json")
     expr = project.expression("neutral")
@@ -266,7 +267,6 @@ def test_an_occluder_hides_a_photo_behind_it(quad):
 
 
 def test_gl_state_is_made_once_and_released(quad):
-    from photomodel.rendering.view_dependent import ViewDependentGL
 
     vdt = ViewDependentTexture(quad["V"], quad["F"], quad["cams"], quad["photos"], centre=np.zeros(3))
     cam = orbit_camera(5.0, 160, 120, distance_mm=700.0)

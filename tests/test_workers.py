@@ -12,6 +12,7 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
+import app.model  # noqa: E402
 from app.model import StudioModel  # noqa: E402
 from app.qt.commands import SetPointCommand  # noqa: E402
 from app.qt.workers import FitController  # noqa: E402
@@ -28,7 +29,7 @@ def overlay_threads(monkeypatch):
         calls.append(threading.get_ident())
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(overlay_module, "photo_overlay", recorded)
+    monkeypatch.setattr(app.model, "photo_overlay", recorded)  # where the studio's model looks it up
     return calls
 
 

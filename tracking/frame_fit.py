@@ -73,9 +73,11 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from threadpoolctl import ThreadpoolController
 
 from photomodel.camera import Camera, rodrigues, rotation_vector
 from photomodel.errors import FitError
+from photomodel.rendering.renderer import get_renderer
 from tracking.facemodel import WEIGHT_RANGE, FaceModel, ModelRender, render_model, smooth_membership
 
 __all__ = [
@@ -298,7 +300,6 @@ class FrameFitter:
 
     def __init__(self, model: FaceModel, focal_px: float, width: int, height: int,
                  options: TrackOptions | None = None, renderer=None):  # fmt: skip
-        from photomodel.rendering.renderer import get_renderer
 
         self.model = model
         self.f, self.W, self.H = float(focal_px), int(width), int(height)
@@ -734,12 +735,7 @@ def _single_threaded_blas():
     spin-waiting takes a core from the software rasteriser and numpy — measured on the 2-core
     machine, 3.3 instead of 2.0 frames/s."""
     if not _BLAS_CONTROLLER:
-        try:
-            from threadpoolctl import ThreadpoolController
-
-            _BLAS_CONTROLLER.append(ThreadpoolController())
-        except ImportError:
-            _BLAS_CONTROLLER.append(None)
+        _BLAS_CONTROLLER.append(ThreadpoolController())
     ctl = _BLAS_CONTROLLER[0]
     return contextlib.nullcontext() if ctl is None else ctl.limit(limits=1, user_api="blas")
 

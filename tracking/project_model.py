@@ -47,7 +47,11 @@ import cv2
 import numpy as np
 
 from photomodel.alignment import similarity_transform
+from photomodel.camera import rotation_angle_deg
 from photomodel.errors import FitError, ProjectError
+from photomodel.exchange.mesh import read_mesh
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.texturing.job import stored_cylinder
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions, smooth_membership
 
 __all__ = ["MODEL_TEXTURE_SIZE", "face_model_from_project", "project_face_model", "model_expressions",
@@ -106,7 +110,6 @@ def model_expressions(project, names: Sequence[str] | None = None) -> list[str]:
 
 
 def _read_mesh(project, name: str) -> tuple[np.ndarray, np.ndarray]:
-    from photomodel.exchange.mesh import read_mesh
 
     rel = project.expression(name).result.mesh_obj
     if rel is None:
@@ -142,7 +145,6 @@ def _read_texture(project, name: str, size: int) -> np.ndarray:
 
 def _texture_uv(project, name: str, V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(n, 2) the cylindrical texture coordinates (v up) of the expression's vertices."""
-    from photomodel.texturing.job import stored_cylinder
 
     return stored_cylinder(project.expression(name).result.texture, V, F).uv(V)
 
@@ -154,7 +156,6 @@ def register_expression(E: np.ndarray, E1: np.ndarray, weight: np.ndarray, *, sc
     report: ``rms_mm`` over the vertices that agree after registration (within 2 mm: the skull's
     parts), ``agreeing`` (their fraction of the weighted vertices), ``scale``, ``rotation_deg``,
     ``translation_mm``."""
-    from photomodel.camera import rotation_angle_deg
 
     w0 = np.asarray(weight, float)
     if np.count_nonzero(w0 > 0) < 3:
@@ -208,7 +209,6 @@ def face_model_from_project(project, names: Sequence[str] | None = None, *, text
     FitError, ProjectError
         naming the expression and file that is missing, unreadable or inconsistent.
     """
-    from photomodel.modeling.generic_mesh import load_generic_mesh
 
     names = model_expressions(project, names)
     mesh = load_generic_mesh()

@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.model import StudioModel
+from app.qt.photo_view import residual_color
 
 _NAME_ROLE = Qt.ItemDataRole.UserRole
 
@@ -296,8 +297,6 @@ class FeaturePanel(QWidget):
                 continue
             item = QListWidgetItem(f"{px:5.2f} px   {name}  @ {pid}")
             item.setData(_NAME_ROLE, (pid, name))
-            from app.qt.photo_view import residual_color
-
             item.setForeground(QBrush(residual_color(px).darker(130)))
             self.worst.addItem(item)
         self.refresh_features_rms()

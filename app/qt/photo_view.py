@@ -22,7 +22,9 @@ red ≥ 4 px; white before any fit); hidden features are drawn hollow and grey.
 from __future__ import annotations
 
 import math
+import time
 
+import cv2
 import numpy as np
 from PySide6.QtCore import QLineF, QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QFont, QImage, QPainter, QPainterPath, QPen, QPixmap
@@ -70,7 +72,6 @@ def load_photo_image(path, width: int, height: int) -> tuple[QImage, str | None]
     if not img.isNull():
         return img, None
     try:  # formats Qt lacks a plug-in for (e.g. 16-bit TIFF) but OpenCV reads
-        import cv2
 
         a = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if a is not None:
@@ -406,7 +407,6 @@ class PhotoView(QGraphicsView):
         screen (:class:`app.qt.workers.FitTask`), so after a refit this only paints; a photo that
         was not on screen then has its overlay computed here once (:meth:`StudioModel.overlay`).
         """
-        import time
 
         self.overlay_stale = False
         fit = self.model.fit(self.expression)

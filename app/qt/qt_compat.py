@@ -14,7 +14,7 @@ import sys
 
 def check_pyside() -> None:
     """Raise ImportError naming the fix when the installed PySide6 is the crashing build."""
-    from PySide6 import QtCore
+    from PySide6 import QtCore  # noqa: PLC0415 - the Qt stack loads only when the studio opens
 
     text = getattr(QtCore, "__version__", "0.0")
     version = tuple(int(x) for x in text.split(".")[:2])

@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
 
 from app.model import StudioModel
 from photomodel.camera import orbit_camera
+from photomodel.rendering.renderer import get_renderer
 
 #: Side (px) of a weight-map thumbnail.
 THUMB_PX = 150
@@ -179,7 +180,6 @@ class ExpressionsView(QWidget):
                             elevation_deg=TILE_ELEVATION_DEG, target=target)
 
     def render(self, vertices: np.ndarray, camera) -> QImage:
-        from photomodel.rendering.renderer import get_renderer
 
         out = get_renderer().render(camera, vertices, self.model.mesh.faces, shading="lambert", background=BACKGROUND)
         return to_qimage((np.clip(out.color[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8))

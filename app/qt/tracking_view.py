@@ -63,8 +63,17 @@ from app.model import StudioModel
 from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.texture_views import to_qimage
 from app.qt.workers import JobController
+from photomodel.camera import focal_mm_to_px
 from photomodel.errors import FaceStudioError
+from tracking.first_pose import default_first_pose_path
+from tracking.frame_fit import FrameFitter, pose_from_clicks
+from tracking.overlay_video import overlay_frame
 from tracking.plots import MARGINS
+from tracking.project_model import project_face_model
+from tracking.results import default_out_dir
+from tracking.review import TrackReview
+from tracking.run import track_video
+from tracking.video import VideoError, VideoFrames
 
 if TYPE_CHECKING:
     from tracking.review import TrackReview
@@ -269,7 +278,6 @@ class TrackingView(QWidget):
         if project_path is None:
             self._error("Cannot track", "save the project first: tracking reads the project file")
             return False
-        from tracking.results import default_out_dir
 
         video = Path(video).absolute()
         self._run(project_path, video, default_out_dir(project_path, video), max_frames, f"Tracking {video.name}…")
@@ -309,7 +317,6 @@ class TrackingView(QWidget):
         self._pending_out = out
 
         def work(progress, cancel):
-            from tracking.run import track_video
 
             def report(done, total):
                 frac = done / total if total else 0.0
@@ -433,7 +440,6 @@ class TrackingView(QWidget):
     # ------------------------------------------------------------------ results
     def load_results(self, out_dir: str | Path) -> bool:
         """Show the tracking results in ``out_dir`` (its ``track.json``); False (with a dialog) if none."""
-        from tracking.review import TrackReview
 
         try:
             self.review = TrackReview.open(out_dir)
@@ -641,8 +647,6 @@ class FirstPoseDialog(QDialog):
                  clicks: dict | None = None, focal_px: float | None = None, model=None,
                  correct: bool = False):  # fmt: skip
         super().__init__(parent)
-        from tracking.first_pose import default_first_pose_path
-        from tracking.video import VideoError, VideoFrames
 
         self.project = project
         self.video = Path(video).absolute()
@@ -753,8 +757,6 @@ class FirstPoseDialog(QDialog):
         """Pose from the clicks (:func:`tracking.frame_fit.pose_from_clicks`) and its overlay on the frame.
 
         False (with a message box) with fewer than 6 clicks or when no pose is found."""
-        from tracking.frame_fit import FrameFitter, pose_from_clicks
-        from tracking.overlay_video import overlay_frame
 
         names = list(self.canvas.clicks)
         if len(names) < 6:
@@ -810,7 +812,6 @@ class FirstPoseDialog(QDialog):
 
     def _face_model(self):
         if self._model is None:
-            from tracking.project_model import project_face_model
 
             self._model, _ = project_face_model(self.project)
         return self._model
@@ -826,7 +827,6 @@ class FirstPoseDialog(QDialog):
             return
         if not isinstance(spec, dict):
             return
-        from photomodel.camera import focal_mm_to_px
 
         try:
             if "focal_px" in spec:

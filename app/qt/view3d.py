@@ -26,6 +26,8 @@ from PySide6.QtWidgets import QSizePolicy, QWidget
 
 from app.model import StudioModel
 from photomodel.camera import focal_mm_to_px, orbit_camera
+from photomodel.modeling.overlay import visible_points
+from photomodel.rendering.renderer import get_renderer
 
 #: A click within this many pixels of a feature's projection picks it.
 PICK_RADIUS_PX = 14.0
@@ -124,7 +126,6 @@ class View3D(QWidget):
 
     def render_image(self, width: int | None = None, height: int | None = None) -> QImage:
         """Render now at the given size (default: the widget's) and return the image."""
-        from photomodel.rendering.renderer import get_renderer
 
         w = max(16, int(width or self.width()))
         h = max(16, int(height or self.height()))
@@ -193,7 +194,6 @@ class View3D(QWidget):
         return (names,) + self._project_visible(V[verts]) if len(names) else ([], np.zeros((0, 2)), np.zeros(0, bool))
 
     def _project_visible(self, X: np.ndarray):
-        from photomodel.modeling.overlay import visible_points
 
         uv = self._camera.project(X)
         vis = visible_points(self._camera, X, self._depth, tolerance_mm=3.0)

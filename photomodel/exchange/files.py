@@ -17,6 +17,7 @@ import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 #: Permissions of a new file (``mkstemp`` makes 0600; outputs are ordinary documents).
@@ -108,7 +109,6 @@ def encode_png(image: np.ndarray) -> bytes:
     bytes
         a PNG file (8 bits per channel, grey/RGB/RGBA as given).
     """
-    import cv2  # local: encoding is the only thing here that needs OpenCV
 
     img = np.asarray(image)
     if img.ndim == 3 and img.shape[2] == 1:
@@ -129,7 +129,6 @@ def encode_png(image: np.ndarray) -> bytes:
 
 def decode_png(data: bytes) -> np.ndarray:
     """Inverse of :func:`encode_png`: ``(H, W)`` grey or ``(H, W, 3|4)`` RGB(A) ``uint8``."""
-    import cv2
 
     img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
     if img is None:

@@ -35,26 +35,9 @@ import numpy as np
 
 from photomodel.alignment import similarity_transform
 from photomodel.camera import Camera
+from photomodel.modeling.pose import rodrigues_batch
 
-__all__ = ["BundleState", "BundleProblem", "rodrigues_batch"]
-
-_EPS = np.zeros((3, 3, 3))
-_EPS[0, 2, 1], _EPS[0, 1, 2] = 1.0, -1.0
-_EPS[1, 0, 2], _EPS[1, 2, 0] = 1.0, -1.0
-_EPS[2, 1, 0], _EPS[2, 0, 1] = 1.0, -1.0
-_EPS = _EPS.reshape(3, 9)
-_EYE9 = np.eye(3).reshape(9)
-
-
-def rodrigues_batch(v: np.ndarray) -> np.ndarray:
-    """(k, 3) rotation vectors → (k, 3, 3) rotation matrices (the paper's Eq. 12), branch-free."""
-    theta = np.maximum(np.sqrt((v * v).sum(1)), 1e-30)
-    sinc = np.sin(theta) / theta
-    cosc = 2.0 * (np.sin(0.5 * theta) / theta) ** 2
-    out = np.cos(theta)[:, None] * _EYE9 + (sinc[:, None] * v) @ _EPS
-    out += ((cosc[:, None] * v)[:, :, None] * v[:, None, :]).reshape(-1, 9)
-    return out.reshape(-1, 3, 3)
-
+__all__ = ["BundleState", "BundleProblem"]
 
 @dataclass
 class BundleState:

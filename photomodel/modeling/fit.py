@@ -41,9 +41,9 @@ import numpy as np
 
 from photomodel.alignment import similarity_transform, transform_cameras
 from photomodel.camera import Camera, focal_mm_to_px, preset_camera
-from photomodel.errors import FitError
+from photomodel.errors import FitError, ProjectError
 from photomodel.modeling.camera_solve import solve_cameras
-from photomodel.modeling.pose import PoseResult, recover_poses
+from photomodel.modeling.pose import PoseResult, recover_poses, reprojection_residuals
 from photomodel.modeling.rbf import deform_vertices
 from photomodel.modeling.refine import refine_points, triangulate
 
@@ -177,7 +177,6 @@ def source_cameras(project, expression_name: str, source: str) -> list[Camera]:
         naming the problem: ``source`` is the expression itself, does not exist, is not
         fitted yet, or lacks a camera for one of the photos (or has one of another image size).
     """
-    from photomodel.errors import ProjectError
 
     if source == expression_name:
         raise FitError(f"expression {expression_name!r} cannot take its cameras from itself")
@@ -226,7 +225,6 @@ def source_cameras(project, expression_name: str, source: str) -> list[Camera]:
 def _fixed_camera_pose(cameras, obs_pose, pose_names, photo_ids):
     """Pose stage with known cameras: triangulate the pose features (§5.1.3 with the cameras
     fixed). Returns ``(PoseResult, kept (n,) bool, dropped messages)``."""
-    from photomodel.modeling.pose import reprojection_residuals
 
     tri = triangulate(cameras, obs_pose)
     kept = tri.ok

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sparse
+import trimesh
 from scipy.optimize import linear_sum_assignment
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
@@ -232,7 +233,6 @@ def load_generic_mesh() -> GenericMesh:
 
 def build_generic_mesh_arrays(template: Template, target_faces: int = TARGET_FACES) -> dict[str, np.ndarray]:
     """Arrays of :class:`GenericMesh` built from ``template`` (the uncached path)."""
-    import trimesh
 
     full = trimesh.Trimesh(template.vertices, template.faces, process=False)
     simple = full.simplify_quadric_decimation(face_count=target_faces)

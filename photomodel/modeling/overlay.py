@@ -21,12 +21,14 @@ tolerance (:func:`project_lines`).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from photomodel.camera import Camera
 from photomodel.rendering.depth import depth_visible
+from photomodel.rendering.renderer import get_renderer
 
 #: Segment kinds of :class:`MeshLines`.
 GRID, OUTLINE, CURVE = 0, 1, 2
@@ -235,7 +237,6 @@ def project_lines(
     if not 0 < depth_scale <= 1:
         raise ValueError(f"depth_scale must be in (0, 1], got {depth_scale}")
     if renderer is None:
-        from photomodel.rendering.renderer import get_renderer
 
         renderer = get_renderer()
     P = line_points(lines, vertices)
@@ -278,7 +279,6 @@ def photo_overlay(camera: Camera, vertices: np.ndarray, faces: np.ndarray, lines
     thread's :func:`photomodel.rendering.renderer.get_renderer`), and nothing else is shared. Parameters
     as :func:`project_lines`.
     """
-    import time
 
     if not 0 < depth_scale <= 1:
         raise ValueError(f"depth_scale must be in (0, 1], got {depth_scale}")

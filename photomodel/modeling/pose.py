@@ -184,7 +184,7 @@ def _rms_summary(res: np.ndarray, valid: np.ndarray) -> tuple[float, np.ndarray,
 # ----------------------------------------------------------------------------------------------
 # input validation (the boundary: errors name the photo / feature)
 # ----------------------------------------------------------------------------------------------
-def _validate(observations, cameras, points, names, view_names, fixed_focal):
+def _validate(observations, cameras, points, names, view_names, fixed_focal):  # noqa: C901 - a flat list of input checks, each naming its problem
     """Check the inputs of :func:`recover_poses`; return ``obs (k,n,2)``, ``valid (k,n)``, points, cameras."""
     try:
         obs = np.asarray(observations, dtype=float)
@@ -320,7 +320,7 @@ _EPS = _EPS.reshape(3, 9)
 _EYE9 = np.eye(3).reshape(9)
 
 
-def _rodrigues_batch(v: np.ndarray) -> np.ndarray:
+def rodrigues_batch(v: np.ndarray) -> np.ndarray:
     """(k, 3) rotation vectors → (k, 3, 3) rotations, Eq. (12):
     ``I + sin θ X(n̂) + (1 − cos θ) X(n̂)² = cos θ I + sin θ X(n̂) + (1 − cos θ) n̂ n̂ᵀ``.
 
@@ -479,7 +479,7 @@ class _Problem:
         Gm[..., 3] = O - sw[..., None] * (q[..., :2] + t2[:, None, :])  # e0 = x − prediction
         G = _gram(Gm.reshape(k, 2 * n, 4))
         v = np.linalg.solve(G[:, :3, :3], -G[:, :3, 3:])[..., 0]
-        st.R = R = _rodrigues_batch(v) @ R
+        st.R = R = rodrigues_batch(v) @ R
 
         # (4) t_x, t_y — minimise Σ (x_j − w s q_j − w s t_j)²:  t_j = (Σ w x_j − s Σ w² q_j) / (s Σ w²)
         q = st.m @ R.transpose(0, 2, 1)
@@ -571,7 +571,7 @@ class _Problem:
                 dc = np.linalg.solve(S, rhs).reshape(k, nc)
                 dm = -(Vinv @ (gp + (dc.reshape(-1) @ W2).reshape(n, 3))[..., None])[..., 0]
                 new = _State(
-                    _rodrigues_batch(dc[:, :3]) @ R, st.t2 + dc[:, 3:5], eta + dc[:, -1], s, st.m + dm
+                    rodrigues_batch(dc[:, :3]) @ R, st.t2 + dc[:, 3:5], eta + dc[:, -1], s, st.m + dm
                 )
                 new.s = self.f_fixed * new.eta if self.fixed_focal else s + dc[:, 5]
                 ev = self.evaluate(new)

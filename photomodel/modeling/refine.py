@@ -258,7 +258,7 @@ def _arc_length01(P: np.ndarray) -> np.ndarray:
     return s / s[-1]
 
 
-def curve_observations(
+def curve_observations(  # noqa: C901 - per-view checks of a drawn curve, each dropping it with a reason
     cameras: Sequence[Camera],
     mesh_vertices,
     polyline,

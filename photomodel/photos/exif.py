@@ -36,6 +36,8 @@ import math
 import os
 import warnings
 
+from PIL import Image
+
 EXIF_IFD = 0x8769
 TAG_FOCAL_LENGTH = 0x920A
 TAG_FOCAL_LENGTH_35MM = 0xA405
@@ -93,7 +95,6 @@ def focal_mm_guess_from_exif(path: str | os.PathLike, width: int, height: int) -
 
 
 def _focal_35mm(path) -> float | None:
-    from PIL import Image
 
     with Image.open(path) as img:
         exif = img.getexif()

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from photomodel.camera import Camera
@@ -420,7 +421,6 @@ class Project:
             from the file header (``cv2.haveImageReader``). If True each image is decoded and
             its size compared with the ``width``/``height`` stored in the project.
         """
-        import cv2  # local: loading/saving projects does not need OpenCV
 
         problems = []
         for ei, expr in enumerate(self.expressions):
@@ -445,7 +445,8 @@ class Project:
     # -- (de)serialisation -----------------------------------------------------------
     def to_dict(self) -> dict:
         """The project as the JSON-able dict written to disk (rounded, canonical order)."""
-        from photomodel.project.codec import project_to_dict
+        # the codec builds these dataclasses, so it imports this module: a circular import at the top
+        from photomodel.project.codec import project_to_dict  # noqa: PLC0415
 
         return project_to_dict(self, self.path)
 
@@ -456,7 +457,7 @@ class Project:
         ``path`` (the file it came from) is used for error messages and for resolving
         relative paths. Raises :class:`ProjectError` naming the field at fault.
         """
-        from photomodel.project.codec import project_from_dict
+        from photomodel.project.codec import project_from_dict  # noqa: PLC0415 - circular, as in to_dict
 
         return project_from_dict(d, path)
 

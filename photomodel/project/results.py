@@ -34,8 +34,11 @@ from pathlib import Path
 import numpy as np
 
 from photomodel.errors import FitError, ProjectError
+from photomodel.exchange import files as exchange_files  # looked up at call time (tests replace it)
+from photomodel.exchange.mesh import write_mesh
 from photomodel.project.io import default_filename, encode_project, target_file, write_project
 from photomodel.project.model import ExpressionResult, Project, TextureResult
+from photomodel.texturing.job import encode_texture_outputs
 
 
 # ---------------------------------------------------------------------------------------
@@ -88,7 +91,6 @@ def store_fit_result(project: Project, expression_name: str, fit, faces: np.ndar
 
 
 def _write_meshes(paths: dict[str, Path], vertices: np.ndarray, faces: np.ndarray) -> None:
-    from photomodel.exchange.mesh import write_mesh
 
     for path in paths.values():
         try:
@@ -111,7 +113,6 @@ def _record_meshes(project: Project, expression_name: str, folder: Path, paths: 
 def texture_files(project: Project, job, folder: Path | None = None) -> tuple[dict, dict]:
     """:func:`photomodel.texturing.job.encode_texture_outputs` for a project saved into ``folder``
     (default: its own): ``({absolute path: bytes}, paths relative to that folder)``."""
-    from photomodel.texturing.job import encode_texture_outputs
 
     if folder is None or (project.path is not None and Path(folder) == project.path.parent):
         return encode_texture_outputs(project, job)
@@ -136,7 +137,6 @@ def _check_fitted(project: Project, job) -> None:
 
 
 def _write_texture(job, files: Mapping) -> None:
-    from photomodel.exchange import files as exchange_files  # looked up at call time (tests replace it)
 
     try:
         exchange_files.write_files(files)

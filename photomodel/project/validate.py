@@ -23,13 +23,16 @@ faster; a test keeps it in agreement with the shipped schema — see :func:`_val
 
 from __future__ import annotations
 
+import copy
 import json
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from typing import Any
 
+import jsonschema
 import numpy as np
+from jsonschema.exceptions import ValidationError, best_match
 
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import ProjectError
@@ -102,9 +105,7 @@ def _validator():
     plain Python instead; the shipped schema keeps the full standard definition, and
     ``tests/test_project_validate.py`` checks that both agree.
     """
-    import copy
 
-    import jsonschema  # local: importing jsonschema costs ~0.1 s; only load/save need it
 
     schema = copy.deepcopy(project_schema())
     for (owner, prop), kind in _LEAF_MAPS.items():
@@ -117,7 +118,6 @@ def _validator():
 
 def _leaves_keyword(validator, kind, instance, schema):
     """jsonschema keyword: every value of the object ``instance`` is a ``kind`` leaf."""
-    from jsonschema.exceptions import ValidationError
 
     if not isinstance(instance, dict):
         return  # the "type" keyword reports it
@@ -145,7 +145,6 @@ def _is_numbers(v, n: int) -> bool:
 
 
 def _check_schema(d: dict, source: str) -> None:
-    from jsonschema.exceptions import best_match
 
     errors = list(_validator().iter_errors(d))
     if not errors:

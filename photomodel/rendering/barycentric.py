@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import moderngl
 import numpy as np
 
 from photomodel.camera import Camera
@@ -186,7 +187,6 @@ class BarycentricPass:
         """Rasterise camera-space vertices ``Xc`` (n, 3) mm with the GL projection ``proj`` (4, 4)
         into ``fbo`` (one RGBA32F colour attachment and a depth buffer, the frame's size); returns
         the (h, w, 4) float32 read-back of ``box``."""
-        import moderngl
 
         y0, y1, x0, x1 = box
         out = np.empty((y1 - y0, x1 - x0, 4), np.float32)

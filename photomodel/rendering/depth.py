@@ -33,6 +33,7 @@ drawn at ≥ 0.2 mm per pixel.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from photomodel.camera import Camera
@@ -63,7 +64,6 @@ def project_points(camera: Camera, points: np.ndarray) -> tuple[np.ndarray, np.n
     z : (n,) float
         ``Z_cam`` in mm.
     """
-    import cv2
 
     P = np.asarray(points)
     dt = np.float32 if P.dtype == np.float32 else np.float64
@@ -154,7 +154,6 @@ def surface_depth(depth: np.ndarray, uv: np.ndarray, *, lookup: str = "bilinear"
     """
     H, W = depth.shape
     if lookup == "max3x3":
-        import cv2
 
         col, row = np.rint(uv[:, 0]).astype(np.int64), np.rint(uv[:, 1]).astype(np.int64)
         valid = (col >= 0) & (col < W) & (row >= 0) & (row < H)

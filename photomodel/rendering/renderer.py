@@ -69,6 +69,8 @@ import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 
+import cv2
+import moderngl
 import numpy as np
 
 from photomodel.camera import Camera
@@ -286,7 +288,6 @@ class GLTexture:
 
 
 def _create_context():
-    import moderngl
 
     errors = []
     for kwargs in ({"backend": "egl"}, {}):
@@ -312,7 +313,6 @@ class Renderer:
     """
 
     def __init__(self):
-        import moderngl
 
         self._moderngl = moderngl
         self._thread = threading.get_ident()
@@ -755,7 +755,6 @@ def _resolve(color, depth, face, bg, ss: int, near: float, far: float) -> Render
 def _box_downsample(image: np.ndarray, k: int) -> np.ndarray:
     """(H·k, W·k, C) → (H, W, C): mean of each k×k block (OpenCV's area filter is exactly this
     for an integer factor, and ~5× faster than a numpy reshape-mean)."""
-    import cv2
 
     Hk, Wk, C = image.shape
     if C <= 4:
@@ -781,7 +780,6 @@ def _texture_array(texture) -> tuple[np.ndarray, int]:
 
 
 def _upload_texture(ctx, T: np.ndarray):
-    import moderngl
 
     h, w, c = T.shape
     tex = ctx.texture((w, h), c, T.tobytes(), alignment=1, dtype="f1" if T.dtype == np.uint8 else "f4")

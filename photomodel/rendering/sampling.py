@@ -13,6 +13,7 @@ weights of the float32 sample positions; OpenCV 4 rounded them to 1/32 pixel.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 __all__ = ["sample_image", "sample_texture"]
@@ -40,7 +41,6 @@ def sample_image(image: np.ndarray, uv: np.ndarray, *, border_value: float | Non
     -------
     (n,) or (n, C), dtype of ``image`` (float32 for other dtypes)
     """
-    import cv2
 
     img = np.asarray(image)
     if img.dtype not in (np.uint8, np.float32):

@@ -59,6 +59,7 @@ import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import moderngl as mgl
 import numpy as np
 
 from photomodel.camera import Camera
@@ -320,7 +321,6 @@ class ViewDependentGL:
         tol_mm: float,
         far_sentinel_mm: float,
     ):
-        import moderngl as mgl
 
         self.renderer = renderer
         self._mgl = mgl

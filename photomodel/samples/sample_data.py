@@ -43,7 +43,9 @@ from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
+import cv2
 import numpy as np
+import trimesh  # imported here: only the first load parses the PLY
 
 from photomodel.errors import SampleDataError
 
@@ -290,7 +292,6 @@ def load_template() -> Template:
     cache = folder / "template.npz"
     arrays = _load_npz(cache)
     if arrays is None:
-        import trimesh  # imported here: only the first load parses the PLY
 
         mesh = trimesh.load(folder / "template.ply", process=False, force="mesh")
         arrays = {
@@ -349,7 +350,6 @@ class Scan:
         """The connected surface as a ``trimesh.Trimesh`` (``process=False``), one vertex
         per OBJ position (vertex ``k`` ↔ OBJ vertex ``k``; all 6393 are used), for
         surface-distance and closest-point queries."""
-        import trimesh
 
         order, first = np.unique(self.obj_vertex, return_index=True)
         remap = np.searchsorted(order, self.obj_vertex)
@@ -408,7 +408,6 @@ def _parse_james_obj(path: Path) -> dict[str, np.ndarray]:
 
 def load_james_scan() -> Scan:
     """The james scan, aligned to the template's head frame (see :class:`Scan`)."""
-    import cv2
 
     folder = sample_data_dir()
     cache = folder / "james_scan.npz"

@@ -27,7 +27,7 @@ import hashlib
 import json
 import weakref
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -35,9 +35,11 @@ import numpy as np
 import scipy.sparse as sparse
 from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
+from trimesh.triangles import closest_point
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, orbit_camera, rodrigues
-from photomodel.rendering.renderer import vertex_normals
+from photomodel.rendering.renderer import get_renderer, vertex_normals
+from photomodel.samples.sample_data import _load_npz, _save_npz, cache_dir
 from photomodel.texturing import visibility
 
 if TYPE_CHECKING:  # imported lazily at run time: only these functions need the sample data
@@ -166,7 +168,6 @@ class ScanSurface:
         distance : (n,) float, mm.
         face : (n,) int, triangle holding each closest point.
         """
-        from trimesh.triangles import closest_point
 
         points = _points3(points, "points")
         n = len(points)
@@ -226,7 +227,6 @@ def deformed_scan(scan: Scan, vertices: np.ndarray, landmarks: np.ndarray | None
         must move together, as any displacement field of space does).
     landmarks : (68, 3) float mm, optional; the moved landmarks (default: ``scan``'s).
     """
-    from dataclasses import replace
 
     V = _points3(vertices, "vertices")
     if V.shape != np.shape(scan.vertices):
@@ -290,7 +290,6 @@ def correspondence_residual(mesh: GenericMesh, scan: Scan) -> np.ndarray:
 
 
 def _correspondence_arrays(mesh: GenericMesh, scan: Scan, use_cache: bool) -> dict[str, np.ndarray]:
-    from photomodel.samples.sample_data import _load_npz, _save_npz, cache_dir
 
     h = hashlib.sha256(f"v{CORRESPONDENCE_VERSION}".encode())
     for a in (mesh.vertices, mesh.faces, mesh.landmarks, scan.vertices, scan.faces, scan.landmarks):
@@ -448,7 +447,6 @@ def render_scan(camera: Camera, scan: Scan, *, background=0.0, supersample: int 
         ``color`` (H, W, 3) float in [0, 1], ``depth`` (H, W) mm (inf on background),
         ``mask`` (H, W) bool.
     """
-    from photomodel.rendering.renderer import get_renderer
 
     return get_renderer().render(
         camera, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture,

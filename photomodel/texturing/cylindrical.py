@@ -70,10 +70,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
 from photomodel.camera import Camera
+from photomodel.exchange.uv import check_mesh
+from photomodel.modeling.fit import Cancelled
 from photomodel.rendering.depth import DEPTH_TOL_MM, depth_visible, project_points
+from photomodel.rendering.renderer import get_renderer, vertex_normals
 from photomodel.rendering.sampling import sample_image
 from photomodel.texturing.visibility import render_depth
 from photomodel.texturing.weights import (
@@ -329,7 +334,6 @@ def _render_cylinder(cmap: CylinderMap, V: np.ndarray, F: np.ndarray, size: int,
     """The seam-split mesh drawn at its texel positions (see the module notes): the renderer's
     ``RenderResult`` (mask, depth ``Z_0 − r``, interpolated attributes, face ids of the split
     mesh) and ``face_index`` (F',), the mesh face of each split face."""
-    from photomodel.rendering.renderer import get_renderer
 
     vidx, sfaces, phi, face_index = _seam_mesh(cmap, V, F, both=True)
     y0, y1 = cmap.y_range
@@ -472,7 +476,6 @@ def fill_holes(image: np.ndarray, known: np.ndarray) -> np.ndarray:
         equal to ``image`` on known texels; holes filled. An image with no known texel is
         returned unchanged.
     """
-    import cv2
 
     img = np.asarray(image)
     K = np.asarray(known, dtype=bool)
@@ -546,7 +549,6 @@ def single_view_weights(
     -------
     (N,) float32 in [0, 1]
     """
-    from scipy.spatial import cKDTree
 
     V = np.asarray(vertices, dtype=float)
     M = np.asarray(face_mask, dtype=bool)
@@ -697,8 +699,6 @@ def cylindrical_texture(
     photomodel.modeling.fit.Cancelled
         ``cancel()`` returned True.
     """
-    from photomodel.exchange.uv import check_mesh
-    from photomodel.rendering.renderer import vertex_normals
 
     V, F = check_mesh(vertices, faces)
     size = int(size)
@@ -715,7 +715,6 @@ def cylindrical_texture(
 
     def step(stage: str, fraction: float) -> None:
         if cancel is not None and cancel():
-            from photomodel.modeling.fit import Cancelled
 
             raise Cancelled(f"texture extraction cancelled ({stage})")
         if progress is not None:
@@ -802,6 +801,5 @@ def render_cylindrical(
     photomodel.rendering.renderer.RenderResult
         ``color`` (H, W, 3) float32 in [0, 1].
     """
-    from photomodel.rendering.renderer import get_renderer
 
     return get_renderer().render(camera, vertices, faces, uv=uv, texture=texture, **kwargs)

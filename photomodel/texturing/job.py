@@ -26,9 +26,26 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from photomodel.errors import FitError, ProjectError
+from photomodel.exchange.files import encode_png
+from photomodel.exchange.gltf import encode_glb
+from photomodel.exchange.mesh import read_mesh
+from photomodel.exchange.obj import encode_textured_obj
+from photomodel.exchange.ply import encode_colored_ply
+from photomodel.exchange.uv import merge_uv_seams
+from photomodel.modeling.fit import Cancelled
+from photomodel.texturing.cylindrical import (
+    CylinderMap,
+    CylindricalTexture,
+    cylinder_map_for,
+    cylinder_surface,
+    cylindrical_texture,
+    seam_render_mesh,
+    single_view_weights,
+)
 
 __all__ = [
     "TEXTURE_SIZES",
@@ -133,7 +150,6 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
     if result is None:
         raise FitError(f"expression {name!r} has not been fitted yet")
     if vertices is None or faces is None:
-        from photomodel.exchange.mesh import read_mesh
 
         if result.mesh_obj is None:
             raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
@@ -154,7 +170,6 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
 def _read_photos(project, name: str, photo_ids) -> tuple[list, list, list]:
     """``(ids, cameras, RGB photos)`` of the expression's photos ``photo_ids`` (all with a
     recovered camera), each checked against its camera; ProjectError naming the photo."""
-    import cv2
 
     expr = project.expression(name)
     result = expr.result
@@ -199,7 +214,6 @@ def extract_texture(inputs: TextureInputs, size: int = 1024, *, face_mask: np.nd
     ------
     FaceStudioError (ProjectError) for a size out of range.
     """
-    from photomodel.texturing.cylindrical import cylindrical_texture, single_view_weights
 
     lo, hi = TEXTURE_SIZES
     if not lo <= int(size) <= hi:
@@ -227,11 +241,6 @@ def encode_texture_outputs(project, job: TextureJob) -> tuple[dict, dict]:
     {photo id: path} for the photos used, ``obj``, ``mtl``, ``glb``, ``ply``); the project must
     have a file (``project.path``) for them to resolve.
     """
-    from photomodel.exchange.files import encode_png
-    from photomodel.exchange.gltf import encode_glb
-    from photomodel.exchange.obj import encode_textured_obj
-    from photomodel.exchange.ply import encode_colored_ply
-    from photomodel.exchange.uv import merge_uv_seams
 
     if project.path is None:
         raise ProjectError("the project has no file yet: save it before writing the texture")
@@ -259,7 +268,6 @@ def stored_cylinder(texture, vertices: np.ndarray, faces: np.ndarray):
     recorded before the cylinder was, :func:`~photomodel.texturing.cylindrical.cylinder_map_for` the fitted mesh
     at the texture's size (what its extraction used: the cylinder is a function of the mesh).
     """
-    from photomodel.texturing.cylindrical import CylinderMap, cylinder_map_for
 
     c = texture.report.get("cylinder") if isinstance(texture.report, dict) else None
     try:
@@ -276,7 +284,6 @@ def stored_cylinder(texture, vertices: np.ndarray, faces: np.ndarray):
 
 def _read_stored_png(project, name: str, rel: str, what: str, shape: tuple) -> np.ndarray:
     """One PNG of a stored texture as uint8 of ``shape``; ProjectError naming the file."""
-    import cv2
 
     path = project.resolve(rel)
     who = f"expression {name!r}: the {what} {rel}"
@@ -330,12 +337,6 @@ def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndar
         naming the texture file that is missing, unreadable or of the wrong size, or a weight map
         whose photo has no camera.
     """
-    from photomodel.texturing.cylindrical import (
-        CylindricalTexture,
-        cylinder_surface,
-        seam_render_mesh,
-        single_view_weights,
-    )
 
     result = project.expression(name).result
     if result is None or result.texture is None:
@@ -393,7 +394,6 @@ def texture_expression(project, name: str, size: int = 1024, *, face_mask: np.nd
 
     stage("loading photos", 0.0)
     if cancel is not None and cancel():
-        from photomodel.modeling.fit import Cancelled
 
         raise Cancelled("texture extraction cancelled")
     inputs = load_texture_inputs(project, name, vertices, faces)

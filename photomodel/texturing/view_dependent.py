@@ -68,11 +68,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from photomodel.camera import Camera
+from photomodel.exchange.uv import check_mesh
 from photomodel.rendering.depth import DEPTH_TOL_MM, FAR_SENTINEL_MM, project_points
+from photomodel.rendering.renderer import get_renderer, vertex_normals
 from photomodel.rendering.sampling import sample_image
+from photomodel.rendering.view_dependent import ViewDependentGL
 from photomodel.texturing.cylindrical import check_photos
 from photomodel.texturing.visibility import render_depth
 from photomodel.texturing.weights import (
@@ -166,8 +170,6 @@ class ViewDependentTexture:
         depths: Sequence[np.ndarray] | None = None,
         centre: np.ndarray | None = None,
     ):
-        from photomodel.exchange.uv import check_mesh
-        from photomodel.rendering.renderer import vertex_normals
 
         V, F = check_mesh(vertices, faces)
         self.photos = check_photos(cameras, photos)
@@ -259,7 +261,6 @@ class ViewDependentTexture:
             return self._render_per_vertex(camera, views, V, background)
         if method == "shader":
             return self._render_shader(camera, views, V, background, align)
-        from photomodel.rendering.renderer import get_renderer
 
         sv = np.zeros(len(self.vertices), np.float32) if self.single_view is None else self.single_view
         attr = np.column_stack([self.normals, sv]).astype(np.float32)
@@ -317,8 +318,6 @@ class ViewDependentTexture:
     def gl_state(self):
         """The GPU copy of the photographs, maps and mesh for this thread's renderer
         (:class:`photomodel.rendering.view_dependent.ViewDependentGL`), made on first use."""
-        from photomodel.rendering.renderer import get_renderer
-        from photomodel.rendering.view_dependent import ViewDependentGL
 
         renderer = get_renderer()
         gl = self._gl
@@ -352,7 +351,6 @@ class ViewDependentTexture:
         """The paper's multi-pass rendering: one textured pass per selected photograph
         (texture coordinates = the vertices' projections) and one pass for the per-vertex
         weights ``F_k P_k V_k``; blended per pixel."""
-        from photomodel.rendering.renderer import get_renderer
 
         renderer = get_renderer()
         if self._gl_textures is None or self._gl_textures[0].renderer is not renderer:
@@ -397,7 +395,6 @@ def _floating_alignment(shape, rows, cols, colors, weights):
     -------
     two (n, 3) float32, the aligned colours.
     """
-    import cv2
 
     H, W = shape
     # the flow only needs the model's bounding box (plus a margin for the flow's patches)
@@ -427,7 +424,6 @@ def _floating_alignment(shape, rows, cols, colors, weights):
 
 def _pixel_points(camera: Camera, idx: np.ndarray, depth: np.ndarray) -> np.ndarray:
     """(n, 3) float32 world points of the pixels ``idx`` (flat) from the depth buffer ``depth``."""
-    import cv2
 
     rows, cols = np.divmod(idx, camera.width)
     z = depth.reshape(-1)[idx]
@@ -445,7 +441,6 @@ def _fill_unseen(color: np.ndarray, mask: np.ndarray, unseen: np.ndarray) -> Non
     """Fill the covered pixels ``unseen`` (flat indices) that no photograph sees, in place, with
     the mean of the seen pixels in the smallest square around each (half-width 2, 4, 8, … px)
     that holds any: the nearest colours, at a cost set by the holes, not by the frame."""
-    import cv2
 
     H, W = mask.shape
     todo = np.asarray(unseen)
@@ -494,7 +489,6 @@ def _dis_flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     ways (:data:`photomodel.rendering.view_dependent.FlowFunction`): on the sample's held-out views this is
     within 0.03 dB of the numpy path's registration at ~9 ms instead of ~30 ms.
     """
-    import cv2
 
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
     dis.setFinestScale(0)

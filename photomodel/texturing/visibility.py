@@ -26,6 +26,8 @@ import numpy as np
 
 from photomodel.camera import Camera
 from photomodel.rendering.depth import DEPTH_TOL_MM, depth_visible
+from photomodel.rendering.renderer import get_renderer, vertex_normals
+from photomodel.texturing.weights import positional_certainty
 
 __all__ = ["render_depth", "front_facing", "visible", "vertex_visibility"]
 
@@ -48,7 +50,6 @@ def render_depth(camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> np.
     (H, W) float32
         ``Z_cam`` in mm of the nearest surface at each pixel centre, ``inf`` on the background.
     """
-    from photomodel.rendering.renderer import get_renderer
 
     return get_renderer().render(camera, vertices, faces).depth
 
@@ -69,7 +70,6 @@ def front_facing(camera: Camera, points: np.ndarray, normals: np.ndarray, min_co
     -------
     (n,) bool
     """
-    from photomodel.texturing.weights import positional_certainty
 
     return positional_certainty(camera, points, normals, clip=False) > min_cos
 
@@ -127,7 +127,6 @@ def vertex_visibility(
     -------
     (k, N) bool
     """
-    from photomodel.rendering.renderer import vertex_normals
 
     V = np.asarray(vertices, dtype=float)
     normals = vertex_normals(V, faces)

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import cv2
 import numpy as np
 
 from photomodel.camera import Camera
@@ -112,7 +113,6 @@ def feather(binary: np.ndarray, width: float, *, pixel_size=(1.0, 1.0)) -> np.nd
         do not count as invisible (OpenCV's distance transform ignores the frame), so a
         map cut by the texture's border is not ramped there.
     """
-    import cv2
 
     B = np.asarray(binary, dtype=bool)
     if B.ndim != 2:
@@ -203,7 +203,6 @@ def positional_certainty(camera: Camera, points: np.ndarray, normals: np.ndarray
         the cosine between the normal and the unit direction ``d_k`` from ``m`` to the
         camera centre.
     """
-    import cv2
 
     # in camera coordinates the camera centre is the origin: d_k = -X_cam / |X_cam|
     # (cv2.transform: ~10× faster than numpy's matmul on (n, 3) arrays)

@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from photomodel.camera import rodrigues
+from photomodel.samples.synthetic import true_correspondence
 
 __all__ = [
     "EXPRESSION_NAMES",
@@ -192,7 +193,6 @@ def true_expression_geometry(mesh, scan, names=EXPRESSION_NAMES) -> np.ndarray:
     Row ``k`` is ``C + d_k(C)`` with ``C`` the generic vertices' true positions on the neutral
     scan (:func:`photomodel.samples.synthetic.true_correspondence`).
     """
-    from photomodel.samples.synthetic import true_correspondence
 
     C = true_correspondence(mesh, scan)
     return C[None] + expression_displacements(C, scan.landmarks, names)

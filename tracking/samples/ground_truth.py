@@ -18,6 +18,10 @@ Tests, benchmarks and ``sample_projects/make_james_video.py`` use this module; t
 
 from __future__ import annotations
 
+import hashlib
+import os
+import shutil
+import tempfile
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -26,8 +30,17 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
+from photomodel.alignment import similarity_transform
 from photomodel.camera import Camera, rodrigues
+from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.project import load_project, save_project, store_fit_result, store_texture_result
+from photomodel.rendering.renderer import get_renderer
+from photomodel.samples.sample_data import cache_dir, load_james_scan
+from photomodel.samples.synthetic import HEAD_CENTRE_MM, barycentric_coordinates, scan_surface, true_correspondence
+from photomodel.texturing.job import encode_texture_outputs, texture_expression
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions
+from tracking.project_model import face_model_from_project
 from tracking.samples.expressions import EXPRESSION_NAMES, expression_displacements
 
 __all__ = [
@@ -65,7 +78,6 @@ SAMPLE_PROJECT = Path(__file__).resolve().parents[2] / "sample_projects" / "jame
 def scan_uv_of_points(scan, points: np.ndarray) -> np.ndarray:
     """(n, 2) uv of the scan's texture at surface ``points`` (n, 3) mm (closest scan triangle,
     barycentric interpolation of its corners' uv)."""
-    from photomodel.samples.synthetic import barycentric_coordinates, scan_surface
 
     surf = scan_surface(scan)
     closest, _, face = surf.closest(points)
@@ -83,9 +95,6 @@ def scan_uv_of_points(scan, points: np.ndarray) -> np.ndarray:
 @lru_cache(maxsize=4)
 def sample_face_model(names: tuple = EXPRESSION_NAMES, basis: str = "gram_schmidt") -> FaceModel:
     """The james face model of ``names`` (see the module docstring). Cached per arguments."""
-    from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.samples.sample_data import load_james_scan
-    from photomodel.samples.synthetic import true_correspondence
 
     mesh, scan = load_generic_mesh(), load_james_scan()
     C = true_correspondence(mesh, scan)
@@ -105,7 +114,6 @@ def sample_face_model(names: tuple = EXPRESSION_NAMES, basis: str = "gram_schmid
 def _scan_membership() -> np.ndarray:
     """(n_scan, R) region memberships of the scan's vertices: inverse-distance average of the
     4 nearest generic vertices' (at their true positions) smoothed memberships."""
-    from photomodel.samples.sample_data import load_james_scan
 
     model = sample_face_model()
     scan = load_james_scan()
@@ -193,7 +201,6 @@ def video_truth(frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NA
     # facing the camera: the subject's left (+x) is on the image's right, up (+y) is image up
     # (camera y is down), and out of the face (+z) points back at the camera (−z_cam)
     R0 = np.diag([1.0, -1.0, -1.0])
-    from photomodel.samples.synthetic import HEAD_CENTRE_MM
 
     R = np.array([rodrigues(np.array([p, y, r])) @ R0 for p, y, r in zip(pitch, yaw, roll, strict=True)])
     centre_cam = np.column_stack([
@@ -230,7 +237,6 @@ def true_vertices(truth: VideoTruth, i: int) -> np.ndarray:
 def true_scan_vertices(truth: VideoTruth, i: int) -> tuple[np.ndarray, np.ndarray]:
     """The true surface of frame ``i``: the scan deformed by the frame's region weights (what
     :func:`render_video_frame` draws), as vertices (n_scan, 3) mm in the head frame and triangles."""
-    from photomodel.samples.sample_data import load_james_scan
 
     scan = load_james_scan()
     Wv = _scan_membership() @ truth.weights[i]  # (n_scan, m)
@@ -240,8 +246,6 @@ def true_scan_vertices(truth: VideoTruth, i: int) -> tuple[np.ndarray, np.ndarra
 def render_video_frame(truth: VideoTruth, i: int, *, supersample: int = 3) -> np.ndarray:
     """(H, W, 3) float32 in [0, 1]: frame ``i`` — the textured scan deformed by the frame's
     region weights, seen by the video camera at the frame's head pose, on a plain background."""
-    from photomodel.rendering.renderer import get_renderer
-    from photomodel.samples.sample_data import load_james_scan
 
     scan = load_james_scan()
     V, _ = true_scan_vertices(truth, i)
@@ -254,7 +258,6 @@ def render_video_frame(truth: VideoTruth, i: int, *, supersample: int = 3) -> np
 
 @lru_cache(maxsize=2)
 def _scan_displacements(names: tuple) -> np.ndarray:
-    from photomodel.samples.sample_data import load_james_scan
 
     scan = load_james_scan()
     return expression_displacements(scan.vertices, scan.landmarks, names)
@@ -264,8 +267,6 @@ _TEX_HANDLES: dict = {}
 
 
 def _scan_texture_handle():
-    from photomodel.rendering.renderer import get_renderer
-    from photomodel.samples.sample_data import load_james_scan
 
     r = get_renderer()
     if id(r) not in _TEX_HANDLES:
@@ -282,16 +283,7 @@ def fitted_sample_project(progress=None) -> Path:
     minute on two cores) and reused; ``progress(stage, fraction)`` is told how far it got. Tests and
     benchmarks track with the face model of this project (:func:`fitted_sample_model`).
     """
-    import hashlib
-    import os
-    import shutil
-    import tempfile
 
-    from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
-    from photomodel.modeling.generic_mesh import load_generic_mesh
-    from photomodel.project import load_project, save_project, store_fit_result, store_texture_result
-    from photomodel.samples.sample_data import cache_dir
-    from photomodel.texturing.job import encode_texture_outputs, texture_expression
 
     src = SAMPLE_PROJECT
     project = load_project(src)
@@ -340,8 +332,6 @@ def fitted_sample_model(names: tuple = EXPRESSION_NAMES) -> FaceModel:
     """The face model of the fitted sample project (:func:`fitted_sample_project`) on ``names``,
     E_1 = neutral — the model a user of the sample gets, built by
     :func:`tracking.project_model.face_model_from_project`. Cached per arguments."""
-    from photomodel.project import load_project
-    from tracking.project_model import face_model_from_project
 
     return face_model_from_project(load_project(fitted_sample_project()), names)[0]
 
@@ -363,9 +353,6 @@ def model_gauge(model: FaceModel, iterations: int = 15) -> tuple[float, np.ndarr
     by millimetres without changing the surface, and the image — what the tracker matches — only
     sees the surface.
     """
-    from photomodel.alignment import similarity_transform
-    from photomodel.samples.sample_data import load_james_scan
-    from photomodel.samples.synthetic import scan_surface
 
     key = (id(model), iterations)
     cached = _GAUGES.get(key)
