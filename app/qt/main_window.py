@@ -190,6 +190,27 @@ class MainWindow(QMainWindow):
         self.setAcceptDrops(True)
         self.setDockNestingEnabled(True)
 
+        self._build_docks()
+        self.fit_label = QLabel("not fitted")
+        self.statusBar().addPermanentWidget(self.fit_label)
+
+        self._build_actions()
+        self._build_menus()
+        self._build_toolbar()
+
+        self._connect_signals()
+
+        self.autosave_timer = QTimer(self)
+        self.autosave_timer.timeout.connect(self.autosave)
+        if autosave_interval_ms > 0:
+            self.autosave_timer.start(autosave_interval_ms)
+
+        self._on_project_replaced()
+
+    # ------------------------------------------------------------------ layout and signals
+    def _build_docks(self):
+        """The photo tabs in the centre and the docks around them: features, 3D view, weight maps,
+        expressions side by side, tracking."""
         self.tabs = QTabWidget()
         self.tabs.setDocumentMode(True)
         self.tabs.currentChanged.connect(self._on_tab_changed)
@@ -245,13 +266,9 @@ class MainWindow(QMainWindow):
         dockt.hide()
         self.tracking_dock = dockt
 
-        self.fit_label = QLabel("not fitted")
-        self.statusBar().addPermanentWidget(self.fit_label)
 
-        self._build_actions()
-        self._build_menus()
-        self._build_toolbar()
-
+    def _connect_signals(self):
+        """The window follows the model, the undo stack and the workers."""
         m = self.model
         m.project_replaced.connect(self._on_project_replaced)
         m.expression_changed.connect(lambda *_: self._rebuild_tabs())
@@ -275,12 +292,6 @@ class MainWindow(QMainWindow):
         self.jobs.failed.connect(self._on_texture_failed)
         self.jobs.cancelled.connect(self._on_texture_cancelled)
 
-        self.autosave_timer = QTimer(self)
-        self.autosave_timer.timeout.connect(self.autosave)
-        if autosave_interval_ms > 0:
-            self.autosave_timer.start(autosave_interval_ms)
-
-        self._on_project_replaced()
 
     # ------------------------------------------------------------------ actions and menus
     def _action(self, text, slot=None, shortcut=None, checkable=False, checked=False, tip=None) -> QAction:

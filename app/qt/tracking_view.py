@@ -181,6 +181,11 @@ class TrackingView(QWidget):
         self.jobs.busy_changed.connect(self.cancel_button.setEnabled)
         self.jobs.busy_changed.connect(lambda *_: self._update_buttons())
 
+        self._lay_out()
+        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
+
+    def _lay_out(self):
+        """Controls on top, the frame with its scrubber on the left, the parameter plots on the right."""
         top = QHBoxLayout()
         top.addWidget(QLabel("frames to track"))
         top.addWidget(self.limit_box)
@@ -218,7 +223,6 @@ class TrackingView(QWidget):
         lay.addWidget(self.caption)
         lay.addLayout(top)
         lay.addWidget(split, 1)
-        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
 
     # ------------------------------------------------------------------ state
     @property

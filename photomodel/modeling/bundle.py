@@ -154,102 +154,14 @@ class BundleProblem:
         ``c`` is the Huber threshold in px (``inf``: least squares). Stops when an iteration
         lowers the cost by less than ``tol`` relative, or when no damping gives a descent.
         """
-        k, n, nc = self.k, self.n, self.nc
         cost, ev, target = self._cost(st, c)
         lam = 1e-3
         it = 0
-        eye3 = np.eye(3)
         while it < max_iter:
             it += 1
-            q, D, P, r, e = ev
-            valid = self.valid
-            with np.errstate(divide="ignore", invalid="ignore"):
-                w = np.minimum(c / e, 1.0) if np.isfinite(c) else 1.0
-            sw = np.where(valid, np.sqrt(w), 0.0)
-            # unclicked (camera, point) pairs take no part; keep their entries finite so that
-            # the zero weight removes them (a point behind a camera that does not see it)
-            D = np.where(valid, D, 1.0)
-            P = np.where(valid[..., None], P, 0.0)
-            f = np.exp(st.logf[self.groups])
-            eta = st.s / f
-            a = st.s[:, None] / D  # (k, n)
-            b = -eta[:, None] / D
-            bPx, bPy = b * P[..., 0], b * P[..., 1]
-            qx, qy, qz = q[..., 0], q[..., 1], q[..., 2]
-            Jc = self._Jc
-            Jc[..., 0, 0] = bPx * qy
-            Jc[..., 0, 1] = a * qz - bPx * qx
-            Jc[..., 0, 2] = -a * qy
-            Jc[..., 1, 0] = -a * qz + bPy * qy
-            Jc[..., 1, 1] = -bPy * qx
-            Jc[..., 1, 2] = a * qx
-            Jc[..., 0, 3] = a
-            Jc[..., 1, 4] = a
-            Jc[..., 5] = P / (st.s[:, None] * D)[..., None]
-            if self.focal_free:
-                Jc[..., 6] = -(b * qz)[..., None] * P
-            # dP/dm = g R with g = [[a, 0, b P_x], [0, a, b P_y]], written out
-            R = st.R[:, None]  # (k, 1, 3, 3)
-            Jm = np.empty((k, n, 2, 3))
-            Jm[..., 0, :] = a[..., None] * R[..., 0, :] + bPx[..., None] * R[..., 2, :]
-            Jm[..., 1, :] = a[..., None] * R[..., 1, :] + bPy[..., None] * R[..., 2, :]
-            Jc *= sw[..., None, None]
-            Jm *= sw[..., None, None]
-            rw = r * sw[..., None]
-            Jc2 = Jc.reshape(k, 2 * n, nc)
-            JcT = Jc2.transpose(0, 2, 1)
-            Uloc = JcT @ Jc2
-            gloc = (JcT @ rw.reshape(k, 2 * n, 1))[..., 0]
-            # per click J_camᵀ J_point (nc × 3), summed over the click's two rows, elementwise
-            Wloc = Jc[..., 0, :, None] * Jm[..., 0, None, :] + Jc[..., 1, :, None] * Jm[..., 1, None, :]
-            Vp = (Jm[..., 0, :, None] * Jm[..., 0, None, :] + Jm[..., 1, :, None] * Jm[..., 1, None, :]).sum(0)
-            gp = (Jm * rw[..., None]).sum((0, 2))
-            Sc = self._scatter
-            BD = np.zeros((k, nc, k, nc))
-            BD[np.arange(k), :, np.arange(k), :] = Uloc
-            U = Sc.T @ BD.reshape(k * nc, k * nc) @ Sc
-            gc = Sc.T @ gloc.reshape(-1)
-            # W2: (unknowns, 3 n) camera–point coupling, one product through the scatter matrix
-            W2 = Sc.T @ Wloc.transpose(0, 2, 1, 3).reshape(k * nc, 3 * n)
-            if self.beta > 0:
-                # the prior's similarity (7 unknowns: translation, rotation, scale) joins the camera
-                # block, so the prior never fights the gauge (variable projection in effect)
-                ghat, sc = target
-                beta = self.beta * sc * sc
-                Bs = _similarity_basis(st.m)  # (n, 3, 7): the similarity moves the points, not the target
-                d = st.m - ghat
-                Vp = Vp + beta * eye3
-                gp = gp + beta * d
-                B2 = Bs.reshape(3 * n, 7)
-                U = np.block([[U, np.zeros((self.C, 7))], [np.zeros((7, self.C)), beta * (B2.T @ B2)]])
-                gc = np.concatenate([gc, -beta * (B2.T @ d.reshape(-1))])
-                W2 = np.concatenate([W2, -beta * B2.T], axis=0)
-            Ct = U.shape[0]
-            W3 = W2.reshape(Ct, n, 3)
-            dU = np.diagonal(U).copy()
-            dV = np.diagonal(Vp, 0, 1, 2)
+            system = self._normal_equations(st, ev, c, target)
             while True:
-                Vinv = _inv3(Vp + (lam * dV + 1e-12)[:, :, None] * eye3)
-                # Y = W V⁻¹ with V block-diagonal (3 × 3 per point), as three broadcast products
-                Y2 = (W3[:, :, 0, None] * Vinv[None, :, 0, :] + W3[:, :, 1, None] * Vinv[None, :, 1, :]
-                      + W3[:, :, 2, None] * Vinv[None, :, 2, :]).reshape(Ct, 3 * n)
-                S = U - Y2 @ W2.T
-                S.flat[:: Ct + 1] += lam * dU + 1e-12
-                rhs = Y2 @ gp.reshape(-1) - gc
-                try:
-                    dc = np.linalg.solve(S, rhs)
-                except np.linalg.LinAlgError:
-                    dc = np.linalg.lstsq(S, rhs, rcond=None)[0]
-                gm = gp + (dc @ W2).reshape(n, 3)
-                dm = -(Vinv * gm[:, None, :]).sum(2)
-                dcam = dc[: 6 * k].reshape(k, 6)
-                new = BundleState(
-                    rodrigues_batch(dcam[:, :3]) @ st.R,
-                    st.t2 + dcam[:, 3:5],
-                    st.s + dcam[:, 5],
-                    st.logf + (dc[6 * k : self.C] if self.focal_free else 0.0),
-                    st.m + dm,
-                )
+                new = self._step(st, system, lam)
                 new_cost, new_ev, new_target = self._cost(new, c)  # the prior re-aligned: the true cost
                 if new_cost <= cost:
                     break
@@ -263,6 +175,109 @@ class BundleProblem:
             if rel < tol or cost < 1e-18:
                 return st, it, True
         return st, it, False
+
+    def _jacobians(self, st: BundleState, ev, c: float):
+        """Weighted Jacobians of the clicks: ``Jc`` (k, n, 2, nc) camera columns, ``Jm`` (k, n, 2, 3)
+        point columns and weighted residuals (k, n, 2), each row scaled by √(Huber weight)."""
+        k, n = self.k, self.n
+        q, D, P, r, e = ev
+        valid = self.valid
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = np.minimum(c / e, 1.0) if np.isfinite(c) else 1.0
+        sw = np.where(valid, np.sqrt(w), 0.0)
+        # unclicked (camera, point) pairs take no part; keep their entries finite so that
+        # the zero weight removes them (a point behind a camera that does not see it)
+        D = np.where(valid, D, 1.0)
+        P = np.where(valid[..., None], P, 0.0)
+        eta = st.s / np.exp(st.logf[self.groups])
+        a = st.s[:, None] / D  # (k, n)
+        b = -eta[:, None] / D
+        bPx, bPy = b * P[..., 0], b * P[..., 1]
+        qx, qy, qz = q[..., 0], q[..., 1], q[..., 2]
+        Jc = self._Jc
+        Jc[..., 0, 0] = bPx * qy
+        Jc[..., 0, 1] = a * qz - bPx * qx
+        Jc[..., 0, 2] = -a * qy
+        Jc[..., 1, 0] = -a * qz + bPy * qy
+        Jc[..., 1, 1] = -bPy * qx
+        Jc[..., 1, 2] = a * qx
+        Jc[..., 0, 3] = a
+        Jc[..., 1, 4] = a
+        Jc[..., 5] = P / (st.s[:, None] * D)[..., None]
+        if self.focal_free:
+            Jc[..., 6] = -(b * qz)[..., None] * P
+        # dP/dm = g R with g = [[a, 0, b P_x], [0, a, b P_y]], written out
+        R = st.R[:, None]  # (k, 1, 3, 3)
+        Jm = np.empty((k, n, 2, 3))
+        Jm[..., 0, :] = a[..., None] * R[..., 0, :] + bPx[..., None] * R[..., 2, :]
+        Jm[..., 1, :] = a[..., None] * R[..., 1, :] + bPy[..., None] * R[..., 2, :]
+        Jc *= sw[..., None, None]
+        Jm *= sw[..., None, None]
+        return Jc, Jm, r * sw[..., None]
+
+    def _normal_equations(self, st: BundleState, ev, c: float, target):
+        """The Gauss–Newton system with the point blocks apart: ``(U, gc, W2, Vp, gp)`` — camera
+        block and gradient, camera–point coupling (unknowns, 3 n), 3 × 3 point blocks and gradients;
+        with the prior, its similarity's 7 unknowns join the camera block."""
+        k, n, nc = self.k, self.n, self.nc
+        Jc, Jm, rw = self._jacobians(st, ev, c)
+        Jc2 = Jc.reshape(k, 2 * n, nc)
+        JcT = Jc2.transpose(0, 2, 1)
+        Uloc = JcT @ Jc2
+        gloc = (JcT @ rw.reshape(k, 2 * n, 1))[..., 0]
+        # per click J_camᵀ J_point (nc × 3), summed over the click's two rows, elementwise
+        Wloc = Jc[..., 0, :, None] * Jm[..., 0, None, :] + Jc[..., 1, :, None] * Jm[..., 1, None, :]
+        Vp = (Jm[..., 0, :, None] * Jm[..., 0, None, :] + Jm[..., 1, :, None] * Jm[..., 1, None, :]).sum(0)
+        gp = (Jm * rw[..., None]).sum((0, 2))
+        Sc = self._scatter
+        BD = np.zeros((k, nc, k, nc))
+        BD[np.arange(k), :, np.arange(k), :] = Uloc
+        U = Sc.T @ BD.reshape(k * nc, k * nc) @ Sc
+        gc = Sc.T @ gloc.reshape(-1)
+        # W2: (unknowns, 3 n) camera–point coupling, one product through the scatter matrix
+        W2 = Sc.T @ Wloc.transpose(0, 2, 1, 3).reshape(k * nc, 3 * n)
+        if self.beta > 0:
+            # the prior's similarity (7 unknowns: translation, rotation, scale) joins the camera
+            # block, so the prior never fights the gauge (variable projection in effect)
+            ghat, sc = target
+            beta = self.beta * sc * sc
+            B2 = _similarity_basis(st.m).reshape(3 * n, 7)  # the similarity moves the points, not the target
+            d = st.m - ghat
+            Vp = Vp + beta * np.eye(3)
+            gp = gp + beta * d
+            U = np.block([[U, np.zeros((self.C, 7))], [np.zeros((7, self.C)), beta * (B2.T @ B2)]])
+            gc = np.concatenate([gc, -beta * (B2.T @ d.reshape(-1))])
+            W2 = np.concatenate([W2, -beta * B2.T], axis=0)
+        return U, gc, W2, Vp, gp
+
+    def _step(self, st: BundleState, system, lam: float) -> BundleState:
+        """The damped step (Marquardt: ``lam`` × the diagonal) from ``st``, points eliminated by
+        the Schur complement: one dense solve for the cameras, 3 × 3 back-substitutions."""
+        U, gc, W2, Vp, gp = system
+        k, n = self.k, self.n
+        Ct = U.shape[0]
+        W3 = W2.reshape(Ct, n, 3)
+        Vinv = _inv3(Vp + (lam * np.diagonal(Vp, 0, 1, 2) + 1e-12)[:, :, None] * np.eye(3))
+        # Y = W V⁻¹ with V block-diagonal (3 × 3 per point), as three broadcast products
+        Y2 = (W3[:, :, 0, None] * Vinv[None, :, 0, :] + W3[:, :, 1, None] * Vinv[None, :, 1, :]
+              + W3[:, :, 2, None] * Vinv[None, :, 2, :]).reshape(Ct, 3 * n)
+        S = U - Y2 @ W2.T
+        S.flat[:: Ct + 1] += lam * np.diagonal(U) + 1e-12
+        rhs = Y2 @ gp.reshape(-1) - gc
+        try:
+            dc = np.linalg.solve(S, rhs)
+        except np.linalg.LinAlgError:
+            dc = np.linalg.lstsq(S, rhs, rcond=None)[0]
+        gm = gp + (dc @ W2).reshape(n, 3)
+        dm = -(Vinv * gm[:, None, :]).sum(2)
+        dcam = dc[: 6 * k].reshape(k, 6)
+        return BundleState(
+            rodrigues_batch(dcam[:, :3]) @ st.R,
+            st.t2 + dcam[:, 3:5],
+            st.s + dcam[:, 5],
+            st.logf + (dc[6 * k : self.C] if self.focal_free else 0.0),
+            st.m + dm,
+        )
 
 
 def _inv3(A: np.ndarray) -> np.ndarray:

@@ -184,8 +184,17 @@ def _rms_summary(res: np.ndarray, valid: np.ndarray) -> tuple[float, np.ndarray,
 # ----------------------------------------------------------------------------------------------
 # input validation (the boundary: errors name the photo / feature)
 # ----------------------------------------------------------------------------------------------
-def _validate(observations, cameras, points, names, view_names, fixed_focal):  # noqa: C901 - a flat list of input checks, each naming its problem
+def _validate(observations, cameras, points, names, view_names, fixed_focal):
     """Check the inputs of :func:`recover_poses`; return ``obs (k,n,2)``, ``valid (k,n)``, points, cameras."""
+    obs, pts, cams, vname, pname = _check_shapes(observations, cameras, points, names, view_names)
+    nan, R, t = _check_values(obs, pts, cams, vname, pname)
+    valid, per_view = _check_counts(nan, vname, pname, fixed_focal)
+    _check_geometry(obs, pts, valid, per_view, R, t, vname, pname)
+    return obs, valid, pts, cams
+
+
+def _check_shapes(observations, cameras, points, names, view_names):
+    """Arrays of the right shapes, one camera and one name per photo, a name per feature, ≥ 2 photos."""
     try:
         obs = np.asarray(observations, dtype=float)
         pts = np.asarray(points, dtype=float)
@@ -213,7 +222,12 @@ def _validate(observations, cameras, points, names, view_names, fixed_focal):  #
         raise FitError(f"names has {len(pname)} entries for {n} features")
     if k < 2:
         raise FitError(f"pose recovery needs at least 2 photos; got {k}")
+    return obs, pts, cams, vname, pname
 
+
+def _check_values(obs, pts, cams, vname, pname):
+    """Clicks with both coordinates and finite; finite initial points and valid initial cameras."""
+    k, n, _ = obs.shape
     nan = np.isnan(obs)
     half = nan[..., 0] != nan[..., 1]
     if half.any():
@@ -250,6 +264,12 @@ def _validate(observations, cameras, points, names, view_names, fixed_focal):  #
             "positive focal length"
         )
 
+    return nan, R, t
+
+
+def _check_counts(nan, vname, pname, fixed_focal):
+    """Each feature in ≥ 2 photos, each photo with enough clicks, enough features and equations."""
+    k, n = nan.shape[:2]
     valid = ~nan[..., 0]
     seen = valid.sum(0)
     for i in np.flatnonzero(seen < 2)[:1]:
@@ -276,6 +296,11 @@ def _validate(observations, cameras, points, names, view_names, fixed_focal):  #
             f"{n} features × 3 − 7 for the similarity gauge); click more features in more photos"
         )
     # collinear clicks: the smaller principal axis of a view's clicks against the larger
+    return valid, per_view
+
+
+def _check_geometry(obs, pts, valid, per_view, R, t, vname, pname):
+    """No photo with collinear clicks; the head and every clicked feature in front of its initial camera."""
     vf = valid.astype(float)
     uv = np.where(valid[..., None], obs, 0.0)
     mu = uv.sum(1) / per_view[:, None]
@@ -305,7 +330,6 @@ def _validate(observations, cameras, points, names, view_names, fixed_focal):  #
             f"(depth {depth[i, j]:.4g} mm); "
             "pick the preset that matches the photo"
         )
-    return obs, valid, pts, cams
 
 
 # ----------------------------------------------------------------------------------------------
