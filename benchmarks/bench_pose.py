@@ -17,7 +17,7 @@ at 600 mm with a 50 mm lens — exactly what ``facestudio fit`` starts from.
 Methods, same data, same start:
 
 * ``ours`` — :func:`photomodel.modeling.camera_solve.solve_cameras`, what ``facestudio fit`` runs: cheap
-  starts (presets, PnP), the paper's ALS (§5.1.1, App. A, 3 sweeps), robust polish, suspects
+  starts (presets, PnP), the paper's ALS (§5.1.1, App. A, one sweep), robust polish, suspects
   left out, least-squares finish;
 * ``peer`` — full bundle adjustment, ``scipy.optimize.least_squares`` (trf, sparse analytic
   Jacobian; :mod:`peers.bundle_adjust`), from the presets;

@@ -92,8 +92,11 @@ PRIOR_SIGMA_MM = 15.0
 PNP_SAME_BASIN_DEG = 30.0
 #: … further apart, the PnP pose replaces the preset only below this fraction of its median error.
 PNP_OVERRIDE_RATIO = 0.5
-#: Sweeps of the paper's alternation run on each start.
-ALS_SWEEPS = 3
+#: Sweeps of the paper's alternation run on a start before the polish. From these starts one sweep
+#: and three led the polish to the same minimum in the same number of LM iterations (bench_pose, 20
+#: draws per rig), and the earlier measurement of :mod:`photomodel.modeling.pose` found one to ten
+#: sweeps equivalent from the presets; each sweep costs ~0.4 ms, a tenth of the whole solve.
+ALS_SWEEPS = 1
 #: Floor of σ̂ (px): below it clicks are exact for every practical purpose.
 SIGMA_FLOOR_PX = 0.05
 #: Plausibility bounds (see the module docstring).
@@ -186,20 +189,34 @@ _MEDIAN_U = 2.0 / _D_GRID * stats.chi2.median(_D_GRID)
 _THRESH_U = 2.0 / _D_GRID * stats.chi2.isf(SUSPECT_P, _D_GRID)
 
 
-def _sigma(e: np.ndarray, valid: np.ndarray) -> float:
-    """Robust noise scale σ̂ (px per axis): ``√ median(z² / median of (2/d) χ²_d)`` over the clicks."""
-    u = (e * _leverage(valid))[valid] ** 2
-    if not u.size:
-        return SIGMA_FLOOR_PX
-    m = np.interp(_dof(valid)[valid], _D_GRID, _MEDIAN_U)
-    return max(float(np.sqrt(np.median(u / m))), SIGMA_FLOOR_PX)
+class _Scale:
+    """The per-click tables of one visibility pattern: leverage factors and, over the clicked
+    entries, the median and the suspect quantile of ``(2/d) χ²_d`` (built once per polish)."""
+
+    def __init__(self, valid: np.ndarray):
+        self.valid = valid
+        self.lev = _leverage(valid)
+        d = _dof(valid)
+        self.median_u = np.interp(d[valid], _D_GRID, _MEDIAN_U)
+        self.thresh_u = np.interp(d, _D_GRID, _THRESH_U)
+
+    def sigma(self, e: np.ndarray) -> float:
+        """Robust noise scale σ̂ (px per axis): ``√ median(z² / median of (2/d) χ²_d)`` over the clicks."""
+        u = (e * self.lev)[self.valid] ** 2
+        if not u.size:
+            return SIGMA_FLOOR_PX
+        return max(float(np.sqrt(_median(u / self.median_u))), SIGMA_FLOOR_PX)
+
+    def suspect(self, e: np.ndarray, sigma: float) -> np.ndarray:
+        """(k, n) bool: clicked entries whose corrected squared residual exceeds the ``1 − SUSPECT_P``
+        quantile of ``σ̂² (2/d) χ²_d``."""
+        u = np.where(self.valid, (np.nan_to_num(e) * self.lev) ** 2, 0.0)
+        return self.valid & (u > sigma**2 * self.thresh_u)
 
 
 def _suspect(e: np.ndarray, valid: np.ndarray, sigma: float) -> np.ndarray:
-    """(k, n) bool: clicks whose corrected squared residual exceeds the ``1 − SUSPECT_P`` quantile
-    of ``σ̂² (2/d) χ²_d``; also returns nothing where not valid."""
-    u = np.where(valid, (np.nan_to_num(e) * _leverage(valid)) ** 2, 0.0)
-    return valid & (u > sigma**2 * np.interp(_dof(valid), _D_GRID, _THRESH_U))
+    """Suspect clicks of residual lengths ``e`` at noise scale ``sigma`` (see :class:`_Scale`)."""
+    return _Scale(valid).suspect(e, sigma)
 
 
 def _median(a: np.ndarray) -> float:
@@ -446,7 +463,8 @@ def _check_views(valid, use_pt, clicked, vname):
 def _polish(prob, st, v, p0, robust, with_prior):
     """Robust polish, suspects left out, least-squares finish. ``(state, used, σ̂, iterations)``."""
     its = 0
-    sigma = _sigma(prob.evaluate(st)[4], v)
+    scale = _Scale(v)
+    sigma = scale.sigma(prob.evaluate(st)[4])
     prob.prior = p0 if with_prior else None
     prob.beta = (sigma / PRIOR_SIGMA_MM) ** 2 if with_prior else 0.0
     used = v.copy()
@@ -455,9 +473,9 @@ def _polish(prob, st, v, p0, robust, with_prior):
         # before their collapse showed, i.e. away from the minimum)
         st, its, _ = prob.solve(st, c=HUBER_C * sigma, max_iter=50, tol=1e-5)
         e = prob.evaluate(st)[4]
-        sigma = _sigma(e, v)
-        suspect = _suspect(e, v, sigma)
-        z = e * _leverage(v)
+        sigma = scale.sigma(e)
+        suspect = scale.suspect(e, sigma)
+        z = e * scale.lev
         if not suspect.any():
             # no wrong click: the Huber minimum with c = 2.5 σ̂ is the least-squares one to well
             # within 1 % of the RMS (only Gaussian tails beyond 2.5 σ̂ are down-weighted, and
@@ -585,7 +603,9 @@ def _solution(obs, valid, outside, fidx, cams, m, used_sub, sigma, label, sweeps
     used[:, fidx] = used_sub
     proj, _ = _project_all(cams, np.nan_to_num(pts))
     res = np.where(np.isfinite(obs), proj - obs, np.nan)
-    res[:, ~np.isin(np.arange(n), fidx)] = np.nan
+    unsolved = np.ones(n, bool)
+    unsolved[fidx] = False
+    res[:, unsolved] = np.nan
     e = np.linalg.norm(res, axis=2)
     sq = np.where(used, e**2, 0.0)
     rms = float(np.sqrt(sq.sum() / max(used.sum(), 1)))
