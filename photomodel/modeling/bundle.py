@@ -35,6 +35,7 @@ import numpy as np
 
 from photomodel.alignment import similarity_transform
 from photomodel.camera import Camera
+from photomodel.modeling.bundle_kernel import assemble
 from photomodel.modeling.pose import rodrigues_batch
 
 __all__ = ["BundleState", "BundleProblem"]
@@ -218,7 +219,33 @@ class BundleProblem:
     def _normal_equations(self, st: BundleState, ev, c: float, target):
         """The Gauss–Newton system with the point blocks apart: ``(U, gc, W2, Vp, gp)`` — camera
         block and gradient, camera–point coupling (unknowns, 3 n), 3 × 3 point blocks and gradients;
-        with the prior, its similarity's 7 unknowns join the camera block."""
+        with the prior, its similarity's 7 unknowns join the camera block. The clicks' part is
+        assembled by the compiled loop of :mod:`~photomodel.modeling.bundle_kernel`."""
+        n = self.n
+        e = ev[4]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = np.minimum(c / e, 1.0) if np.isfinite(c) else np.ones_like(e)
+        sw = np.where(self.valid, np.sqrt(w), 0.0)
+        U, gc, W2, Vp, gp = assemble(
+            st.m, st.R, st.t2, st.s, np.exp(st.logf[self.groups]), self.O, sw, self.cols, self.C
+        )
+        if self.beta > 0:
+            # the prior's similarity (7 unknowns: translation, rotation, scale) joins the camera
+            # block, so the prior never fights the gauge (variable projection in effect)
+            ghat, sc = target
+            beta = self.beta * sc * sc
+            B2 = _similarity_basis(st.m).reshape(3 * n, 7)  # the similarity moves the points, not the target
+            d = st.m - ghat
+            Vp = Vp + beta * np.eye(3)
+            gp = gp + beta * d
+            U = np.block([[U, np.zeros((self.C, 7))], [np.zeros((7, self.C)), beta * (B2.T @ B2)]])
+            gc = np.concatenate([gc, -beta * (B2.T @ d.reshape(-1))])
+            W2 = np.concatenate([W2, -beta * B2.T], axis=0)
+        return U, gc, W2, Vp, gp
+
+    def _normal_equations_numpy(self, st: BundleState, ev, c: float):
+        """The clicks' part of :meth:`_normal_equations` in numpy array operations: the reference
+        the compiled :func:`~photomodel.modeling.bundle_kernel.assemble` is tested against."""
         k, n, nc = self.k, self.n, self.nc
         Jc, Jm, rw = self._jacobians(st, ev, c)
         Jc2 = Jc.reshape(k, 2 * n, nc)
@@ -236,18 +263,6 @@ class BundleProblem:
         gc = Sc.T @ gloc.reshape(-1)
         # W2: (unknowns, 3 n) camera–point coupling, one product through the scatter matrix
         W2 = Sc.T @ Wloc.transpose(0, 2, 1, 3).reshape(k * nc, 3 * n)
-        if self.beta > 0:
-            # the prior's similarity (7 unknowns: translation, rotation, scale) joins the camera
-            # block, so the prior never fights the gauge (variable projection in effect)
-            ghat, sc = target
-            beta = self.beta * sc * sc
-            B2 = _similarity_basis(st.m).reshape(3 * n, 7)  # the similarity moves the points, not the target
-            d = st.m - ghat
-            Vp = Vp + beta * np.eye(3)
-            gp = gp + beta * d
-            U = np.block([[U, np.zeros((self.C, 7))], [np.zeros((7, self.C)), beta * (B2.T @ B2)]])
-            gc = np.concatenate([gc, -beta * (B2.T @ d.reshape(-1))])
-            W2 = np.concatenate([W2, -beta * B2.T], axis=0)
         return U, gc, W2, Vp, gp
 
     def _step(self, st: BundleState, system, lam: float) -> BundleState:
