@@ -72,8 +72,9 @@ from threadpoolctl import ThreadpoolController
 from photomodel.alignment import similarity_transform
 from photomodel.camera import Camera, focal_px_to_mm, rotation_angle_deg
 from photomodel.errors import FitError
-from photomodel.modeling.bundle import BundleProblem, BundleState
+from photomodel.modeling.bundle import BundleProblem
 from photomodel.modeling.pose import MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate
+from photomodel.modeling.refine import triangulate
 
 #: BLAS thread control: the polish's matrices are small (≤ ~70 × 70), where a multi-threaded
 #: BLAS spends more time waking threads than computing (a 9-photo solve took 30–100 ms with
@@ -414,7 +415,7 @@ def _solve(observations, initial_cameras, points, groups, fixed_focal, robust, p
                     scams = [Camera(c.R, c.t, c0.f, c.width, c.height) for c, c0 in zip(scams, cams, strict=True)]
                 prepared[label] = (prob.state_from_cameras(scams, spts), sweeps)
             st0, sweeps = prepared[label]
-            final, used, sigma, its = _polish(prob, st0.copy(), v, p0, robust, with_prior)
+            final, used, sigma, its = _polish(prob, st0.copy(), o, v, p0, robust, with_prior, cams)
             fcams = prob.cameras(final, cams)
             why = plausibility_problem(fcams, final.m, p0, [pname[i] for i in fidx], vname)
             tag = label + (" + generic-head prior" if with_prior else "")
@@ -460,7 +461,7 @@ def _check_views(valid, use_pt, clicked, vname):
         )
 
 
-def _polish(prob, st, v, p0, robust, with_prior):
+def _polish(prob, st, obs, v, p0, robust, with_prior, template):
     """Robust polish, suspects left out, least-squares finish. ``(state, used, σ̂, iterations)``."""
     its = 0
     scale = _Scale(v)
@@ -481,7 +482,7 @@ def _polish(prob, st, v, p0, robust, with_prior):
             # within 1 % of the RMS (only Gaussian tails beyond 2.5 σ̂ are down-weighted, and
             # those a little), so it is kept — one least-squares solve fewer
             return st, used, sigma, its
-        suspect = _blame(prob, st, v, suspect, sigma)
+        suspect = _blame(prob.cameras(st, template), obs, v, suspect, sigma)
         # leave suspects out, worst first, as long as the photo keeps 4 clicks and the feature 2
         for j, i in sorted(zip(*np.nonzero(suspect), strict=True), key=lambda ji: -z[ji]):
             if used[j].sum() > MIN_POINTS_PER_VIEW and used[:, i].sum() > 2:
@@ -494,93 +495,44 @@ def _polish(prob, st, v, p0, robust, with_prior):
     return st, used, sigma, its + it
 
 
-def _blame(prob: BundleProblem, st: BundleState, v: np.ndarray, suspect: np.ndarray, sigma: float) -> np.ndarray:
+def _blame(cameras, obs: np.ndarray, v: np.ndarray, suspect: np.ndarray, sigma: float) -> np.ndarray:
     """Which click of a feature is the wrong one.
 
     The robust fit flags the clicks with large residuals, but a wrong click can pull its 3D point
     so that a *correct* click of the same feature shows the larger residual (a wrong click near
     the line along which the other views cannot see it). For each flagged feature seen in ≥ 3
     photos, each of its clicks is left out in turn, the point triangulated from the others with
-    the cameras fixed, and the click whose removal leaves the others consistent (the smallest
-    remaining squared error) is the one blamed — if it is itself beyond the suspect threshold
-    and the others are within theirs. Otherwise the flags stay as they were.
+    the cameras fixed (:func:`photomodel.modeling.refine.triangulate`, all the left-out variants
+    of a feature in one call), and the click whose removal leaves the others consistent (the
+    smallest remaining squared error) is the one blamed — if it is itself beyond the suspect
+    threshold and the others are within theirs. Otherwise the flags stay as they were.
     """
     out = suspect.copy()
-    f = np.exp(st.logf[prob.groups])
-    tz = f / st.s
-    t = np.column_stack([st.t2, tz])
     for i in np.flatnonzero(suspect.any(0)):
         views = np.flatnonzero(v[:, i])
         if len(views) < 3:
             continue
-        best = None
-        for j in views:
-            rest = views[views != j]
-            X = _triangulate(st.R[rest], t[rest], f[rest], prob.O[rest, i])
-            if X is None:
-                continue
-            e_rest = _reproject(st.R[rest], t[rest], f[rest], X, prob.O[rest, i])
-            cost = float((e_rest**2).sum())
-            if best is None or cost < best[0]:
-                e_j = _reproject(st.R[[j]], t[[j]], f[[j]], X, prob.O[[j], i])[0]
-                best = (cost, j, e_rest, e_j)
-        if best is None:
+        variants = np.repeat(np.where(v[:, i, None], obs[:, i], np.nan)[:, None, :], len(views), axis=1)
+        variants[views, np.arange(len(views))] = np.nan  # variant c leaves out the click in views[c]
+        points = triangulate(cameras, variants, min_parallax_deg=0.0).points
+        proj, _ = _project_all(cameras, np.nan_to_num(points))
+        err = np.sqrt(((proj - obs[:, i, None, :]) ** 2).sum(2))  # (k, variants)
+        rest_cost = np.where(np.isfinite(variants[..., 0]), err**2, 0.0).sum(0)
+        rest_cost[~np.isfinite(points[:, 0])] = np.inf
+        c = int(np.argmin(rest_cost))
+        if not np.isfinite(rest_cost[c]):
             continue
-        _, j, e_rest, e_j = best
-        n_rest = len(views) - 1
+        j = views[c]
+        rest = views[views != j]
+        n_rest = len(rest)
         d_rest = (2.0 * n_rest - 3.0) / n_rest
         lim_rest = sigma**2 * float(np.interp(d_rest, _D_GRID, _THRESH_U))
-        u_rest = e_rest**2 / (1.0 - 3.0 / (2.0 * n_rest))
+        u_rest = err[rest, c] ** 2 / (1.0 - 3.0 / (2.0 * n_rest))
         # the left-out click is predicted by the others: its error has 2 degrees of freedom
-        if e_j**2 > sigma**2 * float(_THRESH_U[-1]) and np.all(u_rest <= lim_rest):
+        if err[j, c] ** 2 > sigma**2 * float(_THRESH_U[-1]) and np.all(u_rest <= lim_rest):
             out[:, i] = False
             out[j, i] = True
     return out
-
-
-def _project_centred(R, t, f, X):
-    Xc = R @ X + t
-    return f[:, None] * Xc[:, :2] / Xc[:, 2:3], Xc[:, 2]
-
-
-def _reproject(R, t, f, X, xy) -> np.ndarray:
-    """Reprojection error lengths (px) of point ``X`` in cameras (R, t, f) against centred clicks."""
-    p, _ = _project_centred(R, t, f, X)
-    return np.sqrt(((p - xy) ** 2).sum(1))
-
-
-def _triangulate(R, t, f, xy) -> np.ndarray | None:
-    """Least-squares 3D point of centred clicks ``xy`` (m, 2) in cameras (R, t, f): linear start,
-    then Gauss–Newton on the reprojection error; None when it lands behind a camera."""
-    P = np.concatenate([R, t[:, :, None]], axis=2)  # (m, 3, 4), image coords / f
-    x = xy / f[:, None]
-    A = np.concatenate([x[:, 0, None] * P[:, 2] - P[:, 0], x[:, 1, None] * P[:, 2] - P[:, 1]])
-    if not np.all(np.isfinite(A)):
-        return None
-    try:
-        return _triangulate_from(A, R, t, f, xy)
-    except np.linalg.LinAlgError:
-        return None
-
-
-def _triangulate_from(A, R, t, f, xy):
-    _, _, Vt = np.linalg.svd(A)
-    if abs(Vt[-1, 3]) < 1e-12:
-        return None
-    X = Vt[-1, :3] / Vt[-1, 3]
-    for _ in range(5):
-        Xc = R @ X + t
-        if not np.all(Xc[:, 2] > 0):
-            return None
-        zi = 1.0 / Xc[:, 2]
-        r = (f * zi)[:, None] * Xc[:, :2] - xy
-        dx = (f * zi)[:, None, None] * (R[:, :2] - (Xc[:, :2] * zi[:, None])[:, :, None] * R[:, 2][:, None, :])
-        J = dx.reshape(-1, 3)
-        step = np.linalg.lstsq(J, -r.reshape(-1), rcond=None)[0]
-        X = X + step
-        if np.abs(step).max() < 1e-9:
-            break
-    return X if np.all((R @ X + t)[:, 2] > 0) else None
 
 
 def _registered(o, v, cameras, points, fixed_focal) -> list[Camera]:
