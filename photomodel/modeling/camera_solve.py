@@ -73,7 +73,7 @@ from photomodel.alignment import similarity_transform
 from photomodel.camera import Camera, focal_px_to_mm, rotation_angle_deg
 from photomodel.errors import FitError
 from photomodel.modeling.bundle import BundleProblem
-from photomodel.modeling.pose import MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate
+from photomodel.modeling.pose import MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate, project_all
 from photomodel.modeling.refine import triangulate
 
 #: BLAS thread control: the polish's matrices are small (≤ ~70 × 70), where a multi-threaded
@@ -299,7 +299,7 @@ def plausibility_problem(cameras, points, generic_points, names=None, view_names
     vnames = list(view_names) if view_names is not None else [f"#{j}" for j in range(len(cameras))]
     if not np.all(np.isfinite(pts)):
         return "some feature positions are not finite"
-    _, depth_all = _project_all(cameras, pts)
+    _, depth_all = project_all(cameras, pts)
     if not np.all(depth_all > 0):
         j = int(np.flatnonzero(~np.all(depth_all > 0, axis=1))[0])  # the first photo, in order
         i = int(np.argmin(depth_all[j]))
@@ -437,8 +437,8 @@ def _choose_per_photo(pnp, reg, o, v, p0) -> tuple[list[Camera], np.ndarray]:
     below :data:`PNP_OVERRIDE_RATIO` of the preset's — a wrong preset leaves errors of a large
     fraction of the face. Returns ``(cameras, took_pnp (k,) bool)``.
     """
-    uv_p, _ = _project_all(pnp, p0)
-    uv_r, _ = _project_all(reg, p0)
+    uv_p, _ = project_all(pnp, p0)
+    uv_r, _ = project_all(reg, p0)
     out, took = [], np.zeros(len(pnp), bool)
     for j, (a, b) in enumerate(zip(pnp, reg, strict=True)):
         x = o[j, v[j]]
@@ -515,7 +515,7 @@ def _blame(cameras, obs: np.ndarray, v: np.ndarray, suspect: np.ndarray, sigma: 
         variants = np.repeat(np.where(v[:, i, None], obs[:, i], np.nan)[:, None, :], len(views), axis=1)
         variants[views, np.arange(len(views))] = np.nan  # variant c leaves out the click in views[c]
         points = triangulate(cameras, variants, min_parallax_deg=0.0).points
-        proj, _ = _project_all(cameras, np.nan_to_num(points))
+        proj, _ = project_all(cameras, np.nan_to_num(points))
         err = np.sqrt(((proj - obs[:, i, None, :]) ** 2).sum(2))  # (k, variants)
         rest_cost = np.where(np.isfinite(variants[..., 0]), err**2, 0.0).sum(0)
         rest_cost[~np.isfinite(points[:, 0])] = np.inf
@@ -553,7 +553,7 @@ def _solution(obs, valid, outside, fidx, cams, m, used_sub, sigma, label, sweeps
     pts[fidx] = m
     used = np.zeros((k, n), bool)
     used[:, fidx] = used_sub
-    proj, _ = _project_all(cams, np.nan_to_num(pts))
+    proj, _ = project_all(cams, np.nan_to_num(pts))
     res = np.where(np.isfinite(obs), proj - obs, np.nan)
     unsolved = np.ones(n, bool)
     unsolved[fidx] = False
@@ -579,18 +579,6 @@ def _solution(obs, valid, outside, fidx, cams, m, used_sub, sigma, label, sweeps
         per_view_rms_px=per_view, per_point_rms_px=per_point, sigma_px=float(sigma), suspects=suspects,
         start=label, sweeps=int(sweeps), iterations=int(its),
     )
-
-
-def _project_all(cameras, points) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel positions (k, n, 2) and depths (k, n) of ``points`` in every camera, in one go."""
-    R = np.stack([c.R for c in cameras])
-    t = np.stack([c.t for c in cameras])
-    f = np.array([c.f for c in cameras])
-    pp = np.stack([c.principal_point for c in cameras])
-    Xc = points @ R.transpose(0, 2, 1) + t[:, None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        uv = f[:, None, None] * Xc[..., :2] / Xc[..., 2:3] + pp[:, None, :]
-    return uv, Xc[..., 2]
 
 
 def _outside_distance(uv, cam) -> float:

@@ -160,14 +160,21 @@ def reprojection_residuals(
     (k, n, 2) float, ``project(point) − click`` in pixels; NaN where not clicked.
     """
     obs = np.asarray(observations, dtype=float)
+    return project_all(cameras, points)[0] - obs
+
+
+def project_all(cameras: Sequence[Camera], points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel positions (k, n, 2) and depths ``Z_cam`` (k, n) mm of ``points`` (n, 3) in every camera,
+    batched over cameras (the one-camera version is :meth:`photomodel.camera.Camera.project`)."""
     pts = np.asarray(points, dtype=float)
     R = np.stack([c.R for c in cameras])
     t = np.stack([c.t for c in cameras])
     f = np.array([c.f for c in cameras])
     pp = np.stack([c.principal_point for c in cameras])
     Xc = pts @ R.transpose(0, 2, 1) + t[:, None, :]
-    proj = f[:, None, None] * Xc[..., :2] / Xc[..., 2:3] + pp[:, None, :]
-    return proj - obs
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = f[:, None, None] * Xc[..., :2] / Xc[..., 2:3] + pp[:, None, :]
+    return uv, Xc[..., 2]
 
 
 def _rms_summary(res: np.ndarray, valid: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
