@@ -86,10 +86,6 @@ class BundleProblem:
             cols = np.column_stack([cols, 6 * k + self.groups])
         self.cols = cols  # (k, nc) global unknown index of each photo's local camera columns
         self.nc = nc
-        # scatter matrix from the photos' local camera columns (k·nc) to the unknowns (C)
-        self._scatter = np.zeros((k * nc, self.C))
-        self._scatter[np.arange(k * nc), cols.reshape(-1)] = 1.0
-        self._Jc = np.zeros((k, self.valid.shape[1], 2, nc))  # zero entries never change
 
     # -- conversions ----------------------------------------------------------------------
     def state_from_cameras(self, cameras, points) -> BundleState:
@@ -177,45 +173,6 @@ class BundleProblem:
                 return st, it, True
         return st, it, False
 
-    def _jacobians(self, st: BundleState, ev, c: float):
-        """Weighted Jacobians of the clicks: ``Jc`` (k, n, 2, nc) camera columns, ``Jm`` (k, n, 2, 3)
-        point columns and weighted residuals (k, n, 2), each row scaled by √(Huber weight)."""
-        k, n = self.k, self.n
-        q, D, P, r, e = ev
-        valid = self.valid
-        with np.errstate(divide="ignore", invalid="ignore"):
-            w = np.minimum(c / e, 1.0) if np.isfinite(c) else 1.0
-        sw = np.where(valid, np.sqrt(w), 0.0)
-        # unclicked (camera, point) pairs take no part; keep their entries finite so that
-        # the zero weight removes them (a point behind a camera that does not see it)
-        D = np.where(valid, D, 1.0)
-        P = np.where(valid[..., None], P, 0.0)
-        eta = st.s / np.exp(st.logf[self.groups])
-        a = st.s[:, None] / D  # (k, n)
-        b = -eta[:, None] / D
-        bPx, bPy = b * P[..., 0], b * P[..., 1]
-        qx, qy, qz = q[..., 0], q[..., 1], q[..., 2]
-        Jc = self._Jc
-        Jc[..., 0, 0] = bPx * qy
-        Jc[..., 0, 1] = a * qz - bPx * qx
-        Jc[..., 0, 2] = -a * qy
-        Jc[..., 1, 0] = -a * qz + bPy * qy
-        Jc[..., 1, 1] = -bPy * qx
-        Jc[..., 1, 2] = a * qx
-        Jc[..., 0, 3] = a
-        Jc[..., 1, 4] = a
-        Jc[..., 5] = P / (st.s[:, None] * D)[..., None]
-        if self.focal_free:
-            Jc[..., 6] = -(b * qz)[..., None] * P
-        # dP/dm = g R with g = [[a, 0, b P_x], [0, a, b P_y]], written out
-        R = st.R[:, None]  # (k, 1, 3, 3)
-        Jm = np.empty((k, n, 2, 3))
-        Jm[..., 0, :] = a[..., None] * R[..., 0, :] + bPx[..., None] * R[..., 2, :]
-        Jm[..., 1, :] = a[..., None] * R[..., 1, :] + bPy[..., None] * R[..., 2, :]
-        Jc *= sw[..., None, None]
-        Jm *= sw[..., None, None]
-        return Jc, Jm, r * sw[..., None]
-
     def _normal_equations(self, st: BundleState, ev, c: float, target):
         """The Gauss–Newton system with the point blocks apart: ``(U, gc, W2, Vp, gp)`` — camera
         block and gradient, camera–point coupling (unknowns, 3 n), 3 × 3 point blocks and gradients;
@@ -241,28 +198,6 @@ class BundleProblem:
             U = np.block([[U, np.zeros((self.C, 7))], [np.zeros((7, self.C)), beta * (B2.T @ B2)]])
             gc = np.concatenate([gc, -beta * (B2.T @ d.reshape(-1))])
             W2 = np.concatenate([W2, -beta * B2.T], axis=0)
-        return U, gc, W2, Vp, gp
-
-    def _normal_equations_numpy(self, st: BundleState, ev, c: float):
-        """The clicks' part of :meth:`_normal_equations` in numpy array operations: the reference
-        the compiled :func:`~photomodel.modeling.bundle_kernel.assemble` is tested against."""
-        k, n, nc = self.k, self.n, self.nc
-        Jc, Jm, rw = self._jacobians(st, ev, c)
-        Jc2 = Jc.reshape(k, 2 * n, nc)
-        JcT = Jc2.transpose(0, 2, 1)
-        Uloc = JcT @ Jc2
-        gloc = (JcT @ rw.reshape(k, 2 * n, 1))[..., 0]
-        # per click J_camᵀ J_point (nc × 3), summed over the click's two rows, elementwise
-        Wloc = Jc[..., 0, :, None] * Jm[..., 0, None, :] + Jc[..., 1, :, None] * Jm[..., 1, None, :]
-        Vp = (Jm[..., 0, :, None] * Jm[..., 0, None, :] + Jm[..., 1, :, None] * Jm[..., 1, None, :]).sum(0)
-        gp = (Jm * rw[..., None]).sum((0, 2))
-        Sc = self._scatter
-        BD = np.zeros((k, nc, k, nc))
-        BD[np.arange(k), :, np.arange(k), :] = Uloc
-        U = Sc.T @ BD.reshape(k * nc, k * nc) @ Sc
-        gc = Sc.T @ gloc.reshape(-1)
-        # W2: (unknowns, 3 n) camera–point coupling, one product through the scatter matrix
-        W2 = Sc.T @ Wloc.transpose(0, 2, 1, 3).reshape(k * nc, 3 * n)
         return U, gc, W2, Vp, gp
 
     def _step(self, st: BundleState, system, lam: float) -> BundleState:
