@@ -21,7 +21,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from photomodel.errors import FaceStudioError, ProjectError
+from photomodel.errors import FaceStudioError, MissingClicks, ProjectError
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.project import load_project, record_fit, save_results
@@ -339,6 +339,15 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def error_json(exc: FaceStudioError) -> dict:
+    """An error as ``--json`` prints it: its kind and message; a fit's missing clicks as a checklist
+    (:class:`~photomodel.errors.MissingClicks`: one entry per feature or photo still to click)."""
+    out = {"type": type(exc).__name__, "message": str(exc)}
+    if isinstance(exc, MissingClicks):
+        out.update(expression=exc.expression, checklist=exc.checklist)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -346,6 +355,8 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except FaceStudioError as e:
         print(f"facestudio: error: {e}", file=sys.stderr)
+        if getattr(args, "json", False):  # --json: one JSON object on stdout, the error too
+            print(json.dumps({"error": error_json(e)}, indent=1))
         return 2
     except KeyboardInterrupt:
         print("facestudio: cancelled; nothing was written", file=sys.stderr)

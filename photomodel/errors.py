@@ -15,3 +15,31 @@ class FitError(FaceStudioError):
 
 class SampleDataError(FaceStudioError):
     """The sample data (menpo3d source distribution) cannot be obtained or is corrupt."""
+
+
+class MissingClicks(FitError):
+    """The clicks of an expression cannot support a fit; ``checklist`` lists *everything* missing.
+
+    Attributes
+    ----------
+    expression : str
+    checklist : list[dict], one per missing thing, as
+        :meth:`photomodel.modeling.checklist.ChecklistItem.to_dict`: ``feature`` (or None),
+        ``photo`` (or None), ``photos_clicked``, ``needed``, ``hint``, ``clicked_in``, ``hidden_in``.
+    """
+
+    def __init__(self, expression: str, checklist: list[dict], *, placed: int, pose_features: int):
+        self.expression = expression
+        self.checklist = list(checklist)
+        head = (f"expression {expression!r} cannot be fitted yet: {placed} of {pose_features} pose feature(s) "
+                f"are clicked in 2+ photos; {len(self.checklist)} thing(s) to click:")
+        lines = [head]
+        for it in self.checklist:
+            if it.get("feature") is not None:
+                lines.append(f"  - {it['feature']}: clicked in {it['photos_clicked']} photo(s), "
+                             f"needs {it['needed']} — {it['hint']}")
+            else:
+                lines.append(f"  - photo {it['photo']!r}: {it['photos_clicked']} shared click(s), "
+                             f"needs {it['needed']} — {it['hint']}")
+        super().__init__("\n".join(lines))
+

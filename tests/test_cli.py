@@ -126,3 +126,17 @@ def test_fit_of_an_expression_whose_source_is_unfitted_is_a_clear_error(project_
     smile, neutral = project.expression("smile").result, project.expression("neutral").result
     assert smile.report["cameras_from"] == "neutral" and smile.mesh_obj == "results/smile.obj"
     np.testing.assert_array_equal(smile.cameras["front"].R, neutral.cameras["front"].R)
+
+
+def test_fit_json_error_lists_every_missing_click(project_copy, capsys):
+    data = json.loads(project_copy.read_text())
+    for photo in data["expressions"][0]["photos"]:
+        photo["points"] = {}
+    project_copy.write_text(json.dumps(data))
+    assert main(["fit", str(project_copy), "--json", "--expression", "neutral"]) == 2
+    captured = capsys.readouterr()
+    err = json.loads(captured.out)["error"]  # one JSON object, the error in it
+    assert err["type"] == "MissingClicks" and err["expression"] == "neutral"
+    pose = [f["name"] for f in data["features"] if f["pose"]]
+    assert [c["feature"] for c in err["checklist"] if c["feature"]] == pose
+    assert all(name in captured.err for name in pose)  # the plain message lists them all too

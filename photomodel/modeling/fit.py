@@ -43,6 +43,7 @@ from photomodel.alignment import similarity_transform, transform_cameras
 from photomodel.camera import Camera, focal_mm_to_px, preset_camera
 from photomodel.errors import FitError, ProjectError
 from photomodel.modeling.camera_solve import solve_cameras
+from photomodel.modeling.checklist import require_clicks
 from photomodel.modeling.pose import PoseResult, recover_poses, reprojection_residuals
 from photomodel.modeling.rbf import deform_vertices
 from photomodel.modeling.refine import refine_points, triangulate
@@ -461,6 +462,9 @@ def fit_expression(
 
     Raises
     ------
+    MissingClicks
+        (a FitError) when the clicks cannot support a fit: its ``checklist`` names every pose
+        feature and photo still short of clicks (:mod:`photomodel.modeling.checklist`).
     FitError
         when the clicks cannot support a fit (the message names the feature/photo), or the
         expression whose cameras are reused is not fitted or lacks a photo's camera.
@@ -476,6 +480,8 @@ def fit_expression(
             raise Cancelled("fit cancelled")
 
     feat_vertex, curve_mesh = _check_inputs(project, expr, mesh, curve_mesh)
+    if source is None:  # everything still to click at once (MissingClicks), not one feature per try
+        require_clicks(project, expression_name, pose_only=not opt.bundle_all)
     # 1–2. cameras and the gauge
     progress("pose recovery", 0.0)
     if source is not None:
