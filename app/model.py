@@ -34,6 +34,7 @@ import numpy as np
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
 from photomodel.errors import FaceStudioError, FitError, ProjectError
 from photomodel.exchange.mesh import read_mesh
+from photomodel.modeling.checklist import ChecklistItem, click_checklist
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.modeling.overlay import mesh_lines, photo_overlay
 from photomodel.modeling.refit import Refitter
@@ -311,6 +312,38 @@ class StudioModel:
         e = self._expr(expression)
         return sum(1 for p in e.photos if feature in p.points and feature not in p.hidden)
 
+    def checklist(self, expression: str | None = None) -> list[ChecklistItem]:
+        """What the expression's clicks still lack for a fit (:func:`photomodel.modeling.checklist.click_checklist`):
+        under-clicked pose features, then photos short of shared clicks; empty when nothing is missing."""
+        e = self._expr(expression)
+        return click_checklist(self.project, e.name)
+
+    def next_feature(self, expression: str | None = None) -> str | None:
+        """The pose feature to click next: the first one of the checklist, or None."""
+        e = self.expression if expression is None else self._expr(expression)
+        if e is None:
+            return None
+        return next((it.feature for it in self.checklist(e.name) if it.feature is not None), None)
+
+    def predicted_uv(self, photo_id: str, feature: str, expression: str | None = None) -> np.ndarray | None:
+        """Where the current fit puts a feature in a photo: (2,) px, or None before a fit.
+
+        The fitted mesh's vertex of the feature (the project's, or the generic mesh's named
+        feature) projected with the photo's fitted camera — the ghost marker of the photo view.
+        """
+        fit = self.fit(expression)
+        if fit is None or photo_id not in fit.cameras:
+            return None
+        vertex = (self.project.feature(feature).vertex if self.has_feature(feature)
+                  else self.mesh.features.get(feature))
+        if fit.vertices is not None and vertex is not None:
+            X = np.asarray(fit.vertices)[int(vertex)]
+        elif feature in fit.points_3d:
+            X = np.asarray(fit.points_3d[feature])
+        else:
+            return None
+        return fit.cameras[photo_id].project(X[None])[0]
+
     # ------------------------------------------------------------------ selection
     def set_expression(self, name: str) -> None:
         self.project.expression(name)  # raises ProjectError naming the expressions
@@ -363,6 +396,17 @@ class StudioModel:
             photo.hidden.discard(feature)
         self._touch()
         self.points_changed.emit(expression, photo_id, feature)
+        return old
+
+    def set_feature_pose(self, name: str, pose: bool) -> bool:
+        """Flag a feature as a pose feature (§5.1.1) or unflag it (then only refinement uses it,
+        e.g. one the views cannot see twice); returns the old flag."""
+        if not self.has_feature(name):
+            raise ProjectError(f"no feature named {name!r} is defined in the project")
+        f = self.project.feature(name)
+        old, f.pose = f.pose, bool(pose)
+        self._touch()
+        self.features_changed.emit()
         return old
 
     def set_curve(self, expression: str, photo_id: str, curve: str, polyline) -> np.ndarray | None:

@@ -143,3 +143,25 @@ def test_set_photo_camera_group(model):
             model.set_photo_camera_group("neutral", "front", bad)
     with pytest.raises(ProjectError, match="no photo 'back'"):
         model.set_photo_camera_group("neutral", "back", "video")
+
+
+def test_pose_flag_checklist_next_feature_and_prediction(model):
+    events = []
+    model.features_changed.connect(lambda: events.append("features"))
+    assert model.checklist() == [] and model.next_feature() is None
+    for p in model.photos:
+        if p.id != "front":
+            model.set_point("neutral", p.id, "mouth_l", None)
+    assert [it.feature for it in model.checklist()] == ["mouth_l"] and model.next_feature() == "mouth_l"
+    assert model.set_feature_pose("mouth_l", False) is True and events == ["features"]
+    assert model.checklist() == [] and model.modified
+    with pytest.raises(ProjectError, match="no feature named 'nope'"):
+        model.set_feature_pose("nope", True)
+    # the prediction: the fitted mesh's feature vertex through the photo's fitted camera
+    assert model.predicted_uv("front", "nose_tip") is None  # no cameras yet
+    result, seconds, _ = model.compute_fit(model.fit_snapshot(), "neutral")
+    model.apply_fit("neutral", result, seconds)
+    uv = model.predicted_uv("front", "nose_tip")
+    cam = model.fit().cameras["front"]
+    np.testing.assert_allclose(uv, cam.project(result.vertices[[model.project.feature("nose_tip").vertex]])[0])
+    assert np.linalg.norm(uv - model.photo("front").points["nose_tip"]) < 4.0  # σ = 1 px clicks

@@ -79,6 +79,22 @@ class SetHiddenCommand(QUndoCommand):
         self.model.set_hidden(self.expression, self.photo_id, self.feature, self.old)
 
 
+class SetPoseCommand(QUndoCommand):
+    """Flag a feature as a pose feature or unflag it: one the views cannot see twice is left out
+    of the camera solve (and so of the fit's checklist) but still refines the mesh."""
+
+    def __init__(self, model: StudioModel, feature: str, pose: bool):
+        super().__init__(f"{'Flag' if pose else 'Unflag'} {feature} as a pose feature")
+        self.model, self.feature, self.pose = model, feature, bool(pose)
+        self.old = model.project.feature(feature).pose
+
+    def redo(self):
+        self.model.set_feature_pose(self.feature, self.pose)
+
+    def undo(self):
+        self.model.set_feature_pose(self.feature, self.old)
+
+
 class SetCurveCommand(QUndoCommand):
     """Draw, replace or delete (``polyline=None``) a curve in one photo (§5.1.3)."""
 

@@ -6,6 +6,13 @@
   it the *active feature* — the one a click in a photo places.
 * **Curves** — the mesh curves (brows, eyelids, lips, chin) with the photos they are drawn in;
   selecting one makes it the curve that "Draw curve" mode binds to.
+* **Still to click** — the fit's checklist (:func:`photomodel.modeling.checklist.click_checklist`):
+  every pose feature clicked in fewer than two photos and every photo short of shared clicks, at
+  once; selecting a feature's line makes it active, a photo's line shows that photo
+  (``photo_requested``).
+* Right-click a feature: unflag (or flag) it as a pose feature, or leave it out of (hide it in)
+  a photo — undoable commands (:class:`~app.qt.commands.SetPoseCommand`,
+  :class:`~app.qt.commands.SetHiddenCommand`).
 * **Worst clicks** — after a fit, the clicks farthest from the fitted model, largest first;
   activating one jumps to it (``jump_requested(photo_id, feature)``).
 * **Fit report** — per-photo reprojection RMS, number of points and recovered focal length.
@@ -21,6 +28,7 @@ from PySide6.QtWidgets import (
     QLineEdit,
     QListWidget,
     QListWidgetItem,
+    QMenu,
     QSplitter,
     QTreeWidget,
     QTreeWidgetItem,
@@ -29,6 +37,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.model import StudioModel
+from app.qt.commands import SetHiddenCommand, SetPoseCommand
 from app.qt.photo_view import residual_color
 
 _NAME_ROLE = Qt.ItemDataRole.UserRole
@@ -48,10 +57,12 @@ class FeaturePanel(QWidget):
     """Lists observing a :class:`StudioModel`; selecting sets the model's active feature/curve."""
 
     jump_requested = Signal(str, str)  # photo id, feature
+    photo_requested = Signal(str)  # photo id
 
-    def __init__(self, model: StudioModel, parent=None):
+    def __init__(self, model: StudioModel, parent=None, undo_stack=None):
         super().__init__(parent)
         self.model = model
+        self.undo_stack = undo_stack  # where the feature menu's edits go (None: no menu)
         self._updating = False
 
         self.filter = QLineEdit()
@@ -70,6 +81,12 @@ class FeaturePanel(QWidget):
         self.features.setColumnWidth(1, 52)
         self.features.setColumnWidth(2, 44)
         self.features.currentItemChanged.connect(self._on_feature_selected)
+        self.features.setContextMenuPolicy(Qt.ContextMenuPolicy.CustomContextMenu)
+        self.features.customContextMenuRequested.connect(self._on_feature_menu)
+        self.todo = QListWidget()
+        self.todo.setWordWrap(True)
+        self.todo.itemClicked.connect(self._on_todo_activated)
+        self.todo.itemActivated.connect(self._on_todo_activated)
 
         self.curves = QTreeWidget()
         self.curves.setColumnCount(2)
@@ -109,10 +126,11 @@ class FeaturePanel(QWidget):
 
         split = QSplitter(Qt.Orientation.Vertical)
         split.addWidget(feat_box)
+        split.addWidget(_section("Still to click", self.todo))
         split.addWidget(_section("Curves", self.curves))
         split.addWidget(_section("Worst clicks", self.worst))
         split.addWidget(report_box)
-        split.setSizes([420, 170, 150, 170])
+        split.setSizes([380, 110, 150, 130, 150])
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addWidget(split)
@@ -122,7 +140,9 @@ class FeaturePanel(QWidget):
         m.expression_changed.connect(lambda *_: self.refresh())
         m.photos_changed.connect(lambda *_: self.refresh())
         m.features_changed.connect(self.refresh_features)
+        m.features_changed.connect(self.refresh_checklist)
         m.points_changed.connect(self._on_points_changed)
+        m.points_changed.connect(lambda *_: self.refresh_checklist())
         m.curves_changed.connect(lambda *_: self.refresh_curves())
         m.fit_changed.connect(lambda *_: self.refresh_fit())
         m.active_feature_changed.connect(self._select_feature)
@@ -132,6 +152,7 @@ class FeaturePanel(QWidget):
     # ------------------------------------------------------------------ features
     def refresh(self):
         self.refresh_features()
+        self.refresh_checklist()
         self.refresh_curves()
         self.refresh_fit()
 
@@ -229,6 +250,73 @@ class FeaturePanel(QWidget):
                 self.features.scrollToItem(item)
             finally:
                 self._updating = False
+
+    # ------------------------------------------------------------------ pose flag, left out, checklist
+    def feature_menu(self, name: str) -> QMenu | None:
+        """The right-click menu of a project feature: (un)flag as a pose feature, leave it out of
+        a photo (or take it back in); None for a feature not in the project or without undo stack."""
+        m = self.model
+        if self.undo_stack is None or not m.has_feature(name):
+            return None
+        menu = QMenu(self)
+        pose = m.project.feature(name).pose
+        menu.addAction(f"Unflag {name} as a pose feature" if pose else f"Flag {name} as a pose feature",
+                       lambda: self.set_pose(name, not pose))
+        if m.expression is not None and m.photos:
+            sub = menu.addMenu("Leave out of photo")
+            for p in m.photos:
+                act = sub.addAction(p.id)
+                act.setCheckable(True)
+                act.setChecked(name in p.hidden)
+                act.toggled.connect(lambda on, pid=p.id: self.set_left_out(name, pid, on))
+        return menu
+
+    def set_pose(self, name: str, pose: bool) -> None:
+        self.undo_stack.push(SetPoseCommand(self.model, name, pose))
+
+    def set_left_out(self, name: str, photo_id: str, left_out: bool) -> None:
+        self.undo_stack.push(SetHiddenCommand(self.model, self.model.expression_name, photo_id, name, left_out))
+
+    def _on_feature_menu(self, pos):
+        item = self.features.itemAt(pos)
+        name = None if item is None else item.data(0, _NAME_ROLE)
+        menu = None if name is None else self.feature_menu(name)
+        if menu is not None:
+            self._menu = menu  # tests read it
+            menu.popup(self.features.viewport().mapToGlobal(pos))
+
+    def refresh_checklist(self):
+        """The fit's checklist, one line per missing feature or photo."""
+        self.todo.clear()
+        if self.model.expression is None or len(self.model.photos) < 2:
+            return
+        items = self.model.checklist()
+        if not items:
+            done = QListWidgetItem("✓ every pose feature is clicked in 2+ photos")
+            done.setFlags(Qt.ItemFlag.ItemIsEnabled)
+            done.setForeground(QBrush(QColor(60, 160, 60)))
+            self.todo.addItem(done)
+        for it in items:
+            if it.feature is not None:
+                text = f"● {it.feature} — {it.photos_clicked}/{it.needed} photos"
+                data = ("feature", it.feature)
+            else:
+                text = f"▣ {it.photo} — {it.photos_clicked}/{it.needed} shared clicks"
+                data = ("photo", it.photo)
+            item = QListWidgetItem(text)
+            item.setData(_NAME_ROLE, data)
+            item.setToolTip(it.hint)
+            item.setForeground(QBrush(QColor(220, 120, 0)))
+            self.todo.addItem(item)
+
+    def _on_todo_activated(self, item: QListWidgetItem):
+        if item.data(_NAME_ROLE) is None:
+            return
+        kind, name = item.data(_NAME_ROLE)
+        if kind == "feature":
+            self.model.set_active_feature(name)
+        else:
+            self.photo_requested.emit(name)
 
     # ------------------------------------------------------------------ curves
     def refresh_curves(self):

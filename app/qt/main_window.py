@@ -218,8 +218,9 @@ class MainWindow(QMainWindow):
         self.empty_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.setCentralWidget(self.tabs)
 
-        self.panel = FeaturePanel(self.model)
+        self.panel = FeaturePanel(self.model, undo_stack=self.undo_stack)
         self.panel.jump_requested.connect(self.jump_to)
+        self.panel.photo_requested.connect(self.show_photo)
         dock = QDockWidget("Features and fit", self)
         dock.setObjectName("features")
         dock.setWidget(self.panel)

@@ -16,7 +16,11 @@ Mouse and keys (as in Blender / photogrammetry tools):
   ``Esc`` cancels.
 
 Markers are coloured by their reprojection error after a fit (green < 1 px, yellow ~2 px,
-red ≥ 4 px; white before any fit); hidden features are drawn hollow and grey.
+red ≥ 4 px; white before any fit); hidden features are drawn hollow and grey. Once a fit exists,
+the active feature's *predicted* position — the fitted mesh's vertex of that feature projected
+with this photo's fitted camera (:meth:`~app.model.StudioModel.predicted_uv`) — is drawn as a
+dashed cyan ghost cross: where to click a feature not clicked here yet, or how far a click is
+from the current fit.
 """
 
 from __future__ import annotations
@@ -53,6 +57,8 @@ POINTS, CURVE = "points", "curve"
 
 OVERLAY_COLORS = {0: QColor(0, 200, 255, 150), 1: QColor(255, 170, 0, 200), 2: QColor(255, 235, 0, 230)}
 DRAWN_CURVE_COLOR = QColor(255, 60, 200)
+#: The ghost marker of the active feature's predicted position (the current fit projected).
+PREDICTED_COLOR = QColor(0, 230, 255)
 
 
 def residual_color(px: float | None) -> QColor:
@@ -168,6 +174,45 @@ class PointItem(QGraphicsItem):
             painter.drawText(QPointF(r + 6, 4), text)
 
 
+class PredictedItem(QGraphicsItem):
+    """The ghost marker: where the current fit puts the active feature in this photo."""
+
+    def __init__(self):
+        super().__init__()
+        self.name = ""
+        self.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
+        self.setZValue(9)  # under the clicks: a click on it lands on the photo, not on the ghost
+        self.setVisible(False)
+
+    def show_at(self, name: str, uv) -> None:
+        self.name = name
+        self.setPos(QPointF(float(uv[0]), float(uv[1])))
+        self.setToolTip(f"{name}: where the current fit puts it")
+        self.setVisible(True)
+        self.update()
+
+    def boundingRect(self) -> QRectF:
+        r = MARKER_RADIUS_PX + 8
+        return QRectF(-r, -r, 2 * r + 160, 2 * r)
+
+    def paint(self, painter: QPainter, option, widget=None):
+        painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+        r = MARKER_RADIUS_PX + 3
+        for color, width in ((QColor(0, 0, 0, 160), 3.0), (PREDICTED_COLOR, 1.4)):
+            painter.setPen(QPen(color, width, Qt.PenStyle.DashLine))
+            painter.setBrush(Qt.BrushStyle.NoBrush)
+            painter.drawEllipse(QPointF(0, 0), r, r)
+            painter.drawLine(QPointF(-r - 4, 0), QPointF(-r + 3, 0))
+            painter.drawLine(QPointF(r - 3, 0), QPointF(r + 4, 0))
+            painter.drawLine(QPointF(0, -r - 4), QPointF(0, -r + 3))
+            painter.drawLine(QPointF(0, r - 3), QPointF(0, r + 4))
+        f = painter.font()
+        f.setPixelSize(11)
+        painter.setFont(f)
+        painter.setPen(PREDICTED_COLOR)
+        painter.drawText(QPointF(r + 6, r + 10), f"{self.name} (fit)")
+
+
 class LinesItem(QGraphicsItem):
     """Line segments in scene coordinates drawn with cosmetic (screen-width) pens, by kind."""
 
@@ -276,10 +321,13 @@ class PhotoView(QGraphicsView):
         self.preview_item.setPen(pen)
         self.preview_item.setZValue(12)
         self.scene().addItem(self.preview_item)
+        self.predicted_item = PredictedItem()
+        self.scene().addItem(self.predicted_item)
 
         self._connect()
         self.rebuild_points()
         self.rebuild_curves()
+        self.update_predicted()
 
     # ------------------------------------------------------------------ model observation
     def _connect(self):
@@ -352,8 +400,19 @@ class PhotoView(QGraphicsView):
         self.overlay_stale = True
         if self.isVisible():
             self.update_overlay()
+        self.update_predicted()
+
+    def update_predicted(self, *_) -> None:
+        """Show the ghost marker of the active feature where the current fit puts it (or hide it)."""
+        name = self.model.active_feature
+        uv = None if name is None else self.model.predicted_uv(self.photo_id, name, self.expression)
+        if uv is None or not np.all(np.isfinite(uv)):
+            self.predicted_item.setVisible(False)
+        else:
+            self.predicted_item.show_at(name, uv)
 
     def _on_active_feature(self, name):
+        self.update_predicted()
         for n, item in self._items.items():
             if item.active != (n == name):
                 item.set_state(item.residual, active=n == name)

@@ -11,7 +11,9 @@ its depth for the feature dots: ~20–30 ms for the 400×780 dock on llvmpipe, w
 path's plain blend plus a depth render took ~70–80 ms (the first frame also uploads the photos
 and compiles the shaders, ~1 s). Left-drag orbits, the wheel zooms, a click (press and release
 without moving) on the mesh picks the nearest named feature as the active one; the project's
-features are drawn as dots, the active one ringed and named.
+features are drawn as dots, the active one ringed and named; the pose feature to click next (the
+first of the fit's checklist, :meth:`~app.model.StudioModel.next_feature`) is ringed in orange and
+named "next".
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ PICK_RADIUS_PX = 14.0
 #: A press that moves less than this (px) before release is a click, not an orbit.
 CLICK_SLOP_PX = 3.0
 BACKGROUND = (0.16, 0.16, 0.18)
+#: The ring around the pose feature to click next.
+NEXT_COLOR = QColor(255, 140, 0)
 
 
 class View3D(QWidget):
@@ -77,6 +81,8 @@ class View3D(QWidget):
         for sig in (model.project_replaced, model.expression_changed, model.fit_changed, model.features_changed):
             sig.connect(self.invalidate)
         model.active_feature_changed.connect(lambda *_: self.update())
+        model.points_changed.connect(lambda *_: self.update())  # the next feature to click may change
+        self.next_feature: str | None = None  # as last painted
 
     def sizeHint(self) -> QSize:
         return QSize(360, 360)
@@ -175,6 +181,7 @@ class View3D(QWidget):
             p.setRenderHint(QPainter.RenderHint.Antialiasing)
             if self.show_features:
                 self._paint_features(p)
+                self._paint_next(p)
             _, caption = self.vertices()
             p.setPen(QColor(220, 220, 220))
             p.drawText(QRectF(8, 4, self.width() - 16, 20), Qt.AlignmentFlag.AlignLeft, caption)
@@ -211,8 +218,7 @@ class View3D(QWidget):
             r = 4.0 if is_active else 1.8
             p.drawEllipse(QPointF(u, v), r, r)
         if active is not None:
-            v = self.model.project.feature(active).vertex if self.model.has_feature(active) else \
-                self.model.mesh.features.get(active)
+            v = self._feature_vertex(active)
             if v is not None:
                 V, _ = self.vertices()
                 (uv1,), (ok,) = self._project_visible(V[[v]])
@@ -221,6 +227,26 @@ class View3D(QWidget):
                     p.setBrush(Qt.BrushStyle.NoBrush)
                     p.drawEllipse(QPointF(*uv1), 8, 8)
                     p.drawText(QPointF(uv1[0] + 11, uv1[1] - 6), active)
+
+    def _feature_vertex(self, name: str) -> int | None:
+        m = self.model
+        return m.project.feature(name).vertex if m.has_feature(name) else m.mesh.features.get(name)
+
+    def _paint_next(self, p: QPainter):
+        """Ring the pose feature to click next (orange), or say on which side it hides."""
+        m = self.model
+        self.next_feature = name = m.next_feature() if m.expression is not None else None
+        if name is None:
+            return
+        V, _ = self.vertices()
+        (uv,), (ok,) = self._project_visible(V[[self._feature_vertex(name)]])
+        p.setPen(QPen(NEXT_COLOR, 2.5))
+        p.setBrush(Qt.BrushStyle.NoBrush)
+        if ok:
+            p.drawEllipse(QPointF(*uv), 12, 12)
+            p.drawText(QPointF(uv[0] + 14, uv[1] + 16), f"next: {name}")
+        p.drawText(QRectF(8, 24, self.width() - 16, 20), Qt.AlignmentFlag.AlignLeft,
+                   f"next to click: {name}" + ("" if ok else " (turn the head to see it)"))
 
     # ------------------------------------------------------------------ interaction
     def pick(self, x: float, y: float) -> str | None:

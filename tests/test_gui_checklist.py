@@ -1,0 +1,91 @@
+"""The fit's checklist in the studio, driven as an artist: what is still to click, unflag a pose
+feature, leave one out of a photo, undo; the next feature in the 3D view; the fit's prediction
+drawn as a ghost marker on the photo."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("PySide6")
+pytest.importorskip("pytestqt")
+
+from PySide6.QtCore import Qt  # noqa: E402
+
+
+def _without(project_file, feature: str, keep: str) -> None:
+    """Delete ``feature``'s clicks from every neutral photo but ``keep``."""
+    data = json.loads(project_file.read_text())
+    for photo in data["expressions"][0]["photos"]:
+        if photo["id"] != keep:
+            photo["points"].pop(feature, None)
+    project_file.write_text(json.dumps(data))
+
+
+def _todo(panel) -> list:
+    return [panel.todo.item(i).data(Qt.ItemDataRole.UserRole) for i in range(panel.todo.count())]
+
+
+def _action(menu, text: str):
+    return next(a for a in menu.actions() if a.text() == text)
+
+
+def test_checklist_unflag_leave_out_undo(qtbot, studio_window, project_copy):
+    _without(project_copy, "chin", keep="front")
+    assert studio_window.open_project(project_copy)
+    studio_window.act_auto.setChecked(False)
+    model, panel, stack = studio_window.model, studio_window.panel, studio_window.undo_stack
+    # the checklist names the under-clicked pose feature; a click on it makes it active
+    assert _todo(panel) == [("feature", "chin")]
+    assert "clicked only in 'front'" in panel.todo.item(0).toolTip()
+    panel.todo.itemClicked.emit(panel.todo.item(0))
+    assert model.active_feature == "chin"
+    # the 3D view rings it as the next feature to click
+    studio_window.view3d.repaint()
+    assert studio_window.view3d.next_feature == "chin"
+
+    # -- the views cannot see it twice: unflag it from the feature list's menu, then undo
+    menu = panel.feature_menu("chin")
+    _action(menu, "Unflag chin as a pose feature").trigger()
+    assert not model.project.feature("chin").pose
+    assert _todo(panel) == [None]  # "every pose feature is clicked in 2+ photos"
+    assert panel.feature_item("chin").parent().text(0).startswith("Other features")
+    stack.undo()
+    assert model.project.feature("chin").pose and _todo(panel) == [("feature", "chin")]
+
+    # -- leave a pose feature out of one photo (hidden there), then undo
+    menu = panel.feature_menu("nose_tip")
+    sub = next(a.menu() for a in menu.actions() if a.menu() is not None)
+    front = _action(sub, "front")
+    assert not front.isChecked()
+    front.trigger()
+    assert "nose_tip" in model.photo("front").hidden
+    assert panel.feature_menu("nose_tip") is not None
+    stack.undo()
+    assert "nose_tip" not in model.photo("front").hidden
+    assert stack.undoText() == ""  # nothing else was pushed
+
+
+def test_predicted_marker_after_a_fit(qtbot, studio_window, project_copy, messages):
+    assert studio_window.open_project(project_copy)
+    studio_window.act_auto.setChecked(False)
+    model = studio_window.model
+    model.set_active_feature("nose_tip")
+    view = studio_window.show_photo("front")
+    qtbot.waitUntil(lambda: view.isVisible())
+    assert not view.predicted_item.isVisible()  # no cameras yet
+    assert studio_window.run_fit()
+    qtbot.waitUntil(lambda: not studio_window.fits.busy and model.fit() is not None, timeout=60_000)
+    assert not messages, messages
+    # the fitted nose tip projected into the front photo lies on its click (σ = 1 px sample clicks)
+    item = view.predicted_item
+    assert item.isVisible() and item.name == "nose_tip"
+    uv = np.array([item.pos().x(), item.pos().y()])
+    assert np.linalg.norm(uv - model.photo("front").points["nose_tip"]) < 4.0
+    # a feature not clicked in this photo is predicted too: where to click it
+    model.set_active_feature("eye_l_outer")
+    right = studio_window.show_photo("right")
+    qtbot.waitUntil(lambda: right.isVisible())
+    assert right.predicted_item.isVisible() and right.predicted_item.name == "eye_l_outer"
