@@ -106,3 +106,39 @@ def test_camera_groups_index_array():
     assert p.camera_groups("e") == [0, 0, 1] and p.camera_groups("other") == []
     with pytest.raises(ProjectError, match="grin"):
         p.camera_groups("grin")
+
+
+# ---------------------------------------------------------------------------------------
+# format version 3: where a click came from
+# ---------------------------------------------------------------------------------------
+def test_set_click_by_hand_makes_an_automatic_click_the_users():
+    ph = Photo("front", "front.png", W, H)
+    ph.set_click("nose_tip", [30, 20], source="auto", confidence=0.9)
+    assert ph.click_source("nose_tip") == "auto" and ph.confidence == {"nose_tip": 0.9}
+    assert ph.click_meta() == {"nose_tip": {"source": "auto", "confidence": 0.9}}
+    ph.set_click("nose_tip", [31, 21])  # the artist drags it
+    assert ph.click_source("nose_tip") == "user"
+    assert ph.sources == {} and ph.confidence == {} and ph.auto_clicks() == []
+    np.testing.assert_array_equal(ph.points["nose_tip"], [31.0, 21.0])
+    ph.set_click("chin", [30, 40], source="auto", confidence=0.2)
+    np.testing.assert_array_equal(ph.remove_click("chin"), [30.0, 40.0])
+    assert "chin" not in ph.sources and "chin" not in ph.confidence and ph.remove_click("chin") is None
+
+
+@pytest.mark.parametrize("uv, source, confidence, match", [
+    ([np.nan, 1.0], "user", None, "not finite"),
+    ([1.0, 1.0], "detector", None, "source is one of"),
+    ([1.0, 1.0], "auto", 1.2, r"confidence lies in \[0, 1\]"),
+])
+def test_set_click_refuses_bad_input(uv, source, confidence, match):
+    ph = Photo("front", "front.png", W, H)
+    with pytest.raises(ValueError, match=match):
+        ph.set_click("nose_tip", uv, source=source, confidence=confidence)
+    assert ph.points == {}
+
+
+def test_photos_differing_only_in_click_sources_are_not_equal():
+    a = Photo("front", "front.png", W, H, points={"nose_tip": [1, 2]})
+    b = Photo("front", "front.png", W, H, points={"nose_tip": [1, 2]}, sources={"nose_tip": "auto"})
+    assert a != b
+    assert a == Photo("front", "front.png", W, H, points={"nose_tip": [1, 2]}, sources={"nose_tip": "user"})

@@ -101,9 +101,9 @@ CASES = [
      ['expressions[0].photos[0].points["left eye"]: no feature named']),
     ("wrong format", lambda d: d.__setitem__("format", "blender"),
      ["not a Face Studio project file", '"blender"']),
-    ("newer version", lambda d: d.__setitem__("version", 3),
-     ["james.facestudio.json: written by a newer Face Studio (project format version 3; "
-      "this version reads up to 2)"]),
+    ("newer version", lambda d: d.__setitem__("version", 4),
+     ["james.facestudio.json: written by a newer Face Studio (project format version 4; "
+      "this version reads up to 3)"]),
     ("version zero", lambda d: d.__setitem__("version", 0), ["unknown project format version 0"]),
     ("version string", lambda d: d.__setitem__("version", "1"), ['version: expected an integer', '"1"']),
 ]
@@ -277,16 +277,16 @@ def test_invalid_cameras_from_is_not_saved(tmp_path):
 # ---------------------------------------------------------------------------------------
 # format version 2: version 1 read, photo camera_group
 # ---------------------------------------------------------------------------------------
-def test_version_1_file_loads_and_is_saved_as_version_2(tmp_path, saved):
-    """Version 1 needs no upgrade (it has no camera groups); saving writes version 2."""
+def test_version_1_file_loads_and_is_saved_as_the_current_version(tmp_path, saved):
+    """Version 1 needs no upgrade (it has no camera groups); saving writes version 3."""
     _, d = saved
     d["version"] = 1
     p = load_dict(tmp_path, d)
     assert p == sample_project()
     assert all(ph.camera_group is None for e in p.expressions for ph in e.photos)
     assert p.camera_groups("neutral") == [0, 1]  # each photo a camera of its own
-    again = json.loads(save_project(p, tmp_path / "v2.facestudio.json").read_text())
-    assert again["version"] == 2 and again["expressions"] == d["expressions"]
+    again = json.loads(save_project(p, tmp_path / "v3.facestudio.json").read_text())
+    assert again["version"] == 3 and again["expressions"] == d["expressions"]
     # the committed sample project is a version-1 file and still loads
     sample = load_project(Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json")
     assert sample.camera_groups("neutral") == [0, 1, 2, 3, 4]
@@ -314,3 +314,66 @@ def test_invalid_camera_group_is_not_saved(tmp_path):
     with pytest.raises(ProjectError, match=r"photos\[0\]\.camera_group: expected null or a camera group"):
         save_project(p)
     assert not p.path.exists()
+
+
+# ---------------------------------------------------------------------------------------
+# format version 3: click_sources (automatic clicks and their confidence)
+# ---------------------------------------------------------------------------------------
+def test_version_3_round_trip_of_automatic_clicks(tmp_path):
+    p = sample_project(tmp_path)
+    front = p.expression("neutral").photo("front")
+    front.set_click("eye_l", [41.25, 12.5], source="auto", confidence=0.875)
+    front.set_click("jaw_00", [30.0, 46.0], source="auto")  # a detector that gives no score
+    path = save_project(p)
+    d = json.loads(path.read_text())
+    pd = photo_dict(d, 0, 0)
+    assert d["version"] == 3
+    # the clicks stay plain [u, v]; their origin sits beside them, in feature order
+    assert pd["points"]["eye_l"] == [41.25, 12.5]
+    assert list(pd["click_sources"]) == ["eye_l", "jaw_00"]
+    assert pd["click_sources"]["eye_l"] == {"source": "auto", "confidence": 0.875}
+    assert pd["click_sources"]["jaw_00"] == {"source": "auto"}
+    assert "click_sources" not in photo_dict(d, 0, 1)  # the artist's clicks only: no key
+    back = load_project(path)
+    assert back == p
+    bf = back.expression("neutral").photo("front")
+    assert bf.click_source("eye_l") == "auto" and bf.click_source("nose_tip") == "user"
+    assert bf.confidence == {"eye_l": 0.875} and bf.auto_clicks() == ["eye_l", "jaw_00"]
+
+
+def test_version_2_file_loads_unchanged_and_its_clicks_are_the_users(tmp_path, saved):
+    _, d = saved
+    d["version"] = 2
+    p = load_dict(tmp_path, d)
+    assert p == sample_project()
+    assert all(ph.sources == {} and ph.confidence == {} for e in p.expressions for ph in e.photos)
+    assert p.expression("neutral").photo("front").click_source("nose_tip") == "user"
+    again = json.loads(save_project(p, tmp_path / "v3.facestudio.json").read_text())
+    assert again["version"] == 3 and again["expressions"] == d["expressions"]
+
+
+@pytest.mark.parametrize("value, expected", [
+    ({"eye_l": {"source": "robot"}}, 'click_sources.eye_l.source: expected "auto"'),
+    ({"eye_l": {"source": "auto", "confidence": 1.5}}, "click_sources.eye_l.confidence: expected the detector's"),
+    ({"eye_l": {"confidence": 0.5}}, "click_sources.eye_l"),
+    ({"eye_l": "auto"}, "click_sources.eye_l"),
+    ({"jaw_00": {"source": "auto"}}, "click_sources.jaw_00: 'jaw_00' has no click in this photo's points"),
+])
+def test_malformed_click_sources_name_the_field(tmp_path, saved, value, expected):
+    _, d = saved
+    photo_dict(d, 0, 1)["click_sources"] = value  # photo 'left' clicks nose_tip and eye_l
+    with pytest.raises(ProjectError) as ei:
+        load_dict(tmp_path, d)
+    msg = str(ei.value)
+    assert msg.startswith("james.facestudio.json: expressions[0].photos[1].click_sources"), msg
+    assert expected in msg, msg
+
+
+def test_a_deleted_click_leaves_no_source_behind(tmp_path):
+    p = sample_project(tmp_path)
+    front = p.expression("neutral").photo("front")
+    front.set_click("eye_l", [41.0, 12.0], source="auto", confidence=0.5)
+    front.points.pop("eye_l")  # deleted the old way, without remove_click
+    d = json.loads(save_project(p).read_text())
+    assert "click_sources" not in photo_dict(d, 0, 0)
+    assert load_project(p.path) == p

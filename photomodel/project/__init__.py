@@ -1,4 +1,4 @@
-"""The project file (format version 2, reads 1) in one place, for the CLI and the studio alike.
+"""The project file (format version 3, reads 1 and 2) in one place, for the CLI and the studio alike.
 
 * :mod:`~photomodel.project.model` — the dataclasses (``Project``, ``Expression``, ``Photo``,
   ``Feature``, ``CurveDef``, ``ExpressionResult``, ``TextureResult``), format constants, ``new_project``;

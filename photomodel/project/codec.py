@@ -5,7 +5,7 @@ and translations 1e-4 mm, rotations at full precision so they stay orthonormal),
 definition order (features, curves, photos) and stores paths relative to the folder of the file
 being written ("save as" re-expresses them so they still reach the same files). Reading
 (:func:`project_from_dict`) validates the dict (:func:`photomodel.project.validate.validate`) and
-builds the objects. Optional keys (``cameras_from``, ``camera_group``, ``result.texture``) are
+builds the objects. Optional keys (``cameras_from``, ``camera_group``, ``click_sources``, ``result.texture``) are
 omitted when unset, so files without them stay byte-identical.
 """
 
@@ -36,6 +36,7 @@ from photomodel.project.validate import validate
 
 _PIXEL_DECIMALS = 3  # 1e-3 px: far below click accuracy, keeps files readable
 _MM_DECIMALS = 4  # 1e-4 mm = 0.1 µm: far below scan/fit accuracy
+_CONFIDENCE_DECIMALS = 3  # a detector's score means nothing past the third decimal
 
 
 # ---------------------------------------------------------------------------------------
@@ -97,12 +98,20 @@ def _photo_dict(p: Photo, order: dict, stored) -> dict:
     }
     if p.camera_group is not None:  # optional: photos without a group omit the key
         pd["camera_group"] = p.camera_group
-    pd |= {
-        "points": {k: _round_list(p.points[k], _PIXEL_DECIMALS) for k in _ordered(p.points, features)},
-        "hidden": sorted(p.hidden, key=lambda k: (features.get(k, len(features)), k)),
-        "curves": {k: _round_list(p.curves[k], _PIXEL_DECIMALS) for k in _ordered(p.curves, order["curve"])},
-    }
+    pd["points"] = {k: _round_list(p.points[k], _PIXEL_DECIMALS) for k in _ordered(p.points, features)}
+    meta = p.click_meta()
+    if meta:  # optional (version 3): photos whose clicks are all the artist's omit the key
+        pd["click_sources"] = {k: _click_source_dict(meta[k]) for k in _ordered(meta, features)}
+    pd["hidden"] = sorted(p.hidden, key=lambda k: (features.get(k, len(features)), k))
+    pd["curves"] = {k: _round_list(p.curves[k], _PIXEL_DECIMALS) for k in _ordered(p.curves, order["curve"])}
     return pd
+
+
+def _click_source_dict(meta: dict) -> dict:
+    out = {"source": meta["source"]}
+    if "confidence" in meta:
+        out["confidence"] = round(float(meta["confidence"]), _CONFIDENCE_DECIMALS)
+    return out
 
 
 def _result_dict(r: ExpressionResult, feature_order: dict, photo_order: dict, stored) -> dict:
@@ -211,6 +220,8 @@ def _photo_from_dict(p: dict) -> Photo:
         focal_mm_guess=p.get("focal_mm_guess"),
         points=p.get("points", {}), hidden=p.get("hidden", []), curves=p.get("curves", {}),
         camera_group=p.get("camera_group"),
+        sources={k: c["source"] for k, c in p.get("click_sources", {}).items()},
+        confidence={k: c["confidence"] for k, c in p.get("click_sources", {}).items() if "confidence" in c},
     )
 
 

@@ -25,7 +25,8 @@ import cv2
 import numpy as np
 
 from photomodel.camera import Camera
-from photomodel.errors import ProjectError
+from photomodel.errors import PhotoError, ProjectError
+from photomodel.photos.reading import photo_size
 from photomodel.project.problems import did_you_mean, listing, problems_error
 
 FORMAT_NAME = "facestudio-project"
@@ -35,7 +36,12 @@ FORMAT_NAME = "facestudio-project"
 #: * 1 — the first format.
 #: * 2 — a photo may name its ``camera_group`` (photos taken with one camera and lens share one
 #:   focal length). Upgrading a version-1 file: nothing to do (no photo has a group).
-FORMAT_VERSION = 2
+#: * 3 — a photo may say which of its clicks were placed automatically (``click_sources``:
+#:   feature → ``{"source": "auto", "confidence": c}``). Upgrading: nothing to do (every click
+#:   of an older file was made by hand, source ``"user"``).
+FORMAT_VERSION = 3
+#: Where a click came from: the artist (``"user"``, the default) or the landmark detector.
+CLICK_SOURCES = ("user", "auto")
 FILE_SUFFIX = ".facestudio.json"
 BUILTIN_MESH = "builtin:template-v1"
 
@@ -100,6 +106,12 @@ class Photo:
     hidden : set[str], features the artist marked as not visible in this photo (a hidden
         feature is unobserved even if it also has a click).
     curves : dict[str, (m, 2) float], hand-drawn polylines in pixels, m >= 2.
+    sources : dict[str, str], feature → where its click came from, ``"auto"`` (the landmark
+        detector); a click without an entry was made by the artist (``"user"``). Format
+        version 3. Use :meth:`set_click` / :meth:`remove_click` to keep it in step with
+        :attr:`points`.
+    confidence : dict[str, float], feature → the detector's confidence in ``[0, 1]`` of an
+        automatic click (absent for the artist's clicks). Format version 3.
     """
 
     id: str
@@ -112,6 +124,8 @@ class Photo:
     hidden: set[str] = field(default_factory=set)
     curves: dict[str, np.ndarray] = field(default_factory=dict)
     camera_group: str | None = None
+    sources: dict[str, str] = field(default_factory=dict)
+    confidence: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self):
         self.path = Path(self.path).as_posix() if isinstance(self.path, Path) else str(self.path)
@@ -121,15 +135,69 @@ class Photo:
         self.points = {k: np.asarray(v, dtype=float).reshape(2) for k, v in self.points.items()}
         self.hidden = set(self.hidden)
         self.curves = {k: np.asarray(v, dtype=float).reshape(-1, 2) for k, v in self.curves.items()}
+        self.sources = {k: str(v) for k, v in self.sources.items() if v != "user"}
+        self.confidence = {k: float(v) for k, v in self.confidence.items()}
 
     def __eq__(self, other):
         return (isinstance(other, Photo)
                 and (self.id, self.path, self.width, self.height, self.preset, self.focal_mm_guess,
-                     self.camera_group, self.hidden)
+                     self.camera_group, self.hidden, self.click_meta())
                 == (other.id, other.path, other.width, other.height, other.preset,
-                    other.focal_mm_guess, other.camera_group, other.hidden)
+                    other.focal_mm_guess, other.camera_group, other.hidden, other.click_meta())
                 and _array_dicts_equal(self.points, other.points)
                 and _array_dicts_equal(self.curves, other.curves))
+
+    # -- clicks and where they came from (format version 3) ------------------------------
+    def set_click(self, name: str, uv, source: str = "user", confidence: float | None = None) -> None:
+        """Place or move the click of feature ``name`` at ``uv`` (2,) px, made by ``source``.
+
+        The artist's edits (a click placed, dragged or moved by hand) use the default
+        ``source="user"``, which turns an automatic click into the artist's and drops its
+        confidence; the landmark detector passes ``source="auto"`` and its ``confidence`` in
+        ``[0, 1]``. Raises :class:`ValueError` on a non-finite ``uv``, an unknown source or a
+        confidence outside ``[0, 1]``.
+        """
+        uv = np.asarray(uv, dtype=float).reshape(2)
+        if not np.all(np.isfinite(uv)):
+            raise ValueError(f"click of {name!r} in photo {self.id!r} is not finite: {uv.tolist()}")
+        if source not in CLICK_SOURCES:
+            raise ValueError(f"a click's source is one of {CLICK_SOURCES}, got {source!r}")
+        if confidence is not None and not 0.0 <= float(confidence) <= 1.0:
+            raise ValueError(f"a click's confidence lies in [0, 1], got {confidence!r}")
+        self.points[name] = uv
+        self.sources.pop(name, None)
+        self.confidence.pop(name, None)
+        if source != "user":
+            self.sources[name] = source
+            if confidence is not None:
+                self.confidence[name] = float(confidence)
+
+    def remove_click(self, name: str) -> np.ndarray | None:
+        """Delete the click of feature ``name`` (with its source and confidence); returns its
+        ``uv`` or ``None`` when there was none."""
+        self.sources.pop(name, None)
+        self.confidence.pop(name, None)
+        return self.points.pop(name, None)
+
+    def click_source(self, name: str) -> str:
+        """``"auto"`` or ``"user"``: where the click of feature ``name`` came from."""
+        return self.sources.get(name, "user")
+
+    def click_meta(self) -> dict[str, dict]:
+        """Feature → ``{"source": ..., "confidence": ...}`` (confidence when known) of each
+        click that is not the artist's: what the file's ``click_sources`` holds. Entries left
+        behind by a click deleted from :attr:`points` directly are not included."""
+        out = {}
+        for n in self.points:
+            if n in self.sources:
+                out[n] = {"source": self.sources[n]}
+                if n in self.confidence:
+                    out[n]["confidence"] = self.confidence[n]
+        return out
+
+    def auto_clicks(self) -> list[str]:
+        """Features whose click was placed automatically, in the order of :attr:`points`."""
+        return [n for n in self.points if self.sources.get(n) == "auto"]
 
 
 @dataclass
@@ -418,8 +486,10 @@ class Project:
         ----------
         read : bool
             If False (default, cheap) a photo must exist and OpenCV must recognise its format
-            from the file header (``cv2.haveImageReader``). If True each image is decoded and
-            its size compared with the ``width``/``height`` stored in the project.
+            from the file header (``cv2.haveImageReader``). If True each image is checked and
+            decoded by :func:`photomodel.photos.reading.read_photo` (a truncated JPEG or PNG is
+            a problem) and its oriented size (EXIF orientation applied) compared with the
+            ``width``/``height`` stored in the project.
         """
 
         problems = []
@@ -433,11 +503,13 @@ class Project:
                 elif not cv2.haveImageReader(str(p)):
                     problems.append((where, f"{who}: {photo.path} is not an image OpenCV can read"))
                 elif read:
-                    img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-                    if img is None:
-                        problems.append((where, f"{who}: {photo.path} could not be decoded"))
-                    elif img.shape[:2] != (photo.height, photo.width):
-                        problems.append((where, f"{who}: {photo.path} is {img.shape[1]}x{img.shape[0]} "
+                    try:
+                        w, h = photo_size(p)
+                    except PhotoError as exc:
+                        problems.append((where, f"{who}: {photo.path} could not be decoded: {exc}"))
+                        continue
+                    if (w, h) != (photo.width, photo.height):
+                        problems.append((where, f"{who}: {photo.path} is {w}x{h} "
                                                 f"but the project says {photo.width}x{photo.height}"))
         if problems:
             raise problems_error(self._source(), problems)

@@ -55,8 +55,9 @@ def validate(d: Any, source: str) -> None:
     """All checks of a parsed project dict (steps 1-3 of the module docstring); ProjectError
     naming ``source`` and the JSON path of each problem."""
     _check_version(d, source)
-    # Older versions need no upgrade: version 2 only added the optional photo camera_group, and a
-    # version-1 file's photos have none. (A future change that renames or restructures a field
+    # Older versions need no upgrade: version 2 only added the optional photo camera_group and
+    # version 3 the optional click_sources, which older files' photos do not have (their clicks
+    # are all the artist's). (A future change that renames or restructures a field
     # converts the older dict here, before the schema check.)
     _check_schema(d, source)
     problems = cross_reference_problems(d)
@@ -84,7 +85,7 @@ def _check_version(d: Any, source: str) -> None:
 # ---------------------------------------------------------------------------------------
 @lru_cache(maxsize=1)
 def project_schema() -> dict:
-    """The JSON Schema (draft 2020-12) of the format (versions 1 and 2), shipped as package data."""
+    """The JSON Schema (draft 2020-12) of the format (versions 1 to 3), shipped as package data."""
     text = resources.files("photomodel.project").joinpath("schema.json").read_text(encoding="utf-8")
     return json.loads(text)
 
@@ -274,6 +275,11 @@ def _photo_problems(pp: str, p: dict, defined: _Defined) -> list[tuple[str, str]
         names, uvs = list(points), list(points.values())
         for j in np.flatnonzero(_far_outside(np.array(uvs, float), w, h)):
             problems.append((f"{pp}.points{fmt_key(names[j])}", _outside_message(uvs[j], w, h)))
+    for name in p.get("click_sources", {}):
+        if name not in points:
+            problems.append((f"{pp}.click_sources{fmt_key(name)}",
+                             f"{name!r} has no click in this photo's points; a click's source "
+                             f"needs the click"))
     for hi, name in enumerate(p.get("hidden", [])):
         if name not in fset:
             problems.append((f"{pp}.hidden[{hi}]", f"no feature named {name!r} is defined"
