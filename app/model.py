@@ -367,22 +367,33 @@ class StudioModel:
             self.active_curve_changed.emit(name)
 
     # ------------------------------------------------------------------ edit primitives
-    def set_point(self, expression: str, photo_id: str, feature: str, uv) -> np.ndarray | None:
-        """Place (``uv`` (2,) px), move, or delete (``uv=None``) a click; returns the old one."""
+    def set_point(self, expression: str, photo_id: str, feature: str, uv, *, source: str = "user",
+                  confidence: float | None = None) -> np.ndarray | None:
+        """Place (``uv`` (2,) px), move, or delete (``uv=None``) a click; returns the old one.
+
+        ``source``: ``"user"`` (the artist's edit: an automatic click placed or dragged becomes
+        the artist's) or ``"auto"`` with the landmark detector's ``confidence`` (automatic
+        landmarks, or an undo putting an automatic click back); see :meth:`Photo.set_click`.
+        """
         photo = self.photo(photo_id, expression)
         if not self.has_feature(feature):
             raise ProjectError(f"no feature named {feature!r} is defined in the project")
         old = photo.points.get(feature)
         if uv is None:
-            photo.points.pop(feature, None)
+            photo.remove_click(feature)
         else:
-            uv = np.asarray(uv, dtype=float).reshape(2)
-            if not np.all(np.isfinite(uv)):
-                raise ProjectError(f"click of {feature!r} in photo {photo_id!r} is not finite: {uv.tolist()}")
-            photo.points[feature] = uv
+            try:
+                photo.set_click(feature, uv, source=source, confidence=confidence)
+            except ValueError as exc:
+                raise ProjectError(str(exc)) from None
         self._touch()
         self.points_changed.emit(expression, photo_id, feature)
         return None if old is None else old.copy()
+
+    def click_source(self, expression: str, photo_id: str, feature: str) -> tuple[str, float | None]:
+        """Where a click came from: ``("user", None)`` or ``("auto", confidence or None)``."""
+        photo = self.photo(photo_id, expression)
+        return photo.click_source(feature), photo.confidence.get(feature)
 
     def set_hidden(self, expression: str, photo_id: str, feature: str, hidden: bool) -> bool:
         """Mark a feature (in)visible in one photo; returns the old state."""

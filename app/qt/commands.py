@@ -23,7 +23,9 @@ def _fmt_uv(uv) -> str:
 class SetPointCommand(QUndoCommand):
     """Place, move or delete (``uv=None``) the click of a feature in one photo.
 
-    Placing a click also shows the feature again in that photo if it was hidden there.
+    Placing a click also shows the feature again in that photo if it was hidden there. The click
+    is the artist's (``source="user"``), also when it moves an automatic one; undo restores the
+    automatic click with its confidence.
     """
 
     def __init__(self, model: StudioModel, expression: str, photo_id: str, feature: str, uv,
@@ -36,6 +38,8 @@ class SetPointCommand(QUndoCommand):
         self.old = (np.asarray(old_uv, float).reshape(2).copy() if old_uv is not None
                     else (None if current is None else current.copy()))
         self.was_hidden = feature in photo.hidden
+        # an automatic click the artist moves becomes theirs; undo makes it automatic again
+        self.old_source = (photo.click_source(feature), photo.confidence.get(feature))
         self.define = None
         if not model.has_feature(feature):
             self.define = Feature(feature, model.mesh.features[feature], pose=False)
@@ -56,11 +60,32 @@ class SetPointCommand(QUndoCommand):
         self.model.set_point(self.expression, self.photo_id, self.feature, self.new)
 
     def undo(self):
-        self.model.set_point(self.expression, self.photo_id, self.feature, self.old)
+        source, confidence = self.old_source
+        self.model.set_point(self.expression, self.photo_id, self.feature, self.old, source=source,
+                             confidence=confidence)
         if self.new is not None and self.was_hidden:
             self.model.set_hidden(self.expression, self.photo_id, self.feature, True)
         if self.define is not None:
             self.model.remove_feature(self.define.name)
+
+
+class DefineFeaturesCommand(QUndoCommand):
+    """Add feature definitions the project lacks (e.g. those automatic landmarks of new photos
+    use); pushed with the photos in one macro, so one undo takes both back."""
+
+    def __init__(self, model: StudioModel, features: list[Feature]):
+        super().__init__(f"Define {', '.join(f.name for f in features)}")
+        self.model = model
+        self.features = [Feature(f.name, f.vertex, f.pose) for f in features]
+
+    def redo(self):
+        for f in self.features:
+            if not self.model.has_feature(f.name):
+                self.model.add_feature(Feature(f.name, f.vertex, f.pose))
+
+    def undo(self):
+        for f in reversed(self.features):
+            self.model.remove_feature(f.name)
 
 
 class SetHiddenCommand(QUndoCommand):

@@ -16,7 +16,10 @@ Mouse and keys (as in Blender / photogrammetry tools):
   ``Esc`` cancels.
 
 Markers are coloured by their reprojection error after a fit (green < 1 px, yellow ~2 px,
-red ≥ 4 px; white before any fit); hidden features are drawn hollow and grey. Once a fit exists,
+red ≥ 4 px; white before any fit); hidden features are drawn hollow and grey. Automatic clicks
+(placed by the landmark detector, ``"source": "auto"`` in the file) are drawn as violet diamonds
+until the artist drags them (then they are the artist's clicks, round; undo makes them automatic
+again). Once a fit exists,
 the active feature's *predicted* position — the fitted mesh's vertex of that feature projected
 with this photo's fitted camera (:meth:`~app.model.StudioModel.predicted_uv`) — is drawn as a
 dashed cyan ghost cross: where to click a feature not clicked here yet, or how far a click is
@@ -57,6 +60,8 @@ POINTS, CURVE = "points", "curve"
 
 OVERLAY_COLORS = {0: QColor(0, 200, 255, 150), 1: QColor(255, 170, 0, 200), 2: QColor(255, 235, 0, 230)}
 DRAWN_CURVE_COLOR = QColor(255, 60, 200)
+#: Automatic clicks (the landmark detector's) are violet diamonds.
+AUTO_COLOR = QColor(190, 110, 255)
 #: The ghost marker of the active feature's predicted position (the current fit projected).
 PREDICTED_COLOR = QColor(0, 230, 255)
 
@@ -107,6 +112,7 @@ class PointItem(QGraphicsItem):
         self.residual: float | None = None
         self.active = False
         self.hidden = False
+        self.auto: float | None | bool = False  # False: the artist's click; else the detector's confidence
         self.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
         # a repaint blits ~150 cached markers (~5 ms) instead of drawing them again (~25 ms)
         self.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
@@ -119,7 +125,23 @@ class PointItem(QGraphicsItem):
         r = "not fitted" if self.residual is None else f"{self.residual:.2f} px from the fit"
         extra = ", pose feature" if self.pose else ""
         hid = " (hidden in this photo)" if self.hidden else ""
-        self.setToolTip(f"{self.name}{hid}: {r}{extra}")
+        auto = ""
+        if self.is_auto:
+            conf = "" if self.auto is True else f", confidence {self.auto:.2f}"
+            auto = f" — automatic click{conf}; drag it to correct it"
+        self.setToolTip(f"{self.name}{hid}: {r}{extra}{auto}")
+
+    @property
+    def is_auto(self) -> bool:
+        return self.auto is not False
+
+    def set_auto(self, auto: bool, confidence: float | None = None) -> None:
+        """Mark the click as the detector's (with its confidence) or the artist's."""
+        value = (True if confidence is None else float(confidence)) if auto else False
+        if value != self.auto:
+            self.auto = value
+            self._update_tip()
+            self.update()
 
     def _look(self):
         color = residual_color(self.residual).rgb()
@@ -147,11 +169,20 @@ class PointItem(QGraphicsItem):
         painter.setRenderHint(QPainter.RenderHint.Antialiasing)
         r = MARKER_RADIUS_PX + (1.5 if self.active else 0.0)
         color = QColor(150, 150, 150) if self.hidden else residual_color(self.residual)
-        painter.setPen(QPen(QColor(0, 0, 0, 200), 3.0))
         painter.setBrush(Qt.BrushStyle.NoBrush)
-        painter.drawEllipse(QPointF(0, 0), r, r)
-        painter.setPen(QPen(color, 1.6, Qt.PenStyle.DashLine if self.hidden else Qt.PenStyle.SolidLine))
-        painter.drawEllipse(QPointF(0, 0), r, r)
+        style = Qt.PenStyle.DashLine if self.hidden else Qt.PenStyle.SolidLine
+        if self.is_auto:  # the detector's click: a violet diamond around the residual-coloured dot
+            d = r + 1.5
+            diamond = [QPointF(0, -d), QPointF(d, 0), QPointF(0, d), QPointF(-d, 0), QPointF(0, -d)]
+            painter.setPen(QPen(QColor(0, 0, 0, 200), 3.0))
+            painter.drawPolyline(diamond)
+            painter.setPen(QPen(AUTO_COLOR, 1.8, style))
+            painter.drawPolyline(diamond)
+        else:
+            painter.setPen(QPen(QColor(0, 0, 0, 200), 3.0))
+            painter.drawEllipse(QPointF(0, 0), r, r)
+            painter.setPen(QPen(color, 1.6, style))
+            painter.drawEllipse(QPointF(0, 0), r, r)
         if not self.hidden:  # a dot at the exact position
             painter.setPen(Qt.PenStyle.NoPen)
             painter.setBrush(QBrush(color))
@@ -365,6 +396,7 @@ class PhotoView(QGraphicsView):
         res = self._residuals()
         for name, uv in photo.points.items():
             item = PointItem(name, uv, name in pose)
+            item.set_auto(photo.click_source(name) == "auto", photo.confidence.get(name))
             item.set_state(res.get(name), active=name == self.model.active_feature, hidden=name in photo.hidden)
             self.scene().addItem(item)
             self._items[name] = item
@@ -388,6 +420,7 @@ class PhotoView(QGraphicsView):
                 self.scene().addItem(item)
                 self._items[feature] = item
             item.setPos(QPointF(float(uv[0]), float(uv[1])))
+            item.set_auto(photo.click_source(feature) == "auto", photo.confidence.get(feature))
             item.set_state(self._residuals().get(feature), active=feature == self.model.active_feature,
                            hidden=feature in photo.hidden)
 
