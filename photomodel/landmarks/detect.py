@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 from pathlib import Path
 
 import cv2
@@ -76,7 +76,7 @@ class Face468:
 # ----------------------------------------------------------------------------- the nets
 
 
-@lru_cache(maxsize=None)
+@cache
 def _nets(folder: Path) -> tuple[cv2.dnn.Net, cv2.dnn.Net]:
     engine = cv2.dnn.ENGINE_CLASSIC  # the default engine returns only the first output
     detector = cv2.dnn.readNetFromTFLite(str(folder / DETECTION_MODEL), engine=engine)
@@ -242,7 +242,7 @@ def detect_faces(image: np.ndarray, level: int = 0) -> tuple[np.ndarray, np.ndar
         detector scores in [0, 1]. ``f == 0`` when no face is found.
     """
     found = [_detect_in(image, c, s) for c, s in _window_levels(*image.shape[:2])[level]]
-    boxes, kps, score = (np.concatenate(a) for a in zip(*found))
+    boxes, kps, score = (np.concatenate(a) for a in zip(*found, strict=True))
     if not len(score):
         return boxes, kps, score
     boxes, kps, score = _weighted_nms(boxes, kps, score)
@@ -324,7 +324,7 @@ def detect_468(image: np.ndarray, *, name: str = "the photo") -> Face468:
     best = 0.0
     for level in range(DETECTION_LEVELS):  # smaller tiles only when the larger find no face
         boxes, keypoints, _ = detect_faces(image, level)
-        faces = [_face_mesh(image, b, k) for b, k in zip(boxes[:MAX_FACES], keypoints[:MAX_FACES])]
+        faces = [_face_mesh(image, b, k) for b, k in zip(boxes[:MAX_FACES], keypoints[:MAX_FACES], strict=True)]
         best = max([best] + [score for _, score in faces])
         faces = [(points, score) for points, score in faces if score >= MIN_FACE_SCORE]
         if faces:

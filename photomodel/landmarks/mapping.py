@@ -28,7 +28,9 @@ Hidden points
 -------------
 A point on the far side of a turned face is not placed: :data:`FAR_SIDE_LIMIT_DEG` gives, per
 iBUG point, the largest yaw towards the other side at which it is still seen (from the james
-scan's depth-tested visibility over yaws −90°…90° in 7.5° steps, rounded down).
+scan's depth-tested visibility over yaws −90°…90° in 7.5° steps, rounded down). The outer jaw
+and brow ends are kept up to 15° although the scan hides them sooner: in a near-frontal photo
+they sit on the outline, where an annotator (and the 300-W convention) still places them.
 """
 
 from __future__ import annotations
@@ -69,10 +71,11 @@ _CONFIDENCE = np.array(
 #: Largest yaw (degrees) towards the far side at which each iBUG point is still placed.
 #: Points on the midline get 90 (never hidden by this rule).
 FAR_SIDE_LIMIT_DEG = np.array(
-    [0, 5, 0, 0, 0, 5, 5, 25, 90, 35, 5, 0, 0, 0, 0, 0, 0]  # jaw
-    + [5, 25, 40, 55, 70, 70, 55, 40, 25, 5]  # brows
+    [15, 15, 15, 15, 20, 20, 25, 30, 90, 30, 25, 20, 20, 15, 15, 15, 15]  # jaw
+    + [15, 25, 40, 55, 70, 70, 55, 40, 25, 15]  # brows
     + [90, 90, 90, 90, 25, 45, 90, 45, 25]  # nose
-    + [40, 50, 50, 25, 35, 40] + [25, 45, 50, 40, 50, 35]  # eyes
+    + [40, 50, 50, 25, 35, 40]
+    + [25, 45, 50, 40, 50, 35]  # eyes
     + [50, 50, 55, 90, 55, 50, 50, 50, 55, 90, 50, 50]  # outer lip
     + [45, 55, 90, 55, 45, 55, 90, 55],  # inner lip
     dtype=float,

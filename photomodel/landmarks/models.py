@@ -53,8 +53,11 @@ MEDIAPIPE = PackageFiles(
         ),
     },
     pip_args=(
-        "--only-binary=:all:", "--python-version", "3.11",
-        "--platform", "manylinux_2_28_x86_64",
+        "--only-binary=:all:",
+        "--python-version",
+        "3.11",
+        "--platform",
+        "manylinux_2_28_x86_64",
     ),  # fmt: skip
     env_archive="FACESTUDIO_MEDIAPIPE_WHEEL",
 )

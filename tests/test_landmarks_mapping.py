@@ -1,0 +1,62 @@
+"""The 468 → iBUG-68 mapping, the yaw's view preset and the far-side rule (no detector run)."""
+
+import numpy as np
+
+from photomodel.camera import PRESET_AZIMUTH_DEG
+from photomodel.landmarks.mapping import (
+    MESH_OF_IBUG68,
+    features_from_mesh,
+    ibug68_from_mesh,
+    ibug_index,
+    placed_ibug,
+    preset_for_yaw,
+)
+from photomodel.modeling.generic_mesh import FEATURE_ALIASES, IBUG68_NAMES
+
+
+def test_every_ibug_point_has_its_own_mesh_point():
+    assert MESH_OF_IBUG68.shape == (68,)
+    assert len(set(MESH_OF_IBUG68.tolist())) == 68
+    assert MESH_OF_IBUG68.min() >= 0 and MESH_OF_IBUG68.max() < 468
+    # MediaPipe's anatomical points: outer eye corners 33/263, mouth corners 61/291, the
+    # same sides as iBUG (r = the subject's right)
+    assert MESH_OF_IBUG68[FEATURE_ALIASES["eye_r_outer"]] == 33
+    assert MESH_OF_IBUG68[FEATURE_ALIASES["eye_l_outer"]] == 263
+    assert MESH_OF_IBUG68[FEATURE_ALIASES["mouth_r"]] == 61
+    assert MESH_OF_IBUG68[FEATURE_ALIASES["mouth_l"]] == 291
+
+
+def test_feature_names_resolve_to_ibug_indices():
+    assert ibug_index("jaw_03") == 3
+    assert ibug_index("eye_r_outer") == 36
+    assert ibug_index("lip_inner_7") == 67
+    assert ibug_index("extra_007") is None
+
+
+def test_view_presets_follow_the_azimuth_convention():
+    assert preset_for_yaw(0.0) == "front"
+    assert preset_for_yaw(40.0) == "three_quarter_left"  # + : the camera sees the subject's left
+    assert preset_for_yaw(-40.0) == "three_quarter_right"
+    assert preset_for_yaw(70.0) == "left" and preset_for_yaw(-70.0) == "right"
+    assert all(preset_for_yaw(y) in PRESET_AZIMUTH_DEG for y in np.linspace(-90, 90, 37))
+
+
+def test_far_side_points_are_not_placed():
+    assert placed_ibug(0.0).all()  # a frontal photo places all 68
+    turned_left = placed_ibug(50.0)  # camera at the subject's left: their right side hides
+    assert not turned_left[IBUG68_NAMES.index("jaw_02")]
+    assert turned_left[IBUG68_NAMES.index("jaw_14")]
+    assert turned_left[IBUG68_NAMES.index("nose_bridge_3")]
+    assert not placed_ibug(-50.0)[IBUG68_NAMES.index("jaw_14")]
+
+
+def test_features_carry_mesh_points_and_confidences():
+    mesh = np.random.default_rng(0).uniform(0, 500, (468, 3))
+    names = ["eye_r_outer", "jaw_02", "chin", "extra_001"]
+    points, confidence = features_from_mesh(mesh, 30.0, names)
+    assert set(points) == {"eye_r_outer", "chin"}  # jaw_02 hidden, extra_001 unmapped
+    np.testing.assert_array_equal(points["eye_r_outer"], mesh[33, :2])
+    assert set(confidence) == set(points)
+    assert all(0.0 < c <= 1.0 for c in confidence.values())
+    _, front = ibug68_from_mesh(mesh, 0.0)
+    assert front[IBUG68_NAMES.index("jaw_05")] < 0.5 * front[FEATURE_ALIASES["eye_r_outer"]]  # the outline weighs less
