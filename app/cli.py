@@ -1,5 +1,7 @@
 """The ``facestudio`` command.
 
+    facestudio new PROJECT --photos DIR [--expression neutral] [--camera-group NAME]
+                   [--features-from PROJECT] [--json]
     facestudio fit PROJECT [--expression NAME] [--no-refine] [--json] [--dry-run]
     facestudio texture PROJECT [--expression NAME] [--size 1024] [--json]
     facestudio track PROJECT --video PATH [--out DIR] [--first-pose JSON] [--focal-px F] [--frames N]
@@ -22,9 +24,11 @@ from pathlib import Path
 from tqdm import tqdm
 
 from photomodel.errors import FaceStudioError, MissingClicks, ProjectError
+from photomodel.landmarks import place_landmarks
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.project import load_project, record_fit, save_results
+from photomodel.photos.intake import default_features, new_project_from_photos
+from photomodel.project import load_project, record_fit, save_project, save_results
 from photomodel.samples.sample_data import sample_data_dir
 from photomodel.texturing.job import TEXTURE_SIZES, encode_texture_outputs, fitted_expressions, texture_expression
 from tracking.results import default_out_dir, load_track_results
@@ -77,6 +81,53 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         lines.append(f"    {p['feature']:<22} {p['rms_px']:7.3f} px in {p['views']} photos{tag}")
     for why in dropped:
         lines.append(f"  not used: {why}")
+    return "\n".join(lines)
+
+
+def cmd_new(args) -> int:
+    """``facestudio new``: a project from a folder of photos, with automatic landmarks."""
+    target = Path(args.project)
+    if target.exists():
+        raise ProjectError(f"{target}: already exists; `facestudio new` does not overwrite a project "
+                           f"(choose another name, or add photos in the studio)")
+    if args.features_from is not None:
+        source = load_project(args.features_from)
+        features, curves = source.features, source.curves
+    else:
+        features, curves = default_features(load_generic_mesh())
+    bar, progress = _progress_bar(not args.json or sys.stderr.isatty())
+    try:
+        project, warnings = new_project_from_photos(
+            args.photos, target, features=features, curves=curves, expression=args.expression,
+            camera_group=args.camera_group, placer=place_landmarks, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    save_project(project, target)
+    expr = project.expression(args.expression)
+    views = [{"id": p.id, "file": Path(p.path).name, "width": p.width, "height": p.height,
+              "preset": p.preset, "clicks_auto": len(p.auto_clicks()), "focal_mm_guess": p.focal_mm_guess,
+              "camera_group": p.camera_group} for p in expr.photos]
+    out = {"path": str(target), "expression": args.expression, "photos": len(views),
+           "clicks_auto": sum(v["clicks_auto"] for v in views), "warnings": warnings, "views": views}
+    for w in warnings:
+        print(f"facestudio: warning: {w}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(out, indent=1))
+    else:
+        print(_format_new(out, len(project.features)))
+    return 0
+
+
+def _format_new(out: dict, n_features: int) -> str:
+    lines = [f"created {out['path']}: expression {out['expression']!r}, {out['photos']} photos, "
+             f"{out['clicks_auto']} automatic clicks (source \"auto\"; check them in the studio)"]
+    lines.append(f"  {'photo':<24} {'view':<20} {'auto clicks':>11} {'focal mm':>9}  camera group")
+    for v in out["views"]:
+        focal = "-" if v["focal_mm_guess"] is None else f"{v['focal_mm_guess']:.1f}"
+        lines.append(f"  {v['id']:<24} {v['preset']:<20} {v['clicks_auto']:>5} of {n_features:<3} "
+                     f"{focal:>9}  {v['camera_group'] or '-'}")
+    lines.append(f"next: facestudio fit {out['path']}")
     return "\n".join(lines)
 
 
@@ -293,6 +344,19 @@ def cmd_studio(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="facestudio", description="Face Studio: faces from photographs.")
     sub = p.add_subparsers(dest="command", required=True)
+    n = sub.add_parser("new", help="start a project from a folder of photos: photos checked, focal lengths "
+                                   "from EXIF, landmarks placed automatically")
+    n.add_argument("project", type=Path, help="the project file to create (*.facestudio.json); never overwritten")
+    n.add_argument("--photos", type=Path, required=True, metavar="DIR",
+                   help="folder of photos (jpg, jpeg, png, ppm, bmp, tif), added in name order")
+    n.add_argument("--expression", default="neutral", help="the expression the photos show (default: neutral)")
+    n.add_argument("--camera-group", metavar="NAME", help="one camera group for every photo (frames of one "
+                                                          "video); default: by camera and lens from EXIF")
+    n.add_argument("--features-from", type=Path, metavar="PROJECT",
+                   help="copy the features and curves of this project (default: the sample project's "
+                        "13 pose features, the 68 landmarks and the generic mesh's curves)")
+    n.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+    n.set_defaults(func=cmd_new)
     f = sub.add_parser("fit", help="recover cameras and fit the face mesh to the clicked photos")
     f.add_argument("project", help="project file (*.facestudio.json)")
     f.add_argument("--expression", help="fit only this expression (default: all; one that reuses another's "

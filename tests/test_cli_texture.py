@@ -132,7 +132,7 @@ def test_unfitted_expression_asks_for_a_fit_and_writes_nothing(tmp_path, capsys)
 
 @pytest.mark.parametrize("damage, message", [
     (lambda p: p.unlink(), "neutral_left.png does not exist"),
-    (lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n not really"), "neutral_left.png is not an image"),
+    (lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n not really"), "neutral_left.png: truncated PNG"),
 ])
 def test_missing_or_corrupt_photo_is_named_and_nothing_is_written(project_copy, capsys, damage, message):
     damage(project_copy.parent / "photos" / "neutral_left.png")

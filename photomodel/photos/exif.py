@@ -39,6 +39,8 @@ import warnings
 from PIL import Image
 
 EXIF_IFD = 0x8769
+TAG_MAKE = 0x010F
+TAG_MODEL = 0x0110
 TAG_FOCAL_LENGTH = 0x920A
 TAG_FOCAL_LENGTH_35MM = 0xA405
 TAG_EXIF_IMAGE_WIDTH = 0xA002
@@ -127,6 +129,32 @@ def _focal_35mm(path) -> float | None:
     return f * FULL_FRAME_WIDTH_MM / sensor_long_mm
 
 
+def camera_identity(path: str | os.PathLike) -> str | None:
+    """A name for the camera and lens setting that took a photo, from its EXIF, or ``None``.
+
+    ``"<Make> <Model> <FocalLength> mm"`` (e.g. ``"Apple iPhone 12 4.2 mm"``): photos with the
+    same name were taken by one camera at one focal length, and so can share a focal length in
+    a fit (``Photo.camera_group``). ``None`` when the file does not record its make, model and
+    focal length (a zoom lens at an unknown setting is no shared camera). Never raises.
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with Image.open(path) as img:
+                exif = img.getexif()
+                tags = dict(exif)
+                tags.update(exif.get_ifd(EXIF_IFD))
+    except Exception:  # not an image Pillow reads, or a corrupt EXIF block: no identity
+        return None
+    make, model = (str(tags.get(t, "")).strip(" \x00") for t in (TAG_MAKE, TAG_MODEL))
+    f = _number(tags.get(TAG_FOCAL_LENGTH))
+    if not model or f is None or f <= 0:
+        return None
+    if make and model.lower().startswith(make.lower()):
+        make = ""  # "Canon" + "Canon EOS R5": the model names the make already
+    return " ".join(x for x in (make, model, f"{round(f, 1):g} mm") if x)
+
+
 def _number(v) -> float | None:
     """A finite float from an EXIF value (int, float, Pillow's IFDRational, a 1-tuple), else None."""
     if isinstance(v, tuple) and len(v) == 1:
@@ -145,4 +173,4 @@ def _integer(v) -> int | None:
     return None if x is None or x != int(x) else int(x)
 
 
-__all__ = ["focal_mm_36_from_exif", "focal_mm_guess_from_exif"]
+__all__ = ["camera_identity", "focal_mm_36_from_exif", "focal_mm_guess_from_exif"]

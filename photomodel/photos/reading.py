@@ -22,7 +22,10 @@ photo check, texturing) goes through :func:`read_photo`, which
 * **bounds memory on very large photos**: a photo whose longer side exceeds
   :data:`MAX_WORKING_SIDE` (6000 px, ≈ 81 MB as 8-bit RGB) is decoded at 1/2, 1/4 or 1/8 of
   its size (``cv2.IMREAD_REDUCED_COLOR_*``: libjpeg decodes a JPEG directly at the reduced size,
-  never holding the full one), then resized down if still larger. The size is known before
+  never holding the full one), then resized down if still larger. Other formats (PNG, TIFF…)
+  are decoded in full and averaged down (``cv2.INTER_AREA``): OpenCV's reduced read of those
+  decodes in full anyway and then drops pixels, so only JPEG saves memory this way — the
+  format of every camera's large photos. The size is known before
   decoding from the file header (Pillow reads only the header). The original file is kept and
   untouched; :attr:`PhotoImage.scale` maps between the working image and the original's pixels
   (:func:`to_original`, :func:`to_working`), so clicks stay in original pixels.
@@ -115,7 +118,10 @@ def read_photo(path: str | os.PathLike, max_side: int | None = MAX_WORKING_SIDE)
         raise PhotoError(f"{path.name}: {problem}; the file is damaged or was not copied whole ({path})")
     width, height = _header_size(path)
     factor = 1
-    if max_side is not None and width and height:
+    # libjpeg decodes a JPEG at 1/2, 1/4, 1/8 by scaling its DCT blocks (a proper low-pass, never
+    # the full image in memory); other decoders would decode in full and then drop pixels
+    # (aliasing), so those are decoded in full and averaged down (INTER_AREA) below
+    if max_side is not None and width and height and data[:3] == b"\xff\xd8\xff":
         while factor < 8 and max(width, height) / factor > max_side:
             factor *= 2
     img = cv2.imdecode(np.frombuffer(data, np.uint8), _REDUCED[factor])

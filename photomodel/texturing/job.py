@@ -29,7 +29,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from photomodel.errors import FitError, ProjectError
+from photomodel.camera import Camera
+from photomodel.errors import FitError, PhotoError, ProjectError
 from photomodel.exchange.files import encode_png
 from photomodel.exchange.gltf import encode_glb
 from photomodel.exchange.mesh import read_mesh
@@ -37,6 +38,7 @@ from photomodel.exchange.obj import encode_textured_obj
 from photomodel.exchange.ply import encode_colored_ply
 from photomodel.exchange.uv import merge_uv_seams
 from photomodel.modeling.fit import Cancelled
+from photomodel.photos.reading import read_photo
 from photomodel.texturing.cylindrical import (
     CylinderMap,
     CylindricalTexture,
@@ -169,7 +171,12 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
 
 def _read_photos(project, name: str, photo_ids) -> tuple[list, list, list]:
     """``(ids, cameras, RGB photos)`` of the expression's photos ``photo_ids`` (all with a
-    recovered camera), each checked against its camera; ProjectError naming the photo."""
+    recovered camera), each checked against its camera; ProjectError naming the photo.
+
+    Photos are read by :func:`photomodel.photos.reading.read_photo` (EXIF orientation applied,
+    a truncated file refused); one larger than its working resolution comes back reduced, with
+    its camera scaled to match (focal length and image size × ``scale``), so the texture is
+    sampled from the working image. The stored cameras are not changed."""
 
     expr = project.expression(name)
     result = expr.result
@@ -183,15 +190,19 @@ def _read_photos(project, name: str, photo_ids) -> tuple[list, list, list]:
         path = project.photo_path(photo)
         if not path.is_file():
             raise ProjectError(f"{who}: {photo.path} does not exist (looked for {path})")
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if img is None:
-            raise ProjectError(f"{who}: {photo.path} is not an image OpenCV can read (corrupt or unknown format)")
-        if img.shape[:2] != (cam.height, cam.width):
-            raise ProjectError(f"{who}: {photo.path} is {img.shape[1]}x{img.shape[0]} but its camera is "
+        try:
+            read = read_photo(path)
+        except PhotoError as exc:
+            raise ProjectError(f"{who}: {exc}") from exc
+        if (read.width, read.height) != (cam.width, cam.height):
+            raise ProjectError(f"{who}: {photo.path} is {read.width}x{read.height} but its camera is "
                                f"{cam.width}x{cam.height}; the photo changed since the fit")
+        if read.reduced:
+            h, w = read.image.shape[:2]
+            cam = Camera(cam.R, cam.t, cam.f * read.scale, w, h)
         ids.append(pid)
         cameras.append(cam)
-        photos.append(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
+        photos.append(read.image)
     return ids, cameras, photos
 
 
@@ -380,6 +391,7 @@ def load_texture_photos(project, inputs: TextureInputs) -> list:
     ``inputs.photos``. ProjectError names a photo that is missing, unreadable or resized."""
     _, cameras, photos = _read_photos(project, inputs.expression, inputs.photo_ids)
     inputs.photos = photos
+    inputs.cameras = cameras  # a photo read at a working resolution comes with its scaled camera
     return photos
 
 

@@ -1,0 +1,253 @@
+"""Photos into a project, with automatic landmarks: ``facestudio new`` and the studio's *Add photos…*.
+
+One place for what happens to a photograph on its way into a project, so the CLI and the studio
+do the same thing:
+
+1. read with :func:`photomodel.photos.reading.read_photo` (EXIF orientation, a truncated file is
+   a :class:`~photomodel.errors.PhotoError` naming it, a working resolution for very large ones);
+   the project stores the oriented original's size and clicks in its pixels;
+2. the focal length from EXIF (:func:`photomodel.photos.exif.focal_mm_guess_from_exif`) and a
+   camera group (:func:`photomodel.photos.exif.camera_identity`: one camera at one focal length;
+   or one name for all, e.g. the frames of one video);
+3. the landmarks placed by the detector (:func:`photomodel.landmarks.place_landmarks`, or any
+   ``placer`` with its signature), each stored as an automatic click (``source "auto"`` with its
+   confidence, project format version 3) in the original photo's pixels; the view ``preset``
+   from the detector's yaw estimate;
+4. warnings, never errors, for what the artist fixes by hand: no face found (click by hand),
+   several faces (the largest used), two photos of the same image.
+
+A photo that cannot be read stops the whole intake before the project is touched. The
+functions here neither write files nor print: callers save (:func:`photomodel.project.save_project`)
+and report the warnings.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from photomodel.camera import PRESET_AZIMUTH_DEG
+from photomodel.errors import NoFaceFound, PhotoError, ProjectError
+from photomodel.landmarks import place_landmarks
+from photomodel.modeling.generic_mesh import IBUG68_NAMES, GenericMesh
+from photomodel.photos.exif import camera_identity, focal_mm_guess_from_exif
+from photomodel.photos.reading import duplicate_pairs, fingerprint, photos_in_folder, read_photo, to_original
+from photomodel.project.model import FILE_SUFFIX, CurveDef, Expression, Feature, Photo, Project, new_project
+from photomodel.project.validate import OUT_OF_BOUNDS_MARGIN
+
+#: A placer: ``(RGB uint8 image (h, w, 3), feature names) → placement`` with ``points`` (name →
+#: (2,) px in that image), ``confidence`` (name → [0, 1]), ``preset`` and ``faces_found``
+#: (:func:`photomodel.landmarks.place_landmarks`); raises :class:`NoFaceFound` when there is none.
+Placer = Callable[[np.ndarray, Sequence[str]], object]
+#: ``progress(label, fraction)``: the photo being read and how far the intake has come.
+Progress = Callable[[str, float], None]
+
+#: Side (px) at which photos already in an expression are read to compare them with new ones.
+_COMPARE_SIDE = 512
+
+
+@dataclass
+class _Incoming:
+    """One photo read and placed, before it joins the project."""
+
+    photo: Photo
+    fingerprint: np.ndarray
+    warnings: list[str]
+
+
+def default_features(mesh: GenericMesh) -> tuple[list[Feature], list[CurveDef]]:
+    """The features and curves a new project starts with: those of the sample project.
+
+    The 13 pose features of :data:`~photomodel.modeling.generic_mesh.INITIAL_FEATURES`
+    (``pose: true``), then the other 55 iBUG-68 landmarks by their names (``pose: false``) —
+    the features the landmark detector places — and every curve of the generic mesh
+    (§5.1.3). These are the sample project's first 68 features, vertex for vertex; the sample's
+    100 further ``extra_*`` correspondences are points of its synthetic ground truth that no
+    detector places, so they are left out (copy them with ``features_from`` when wanted).
+    """
+    features = [Feature(name, mesh.features[name], True) for name in mesh.initial_features]
+    used = {f.vertex for f in features}
+    features += [Feature(name, int(mesh.landmarks[i]), False)
+                 for i, name in enumerate(IBUG68_NAMES) if int(mesh.landmarks[i]) not in used]
+    curves = [CurveDef(name, vertices) for name, vertices in mesh.curves.items()]
+    return features, curves
+
+
+def new_project_from_photos(
+    photos: str | os.PathLike | Sequence[str | os.PathLike],
+    project_path: str | os.PathLike,
+    *,
+    features: Sequence[Feature],
+    curves: Sequence[CurveDef] = (),
+    expression: str = "neutral",
+    camera_group: str | None = None,
+    placer: Placer = place_landmarks,
+    progress: Progress | None = None,
+) -> tuple[Project, list[str]]:
+    """A new project of one expression from a folder of photos (or a list of photo files).
+
+    Parameters
+    ----------
+    photos : a folder (every photo file in it, :func:`photomodel.photos.reading.photos_in_folder`,
+        sorted by name) or a sequence of photo files, in the order they are added.
+    project_path : the project file it will be saved as; relative photo paths are written
+        relative to its folder, and its name (less ``.facestudio.json``) names the project.
+    features, curves : the project's definitions (:func:`default_features` for the sample's).
+    expression : name of the expression the photos show.
+    camera_group : one group for every photo (frames of one video); ``None``: by camera, from
+        EXIF (:func:`photomodel.photos.exif.camera_identity`).
+    placer, progress : see :func:`add_photos`.
+
+    Returns
+    -------
+    (Project, list of str)
+        the project, not yet saved (``project.path`` set), and the warnings.
+
+    Raises
+    ------
+    PhotoError naming the file, when a photo is missing, truncated or cannot be decoded.
+    """
+    project_path = Path(project_path).absolute()
+    name = project_path.name.removesuffix(FILE_SUFFIX).removesuffix(".json") or "face"
+    project = new_project(name, features=features, curves=curves)
+    project.path = project_path
+    paths = photos_in_folder(photos) if isinstance(photos, (str, os.PathLike)) else [Path(p) for p in photos]
+    warnings = add_photos(project, expression, paths, camera_group=camera_group, placer=placer, progress=progress)
+    return project, warnings
+
+
+def add_photos(
+    project: Project,
+    expression: str,
+    paths: Sequence[str | os.PathLike],
+    *,
+    camera_group: str | None = None,
+    placer: Placer = place_landmarks,
+    progress: Progress | None = None,
+) -> list[str]:
+    """Add photos to an expression of ``project`` (created when absent), with automatic landmarks.
+
+    Every photo is read and placed first; only when all of them could be read are they
+    appended to the expression, so an error leaves the project untouched.
+
+    Parameters
+    ----------
+    project : the project; its features name what the placer is asked for.
+    expression : the expression's name.
+    paths : photo files, in order. Ids are the file stems, made unique within the expression.
+    camera_group : one group for every new photo; ``None``: by camera, from EXIF.
+    placer : ``placer(image, feature_names)``, default :func:`photomodel.landmarks.place_landmarks`.
+    progress : ``progress(label, fraction)`` after each photo, or ``None``.
+
+    Returns
+    -------
+    list of str
+        warnings, each naming its photo: no face found (its landmarks are clicked by hand),
+        several faces (the largest used), two photos of the same image.
+
+    Raises
+    ------
+    PhotoError naming the file, when a photo is missing, truncated or cannot be decoded.
+    """
+    if camera_group is not None and (not isinstance(camera_group, str) or not camera_group):
+        raise ProjectError(f"a camera group is a non-empty name or none, got {camera_group!r}")
+    expr = _expression(project, expression)
+    names = project.feature_names()
+    ids = {p.id for p in expr.photos}
+    incoming = []
+    for k, path in enumerate(paths):
+        if progress is not None:
+            progress(f"reading {Path(path).name}", k / max(len(paths), 1))
+        one = _intake_photo(Path(path).absolute(), ids, names, camera_group, placer)
+        ids.add(one.photo.id)
+        incoming.append(one)
+    if progress is not None:
+        progress("comparing photos", 1.0)
+    warnings = [w for one in incoming for w in one.warnings]
+    warnings += _duplicate_warnings(project, expr, incoming)
+    expr.photos.extend(one.photo for one in incoming)
+    return warnings
+
+
+def _expression(project: Project, name: str) -> Expression:
+    for e in project.expressions:
+        if e.name == name:
+            return e
+    if not isinstance(name, str) or not name.strip():
+        raise ProjectError(f"an expression needs a non-empty name, got {name!r}")
+    project.expressions.append(Expression(name=name))
+    return project.expressions[-1]
+
+
+def _intake_photo(path: Path, ids: set[str], names: list[str], camera_group: str | None,
+                  placer: Placer) -> _Incoming:
+    """Read one photo, guess its camera, place its landmarks (see the module docstring)."""
+    read = read_photo(path)
+    photo = Photo(id=_unique_id(path, ids), path=str(path), width=read.width, height=read.height,
+                  focal_mm_guess=focal_mm_guess_from_exif(path, read.width, read.height),
+                  camera_group=camera_group if camera_group is not None else camera_identity(path))
+    warnings = []
+    try:
+        placement = placer(read.image, names)
+    except NoFaceFound:
+        warnings.append(f"no face found in {path.name}: click its landmarks by hand")
+        return _Incoming(photo, fingerprint(read.image), warnings)
+    faces = int(getattr(placement, "faces_found", 1))
+    if faces > 1:
+        warnings.append(f"{path.name}: {faces} faces found; the largest used")
+    preset = getattr(placement, "preset", "front")
+    photo.preset = preset if preset in PRESET_AZIMUTH_DEG else "front"
+    _store_auto_clicks(photo, placement, read.scale, set(names))
+    return _Incoming(photo, fingerprint(read.image), warnings)
+
+
+def _store_auto_clicks(photo: Photo, placement, scale: float, names: set[str]) -> None:
+    """The placement's points (working-image pixels) as automatic clicks in the original's
+    pixels; points that are not finite or lie beyond the margin a project accepts are dropped."""
+    confidence = getattr(placement, "confidence", {}) or {}
+    reach = OUT_OF_BOUNDS_MARGIN * 0.9  # inside what validation accepts, with room for rounding
+    lo = -0.5 - reach * np.array([photo.width, photo.height])
+    hi = np.array([photo.width, photo.height]) - 0.5 + reach * np.array([photo.width, photo.height])
+    for name, uv in placement.points.items():
+        if name not in names:
+            continue
+        uv = to_original(np.asarray(uv, float).reshape(2), scale)
+        if not np.all(np.isfinite(uv)) or np.any(uv < lo) or np.any(uv > hi):
+            continue
+        c = confidence.get(name)
+        c = None if c is None or not np.isfinite(c) else float(np.clip(c, 0.0, 1.0))
+        photo.set_click(name, uv, source="auto", confidence=c)
+
+
+def _unique_id(path: Path, ids: set[str]) -> str:
+    stem = path.name.split(".")[0] or "photo"
+    pid, k = stem, 2
+    while pid in ids:
+        pid, k = f"{stem}_{k}", k + 1
+    return pid
+
+
+def _duplicate_warnings(project: Project, expr: Expression, incoming: list[_Incoming]) -> list[str]:
+    """Warnings for pairs of photos that are the same image: among the new photos, and between
+    a new photo and one already in the expression (read small; an unreadable one is skipped —
+    :meth:`Project.check_photos` reports it)."""
+    old = []
+    for p in expr.photos:
+        try:
+            old.append((p, fingerprint(read_photo(project.photo_path(p), max_side=_COMPARE_SIDE).image)))
+        except PhotoError:
+            continue
+    entries = old + [(one.photo, one.fingerprint) for one in incoming]
+    first_new = len(old)
+    out = []
+    for i, j in duplicate_pairs([f for _, f in entries]):
+        if j < first_new:
+            continue  # two old photos: said when they were added
+        a, b = entries[i][0], entries[j][0]
+        out.append(f"{Path(a.path).name} and {Path(b.path).name} are the same image (photos {a.id!r} "
+                   f"and {b.id!r}): two views must be different photographs; remove one")
+    return out
