@@ -28,7 +28,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
@@ -39,6 +38,7 @@ from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.modeling.overlay import mesh_lines, photo_overlay
 from photomodel.modeling.refit import Refitter
 from photomodel.photos.exif import focal_mm_guess_from_exif
+from photomodel.photos.reading import photo_size
 from photomodel.project import (
     CurveDef,
     Expression,
@@ -549,20 +549,18 @@ class StudioModel:
 
     def photo_from_file(self, path: str | os.PathLike, expression: str | None = None,
                         preset: str = "front", focal_mm_guess: float | None = None) -> Photo:
-        """A :class:`Photo` for an image file (size read with OpenCV), with an unused id.
+        """A :class:`Photo` for an image file, with an unused id.
 
-        ``focal_mm_guess`` (mm on a 36 mm-wide sensor) when given, else the focal length the
-        file's EXIF records (:func:`photomodel.photos.exif.focal_mm_guess_from_exif`), else none.
-        Raises :class:`ProjectError` naming the file when it is missing or not an image.
+        The file is checked and its size read by :func:`photomodel.photos.reading.photo_size`
+        (EXIF orientation applied: the oriented size). ``focal_mm_guess`` (mm on a 36 mm-wide
+        sensor) when given, else the focal length the file's EXIF records
+        (:func:`photomodel.photos.exif.focal_mm_guess_from_exif`), else none. Raises
+        :class:`~photomodel.errors.PhotoError` (a :class:`ProjectError`) naming the file when it
+        is missing, truncated or not an image.
         """
 
         path = Path(path).absolute()
-        if not path.is_file():
-            raise ProjectError(f"{path}: no such file")
-        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if cv2.haveImageReader(str(path)) else None
-        if img is None:
-            raise ProjectError(f"{path.name}: not an image this program can read (tried {path})")
-        h, w = img.shape[:2]
+        w, h = photo_size(path)
         e = self._expr(expression)
         ids = {p.id for p in e.photos}
         stem = path.stem.split(".")[0] or "photo"
