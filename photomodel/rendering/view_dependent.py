@@ -490,21 +490,33 @@ class ViewDependentGL:
         auto = auto_near_far(Xc[:, 2]) if len(self.vertices) and len(self.faces) else None
         box = _bounding_box(camera, Xc) if auto is not None else None
         align = two and flow is not None and box is not None
+        # off the model's bounding box nothing is drawn: the background is filled here, and the
+        # GL clears and read-back cover the box alone (a third of a 1000×1000 frame of a face)
         color = np.empty((H, W, 3), np.float32)
-        depth = np.empty((H, W), np.float32)
+        row = np.empty((W, 3), np.float32)
+        row[:] = bg
+        color[:] = row  # row by row: ~8x faster than broadcasting the 3-vector itself
+        depth = np.full((H, W), np.inf, np.float32)
+        if box is None:
+            return _frame(color, depth)
+        x0, y0, x1, y1 = box
+        inner = (x0, y0, x1 - x0, y1 - y0)
         with ctx:
             t = self._frame_targets(W, H, reduce)
             t["out_color"].use()
-            t["out_color"].clear(*bg, 0.0)
+            t["out_color"].clear(*bg, 0.0, viewport=inner)
             t["out_depth"].use()
-            t["out_depth"].clear(float("inf"))
-            if box is not None:
-                self._gbuffer_pass(ctx, t, camera, Xc, auto, box)
-                if align:
-                    self._flow_pass(ctx, t, sel, vw, reduce, box, flow, (W, H))
-                self._blend_pass(ctx, t, sel, vw, align, reduce, auto, float(Xc[:, 2].max()), box)
-            t["out"].read_into(color, components=3, attachment=0, dtype="f4", alignment=1)
-            t["out"].read_into(depth, components=1, attachment=1, dtype="f4", alignment=1)
+            t["out_depth"].clear(float("inf"), viewport=inner)
+            self._gbuffer_pass(ctx, t, camera, Xc, auto, box)
+            if align:
+                self._flow_pass(ctx, t, sel, vw, reduce, box, flow, (W, H))
+            self._blend_pass(ctx, t, sel, vw, align, reduce, auto, float(Xc[:, 2].max()), box)
+            box_color = np.empty((y1 - y0, x1 - x0, 3), np.float32)
+            box_depth = np.empty((y1 - y0, x1 - x0), np.float32)
+            t["out"].read_into(box_color, viewport=inner, components=3, attachment=0, dtype="f4", alignment=1)
+            t["out"].read_into(box_depth, viewport=inner, components=1, attachment=1, dtype="f4", alignment=1)
+        color[y0:y1, x0:x1] = box_color
+        depth[y0:y1, x0:x1] = box_depth
         return _frame(color, depth)
 
     def _check_frame(self, camera: Camera) -> tuple[int, int]:
