@@ -122,10 +122,11 @@ def cmd_new(args) -> int:
 def _format_new(out: dict, n_features: int) -> str:
     lines = [f"created {out['path']}: expression {out['expression']!r}, {out['photos']} photos, "
              f"{out['clicks_auto']} automatic clicks (source \"auto\"; check them in the studio)"]
-    lines.append(f"  {'photo':<24} {'view':<20} {'auto clicks':>11} {'focal mm':>9}  camera group")
+    wid = max([len("photo")] + [len(v["id"]) for v in out["views"]])
+    lines.append(f"  {'photo':<{wid}} {'view':<19} {'auto clicks':>11} {'focal mm':>9}  camera group")
     for v in out["views"]:
         focal = "-" if v["focal_mm_guess"] is None else f"{v['focal_mm_guess']:.1f}"
-        lines.append(f"  {v['id']:<24} {v['preset']:<20} {v['clicks_auto']:>5} of {n_features:<3} "
+        lines.append(f"  {v['id']:<{wid}} {v['preset']:<19} {v['clicks_auto']:>4} of {n_features:<4} "
                      f"{focal:>9}  {v['camera_group'] or '-'}")
     lines.append(f"next: facestudio fit {out['path']}")
     return "\n".join(lines)
