@@ -37,4 +37,5 @@ PY=${PYTHON:-python3}
 .venv/bin/python -m pip install -q -c constraints.txt -e '.[test]'
 # fetch, verify and cache the sample data now so tests and the studio start offline
 .venv/bin/python -m photomodel.samples.sample_data
+.venv/bin/python -m photomodel.landmarks.models  # MediaPipe face models for automatic landmarks
 echo "Face Studio installed. Run the tests with: .venv/bin/python -m pytest"
