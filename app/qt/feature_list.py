@@ -135,7 +135,12 @@ class FeaturePanel(QWidget):
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addWidget(split)
 
-        m = model
+        self._connect_model()
+        self.refresh()
+
+    def _connect_model(self):
+        """The panel follows the model's edits, fits and selection."""
+        m = self.model
         m.project_replaced.connect(self.refresh)
         m.expression_changed.connect(lambda *_: self.refresh())
         m.photos_changed.connect(lambda *_: self.refresh())
@@ -147,7 +152,6 @@ class FeaturePanel(QWidget):
         m.fit_changed.connect(lambda *_: self.refresh_fit())
         m.active_feature_changed.connect(self._select_feature)
         m.active_curve_changed.connect(self._select_curve)
-        self.refresh()
 
     # ------------------------------------------------------------------ features
     def refresh(self):

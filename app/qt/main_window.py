@@ -66,6 +66,7 @@ from app.qt.commands import (
     SetPresetCommand,
 )
 from app.qt.feature_list import FeaturePanel
+from app.qt.photo_import import PhotoImporter
 from app.qt.photo_view import CURVE, POINTS, PhotoView
 from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.qt_compat import check_pyside
@@ -168,6 +169,7 @@ class MainWindow(QMainWindow):
         self.undo_stack = QUndoStack(self)
         self.fits = FitController(self.model, self)
         self.jobs = JobController(self.model, self)
+        self.importer = PhotoImporter(self)  # New from photos…, photos added with automatic landmarks
         if recovery_file is not None:
             self.recovery_file = Path(recovery_file)
             self.recovery_folder = Path(recovery_folder) if recovery_folder is not None else self.recovery_file.parent
@@ -317,6 +319,10 @@ class MainWindow(QMainWindow):
         self.act_save_as = A("Save &as…", self.save_as, QKeySequence.StandardKey.SaveAs)
         self.act_add_photos = A("Add &photos…", self.add_photos_dialog, "Ctrl+Shift+P",
                                 tip="add photographs of the current expression (or drop image files on the window)")
+        self.act_new_from_photos = A("New from p&hotos…", lambda: self.importer.new_from_photos_dialog(),
+                                     tip="a new project from a folder of photos, with automatic landmarks")
+        self.act_add_photos_auto = A("Add photos with automatic &landmarks…", self.add_photos_auto_dialog,
+                                     tip="add photographs of the current expression and place their landmarks")
         self.act_remove_photo = A("Remove current photo", self.remove_current_photo)
         self.act_quit = A("&Quit", self.close, QKeySequence.StandardKey.Quit)
         self.act_undo = self.undo_stack.createUndoAction(self, "&Undo")
@@ -365,7 +371,7 @@ class MainWindow(QMainWindow):
     def _build_menus(self):
         mb = self.menuBar()
         f = mb.addMenu("&File")
-        for a in (self.act_new, self.act_open):
+        for a in (self.act_new, self.act_new_from_photos, self.act_open):
             f.addAction(a)
         self.recent_menu = f.addMenu("Open &recent")
         self.recent_menu.aboutToShow.connect(self._fill_recent_menu)
@@ -374,6 +380,7 @@ class MainWindow(QMainWindow):
             f.addAction(a)
         f.addSeparator()
         f.addAction(self.act_add_photos)
+        f.addAction(self.act_add_photos_auto)
         f.addAction(self.act_remove_photo)
         f.addSeparator()
         f.addAction(self.act_quit)
@@ -669,6 +676,13 @@ class MainWindow(QMainWindow):
         files, _ = QFileDialog.getOpenFileNames(self, "Add photos", "", IMAGE_FILTER)
         if files:
             self.add_photos(files)
+
+    def add_photos_auto_dialog(self) -> None:
+        files, _ = QFileDialog.getOpenFileNames(self, "Add photos with automatic landmarks", "", IMAGE_FILTER)
+        if files:
+            if self.model.expression_name is None:
+                self.undo_stack.push(AddExpressionCommand(self.model, "neutral"))
+            self.importer.add_photos(files)
 
     def add_photos(self, files) -> int:
         """Add image files to the current expression; unreadable ones are named in one message."""
@@ -1132,6 +1146,7 @@ class MainWindow(QMainWindow):
             return
         self.fits.shutdown()
         self.jobs.shutdown()
+        self.importer.shutdown()
         self.tracking_view.jobs.shutdown()
         self.autosave_timer.stop()
         self._drop_recovery()  # the project was saved, discarded or unchanged: nothing left to recover

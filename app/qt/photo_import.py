@@ -1,0 +1,162 @@
+"""Photos in with automatic landmarks: *File → New from photos…* and *Add photos…*, in a worker.
+
+Both call the Qt-free core of ``facestudio new`` (:mod:`photomodel.photos.intake`: photos read and
+checked, a face found in each, landmarks placed, the view estimated) in a
+:class:`~app.qt.workers.JobController` worker behind the shared cancellable progress dialog, so
+the window stays responsive over a folder of large photos. Cancel takes effect after the photo
+being read (the core reports progress once a photo); the project is untouched then.
+
+* **New from photos…** asks for a folder and where to save the project, writes the project with
+  the core function, then opens it (the clicks it placed are automatic: violet diamonds in the
+  photo views, see :mod:`app.qt.photo_view`).
+* **Add photos…** adds the photos to the current expression of a snapshot of the project; the
+  new photos — with their automatic clicks — go into the studio as one undoable edit (the
+  feature definitions they need, then the photos: one undo takes both back).
+
+A photo without a face, or with several (the largest is used), is named in the status bar; the
+core's warnings (two views of the same image …) likewise.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from PySide6.QtCore import QObject
+from PySide6.QtWidgets import QFileDialog
+
+from app.qt.commands import AddPhotosCommand, DefineFeaturesCommand
+from app.qt.progress import close_progress, open_progress, update_progress
+from app.qt.workers import JobController
+from photomodel.modeling.fit import Cancelled
+from photomodel.photos.intake import add_photos, default_features, new_project_from_photos
+from photomodel.project import FILE_SUFFIX, save_project
+
+
+class PhotoImporter(QObject):
+    """The two photo imports of a :class:`~app.qt.main_window.MainWindow`, one at a time."""
+
+    def __init__(self, window):
+        super().__init__(window)
+        self.window = window
+        self.jobs = JobController(window.model, self)
+        self.jobs.progress.connect(lambda stage, frac: update_progress(self._dialog, stage, frac))
+        self.jobs.finished.connect(self._on_finished)
+        self.jobs.failed.connect(self._on_failed)
+        self.jobs.cancelled.connect(self._on_cancelled)
+        self._dialog = None
+        self._pending = None  # what the running job's result is for
+
+    @property
+    def busy(self) -> bool:
+        return self.jobs.busy
+
+    # ------------------------------------------------------------------ new project
+    def new_from_photos_dialog(self) -> bool:
+        w = self.window
+        folder = QFileDialog.getExistingDirectory(w, "New project from a folder of photos")
+        if not folder:
+            return False
+        default = str(Path(folder).parent / (Path(folder).name + FILE_SUFFIX))
+        path, _ = QFileDialog.getSaveFileName(w, "Save the new project as", default,
+                                              f"Face Studio project (*{FILE_SUFFIX})")
+        return bool(path) and self.new_from_photos(folder, path)
+
+    def new_from_photos(self, folder, path) -> bool:
+        """Make a project of every photo in ``folder`` with automatic landmarks, save it as
+        ``path`` and open it; in the worker, with progress and cancel."""
+        if self.busy or not self.window.maybe_save():
+            return False
+        folder, path = Path(folder), Path(path)
+        if not path.name.endswith(FILE_SUFFIX):
+            path = path.with_name(path.name + FILE_SUFFIX)
+
+        features, curves = default_features(self.window.model.mesh)
+
+        def work(progress, cancel):
+            project, warnings = new_project_from_photos(folder, path, features=features, curves=curves,
+                                                        progress=_cancellable(progress, cancel))
+            save_project(project, path)  # a new file nobody else has open
+            return warnings
+
+        return self._start(work, ("new", path), f"Reading the photos of {folder.name}…")
+
+    # ------------------------------------------------------------------ photos added
+    def add_photos(self, files) -> bool:
+        """Add image files to the current expression with automatic landmarks (worker)."""
+        model = self.window.model
+        if self.busy or model.expression_name is None:
+            return False
+        snapshot, expression = model.fit_snapshot(), model.expression_name
+        before = {p.id for p in snapshot.expression(expression).photos}
+        files = [Path(f) for f in files]
+
+        def work(progress, cancel):
+            warnings = add_photos(snapshot, expression, files, progress=_cancellable(progress, cancel))
+            new = [p for p in snapshot.expression(expression).photos if p.id not in before]
+            return snapshot, new, warnings
+
+        return self._start(work, ("add", model.project, expression), f"Placing landmarks on {len(files)} photo(s)…")
+
+    # ------------------------------------------------------------------ the worker
+    def _start(self, work, pending, label: str) -> bool:
+        if self.jobs.start(work) is None:
+            return False
+        self._pending = pending
+        self._dialog = open_progress(self.window, "Photos", label, self.jobs.cancel)
+        return True
+
+    def _close(self):
+        close_progress(self._dialog, self.jobs.cancel)
+        self._dialog = None
+
+    def _on_finished(self, result):
+        self._close()
+        pending, self._pending = self._pending, None
+        if pending[0] == "new":
+            if self.window.open_project(pending[1], ask_to_save=False):
+                self.window._status(_summary(result, "new project"), 15000)
+            return
+        _, project, expression = pending
+        snapshot, photos, warnings = result
+        model = self.window.model
+        if project is not model.project or not photos:
+            return
+        missing = [f for f in snapshot.features if not model.has_feature(f.name)]
+        stack = self.window.undo_stack
+        stack.beginMacro(f"Add {len(photos)} photo(s) with automatic landmarks")
+        if missing:
+            stack.push(DefineFeaturesCommand(model, missing))
+        stack.push(AddPhotosCommand(model, expression, photos))
+        stack.endMacro()
+        self.window.show_photo(photos[0].id)
+        self.window._status(_summary(warnings, f"{len(photos)} photo(s) added"), 15000)
+
+    def _on_failed(self, message: str):
+        self._close()
+        self._pending = None
+        self.window.show_error("Cannot read the photos", message)
+
+    def _on_cancelled(self):
+        self._close()
+        self._pending = None
+        self.window._status("cancelled; nothing changed")
+
+    def shutdown(self):
+        self.jobs.shutdown()
+
+
+def _cancellable(progress, cancel):
+    """The core's ``progress(label, fraction)`` that also stops the intake when cancelled."""
+
+    def report(label: str, fraction: float) -> None:
+        if cancel():
+            raise Cancelled("photo intake cancelled")
+        progress(label, fraction)
+
+    return report
+
+
+def _summary(warnings: list[str], what: str) -> str:
+    """The core's warnings (no face, several faces, duplicates) in one status line."""
+    return what + ("; " + "; ".join(map(str, warnings)) if warnings else "; automatic clicks are violet: "
+                   "drag the ones that are off, then Fit")
