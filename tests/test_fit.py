@@ -139,3 +139,30 @@ def test_copy_of_sample_is_independent(tmp_path):
     # guard for the CLI tests: they work on a copy, never on the shipped sample
     shutil.copytree(SAMPLE, tmp_path / "james")
     assert (tmp_path / "james" / "james.facestudio.json").exists()
+
+
+def test_a_photo_without_any_click_is_left_out(mesh):
+    # a photo where the automatic landmarks found no face: the fit goes on with the others, says so,
+    # and that photo gets no camera (texturing then uses the others)
+    project = load_project(PROJECT)
+    expr = project.expression("neutral")
+    expr.photos[2].points.clear()
+    result = fit_expression(project, "neutral", mesh)
+    gone = expr.photos[2].id
+    assert gone not in result.photo_ids and len(result.photo_ids) == len(expr.photos) - 1
+    assert any(gone in d and "left out" in d for d in result.report["dropped"])
+
+
+def test_unsure_automatic_clicks_place_the_cameras_but_not_the_shape(mesh):
+    # the detector's outline points (low confidence) are not refined to; sure ones and the
+    # artist's are. jaw_03 is no pose feature: with all its clicks unsure it gets no 3-D position.
+    project = load_project(PROJECT)
+    for p in project.expression("neutral").photos:
+        if "jaw_03" in p.points:
+            p.set_click("jaw_03", p.points["jaw_03"], source="auto", confidence=0.2)
+        if "nose_tip" in p.points:
+            p.set_click("nose_tip", p.points["nose_tip"], source="auto", confidence=0.9)
+    result = fit_expression(project, "neutral", mesh)
+    assert "jaw_03" not in result.feature_names and "nose_tip" in result.feature_names
+    assert result.report["auto_clicks_left_out"] == sum(
+        "jaw_03" in p.points for p in project.expression("neutral").photos)

@@ -79,6 +79,10 @@ class BundleProblem:
         self.focal_free = bool(focal_free)
         self.prior = None if prior_points is None or prior_weight <= 0 else np.asarray(prior_points, float)
         self.beta = float(prior_weight) if self.prior is not None else 0.0
+        #: with a prior: a unit direction (in the points' frame) along which it is ``1 + depth_gain``
+        #: times stiffer — the depth, where the views measure least (None: isotropic)
+        self.depth_axis: np.ndarray | None = None
+        self.depth_gain = 0.0
         nc = 7 if focal_free else 6
         self.C = 6 * k + (self.G if focal_free else 0)
         cols = np.arange(6 * k).reshape(k, 6)
@@ -141,8 +145,16 @@ class BundleProblem:
         if self.beta > 0:
             target = self.prior_target(st.m) if target is None else target
             g, sc = target
-            total += self.beta * sc * sc * float(((st.m - g) ** 2).sum())
+            total += self.beta * sc * sc * float((self._prior_metric(st.m - g) * (st.m - g)).sum())
         return total, ev, target
+
+    def _prior_metric(self, d: np.ndarray) -> np.ndarray:
+        """``A d`` per row: the prior's metric ``A = I + κ a aᵀ``, stiffer by ``1 + κ`` along the
+        depth axis ``a`` (:attr:`depth_axis`, ``κ`` = :attr:`depth_gain`); ``A = I`` without one."""
+        if self.depth_axis is None:
+            return d
+        a = self.depth_axis
+        return d + self.depth_gain * (d @ a)[..., None] * a
 
     # -- Levenberg–Marquardt ------------------------------------------------------------------
     def solve(self, st: BundleState, c: float = np.inf, max_iter: int = 50, tol: float = 1e-7):
@@ -193,11 +205,13 @@ class BundleProblem:
             beta = self.beta * sc * sc
             B2 = _similarity_basis(st.m).reshape(3 * n, 7)  # the similarity moves the points, not the target
             d = st.m - ghat
-            Vp = Vp + beta * np.eye(3)
-            gp = gp + beta * d
-            U = np.block([[U, np.zeros((self.C, 7))], [np.zeros((7, self.C)), beta * (B2.T @ B2)]])
-            gc = np.concatenate([gc, -beta * (B2.T @ d.reshape(-1))])
-            W2 = np.concatenate([W2, -beta * B2.T], axis=0)
+            Ad = self._prior_metric(d)
+            AB2 = self._prior_metric(B2.reshape(n, 3, 7).transpose(0, 2, 1)).transpose(0, 2, 1).reshape(3 * n, 7)
+            Vp = Vp + beta * self._prior_metric(np.eye(3))
+            gp = gp + beta * Ad
+            U = np.block([[U, np.zeros((self.C, 7))], [np.zeros((7, self.C)), beta * (B2.T @ AB2)]])
+            gc = np.concatenate([gc, -beta * (B2.T @ Ad.reshape(-1))])
+            W2 = np.concatenate([W2, -beta * AB2.T], axis=0)
         return U, gc, W2, Vp, gp
 
     def _step(self, st: BundleState, system, lam: float) -> BundleState:

@@ -1,0 +1,117 @@
+"""The landmark benchmark's fit sections: a fit from automatic landmarks alone, as a user makes it.
+
+* ``auto_fit`` — the sample james project's five neutral photos copied to a new folder with no
+  click at all (presets and focal unknown), then the two commands a user runs:
+  ``facestudio new P --photos DIR`` and ``facestudio fit P`` (run as the CLI, in-process).
+  ``rms_px``: the fit's reprojection RMS; ``mesh_mean_mm`` / ``mesh_p95_mm``: the refined mesh's face
+  region to the scan surface after the similarity that maps the fit's 3-D features onto their true
+  positions (as ``bench_pose.py``'s ``mesh``); ``clicks_auto``: automatic clicks placed;
+  ``seconds``: wall time of new + fit; ``photos_used``: photos with a face found (the others are
+  left out of the fit).
+* ``real_sample`` — the real-footage sample (:mod:`photomodel.samples.real_clip`): frames of a
+  real clip, ``facestudio new --camera-group clip`` + ``fit``. ``rms_px`` and ``depth_ratio``: the
+  fitted face region's depth extent after the similarity onto the generic mesh, over the generic
+  head's (1 = as deep as the generic head scaled to this face). The texture is made too
+  (``facestudio texture``) and a picture written to ``<out>/real_sample.png``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from app.cli import main as facestudio
+from photomodel.alignment import similarity_transform
+from photomodel.exchange.mesh import read_mesh
+from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.project import load_project
+from photomodel.samples import synthetic
+from photomodel.samples.real_clip import real_sample_project
+from photomodel.samples.sample_data import load_james_scan
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
+
+
+def run_cli(*argv: str) -> dict:
+    """``facestudio ARGV --json`` in-process: its one JSON object (its stderr passes through)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = facestudio([*argv, "--json"])
+    result = json.loads(out.getvalue())
+    if code != 0:
+        raise RuntimeError(f"facestudio {' '.join(argv)} failed: {result}")
+    return result
+
+
+def auto_fit_section(args, log) -> dict:
+    project = load_project(SAMPLE / "james.facestudio.json")
+    expr = project.expression("neutral")
+    with tempfile.TemporaryDirectory(prefix="autofit-") as tmp:
+        photos = Path(tmp) / "photos"
+        photos.mkdir()
+        for p in expr.photos:
+            shutil.copy(project.resolve(p.path), photos / Path(p.path).name)
+        path = str(Path(tmp) / "auto.facestudio.json")
+        t0 = time.perf_counter()
+        made = run_cli("new", path, "--photos", str(photos))
+        fit = run_cli("fit", path)["expressions"][0]
+        seconds = time.perf_counter() - t0
+        fitted = load_project(path)
+        result = fitted.expression("neutral").result
+        vertices = read_mesh(fitted.resolve(result.mesh_obj))[0]
+    mesh = load_generic_mesh()
+    scan = load_james_scan()
+    truth = synthetic.load_ground_truth(SAMPLE / "ground_truth.json")
+    names = [n for n in result.points_3d if n in truth.features_3d]
+    X = np.array([result.points_3d[n] for n in names])
+    s, R, t = similarity_transform(X, truth.true_points(names))
+    d = synthetic.surface_distance((vertices @ (s * R).T + t)[mesh.face_mask], scan)
+    out = {"rms_px": float(fit["rms_px"]), "mesh_mean_mm": float(d.mean()), "mesh_p95_mm": float(np.percentile(d, 95)),
+           "clicks_auto": int(made["clicks_auto"]), "seconds": seconds,
+           "photos_used": len(result.cameras), "photos": len(expr.photos)}
+    log(f"auto fit of the sample: {out['photos_used']}/{out['photos']} photos, {out['clicks_auto']} automatic "
+        f"clicks, RMS {out['rms_px']:.2f} px, mesh → scan {out['mesh_mean_mm']:.2f} mm mean "
+        f"(p95 {out['mesh_p95_mm']:.2f}), {seconds:.1f} s")
+    return {"auto_fit": out}
+
+
+def depth_ratio(vertices: np.ndarray, mesh) -> float:
+    """Depth extent of the fitted face region after the similarity onto the generic mesh, over the
+    generic mesh's (the generic head scaled to this face)."""
+    face = mesh.face_mask
+    s, R, t = similarity_transform(vertices[face], mesh.vertices[face])
+    return float(np.ptp((vertices[face] @ (s * R).T + t)[:, 2]) / np.ptp(mesh.vertices[face][:, 2]))
+
+
+def real_sample_section(args, log) -> dict:
+    with tempfile.TemporaryDirectory(prefix="realsample-") as tmp:
+        path = real_sample_project(Path(tmp), rebuild=True)
+        fit = run_cli("fit", str(path))["expressions"][0]
+        run_cli("texture", str(path))
+        project = load_project(path)
+        result = project.expression("neutral").result
+        vertices = read_mesh(project.resolve(result.mesh_obj))[0]
+        ratio = depth_ratio(vertices, load_generic_mesh())
+        out_dir = Path(getattr(args, "out", None) or Path(__file__).resolve().parent / "out")
+        out_dir.mkdir(parents=True, exist_ok=True)
+        texture = cv2.imread(str(project.resolve(result.texture.image)))
+        cv2.imwrite(str(out_dir / "real_sample_texture.png"), texture)
+    out = {"photos": len(result.cameras), "rms_px": float(fit["rms_px"]), "depth_ratio": ratio,
+           "start": fit.get("camera_solve", {}).get("start", "")}
+    log(f"real sample: {out['photos']} frames, RMS {out['rms_px']:.2f} px, depth ratio {ratio:.2f} "
+        f"({out['start']})")
+    return {"real_sample": out}
+
+
+if __name__ == "__main__":
+    log = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+    print(json.dumps({**auto_fit_section(None, log), **real_sample_section(None, log)}, indent=1))
