@@ -41,7 +41,7 @@ import traceback
 import uuid
 from pathlib import Path
 
-from PySide6.QtCore import QDateTime, QLockFile, QSettings, QStandardPaths, Qt, QTimer
+from PySide6.QtCore import QDateTime, QLockFile, QSettings, QStandardPaths, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QActionGroup, QKeySequence, QUndoStack
 from PySide6.QtWidgets import (
     QApplication,
@@ -158,7 +158,12 @@ class MainWindow(QMainWindow):
     recovery_folder : path, optional
         the folder of recovery files scanned by :meth:`offer_recovery` (default: the parent of
         ``recovery_file`` if given, else :func:`default_recovery_folder`).
+
+    Unexpected errors (:meth:`report_unexpected`, the studio's ``sys.excepthook``) are kept in
+    :attr:`unexpected_errors` and announced by :attr:`unexpected_error` (``"Type: message"``).
     """
+
+    unexpected_error = Signal(str)
 
     def __init__(self, model: StudioModel | None = None, settings: QSettings | None = None,
                  autosave_interval_ms: int = AUTOSAVE_INTERVAL_MS, recovery_file=None, recovery_folder=None):
@@ -186,6 +191,9 @@ class MainWindow(QMainWindow):
         self.show_curves = True
         self._progress: QProgressDialog | None = None
         self._rebuilding = False
+        self.unexpected_errors: list[str] = []  # report_unexpected: "Type: message" of each
+        self._error_box: QMessageBox | None = None
+        self._unexpected_in_box = 0  # errors in the box now shown
 
         self.setWindowTitle("Face Studio")
         self.resize(1500, 920)
@@ -294,6 +302,11 @@ class MainWindow(QMainWindow):
         self.jobs.finished.connect(self._on_texture_finished)
         self.jobs.failed.connect(self._on_texture_failed)
         self.jobs.cancelled.connect(self._on_texture_cancelled)
+        # the status bar's "tracking … into …" is replaced by how the run ended (after the
+        # tracking view, connected first, has written its last_message)
+        track = self.tracking_view.jobs
+        for ended in (track.finished, track.failed, track.cancelled):
+            ended.connect(self._on_tracking_ended)
 
 
     # ------------------------------------------------------------------ actions and menus
@@ -328,7 +341,12 @@ class MainWindow(QMainWindow):
         self.act_undo = self.undo_stack.createUndoAction(self, "&Undo")
         self.act_undo.setShortcut(QKeySequence.StandardKey.Undo)
         self.act_redo = self.undo_stack.createRedoAction(self, "&Redo")
-        self.act_redo.setShortcut(QKeySequence.StandardKey.Redo)
+        # Ctrl+Y (Windows' and Qt's Redo on Linux) and Ctrl+Shift+Z (macOS, Blender, GIMP) both redo
+        redo_keys = [*QKeySequence.keyBindings(QKeySequence.StandardKey.Redo)]
+        for extra in (QKeySequence("Ctrl+Y"), QKeySequence("Ctrl+Shift+Z")):
+            if extra not in redo_keys:
+                redo_keys.append(extra)
+        self.act_redo.setShortcuts(redo_keys)
         self.act_delete = A("Delete click of the active feature", self._delete_click, tip="Delete key in a photo")
         self.act_hide = A("Hide / show the active feature in this photo", self._toggle_hidden, tip="H in a photo")
         self.act_new_expr = A("New &expression…", self.new_expression_dialog)
@@ -461,6 +479,31 @@ class MainWindow(QMainWindow):
         """A dialog whose text is the cause (never a bare traceback)."""
         QMessageBox.critical(self, title, message)
 
+    def report_unexpected(self, exc_type, exc, tb) -> None:
+        """The studio's ``sys.excepthook``: an error nobody expected, shown without blocking.
+
+        The traceback goes to stderr and :attr:`unexpected_errors` (``"Type: message"`` each;
+        tests assert on it), :attr:`unexpected_error` is emitted, and one non-modal box shows the
+        cause first and the tracebacks under "Show Details" — never ``exec()``, so a headless run
+        (offscreen, a test, a script) goes on and the artist can still save.
+        """
+        text = "".join(traceback.format_exception(exc_type, exc, tb))
+        sys.stderr.write(text)
+        summary = f"{exc_type.__name__}: {exc}"
+        self.unexpected_errors.append(summary)
+        box = self._error_box
+        if box is None:
+            box = self._error_box = QMessageBox(QMessageBox.Icon.Critical, "Unexpected error", "", parent=self)
+            box.setWindowModality(Qt.WindowModality.NonModal)
+            box.setInformativeText("The project is still open; save it under a new name if in doubt.")
+        # one box however many errors come: a later error is added to the one still shown
+        self._unexpected_in_box = self._unexpected_in_box + 1 if box.isVisible() else 1
+        n = self._unexpected_in_box
+        box.setText(summary if n == 1 else f"{summary}\n(and {n - 1} earlier unexpected error{'s' * (n > 2)})")
+        box.setDetailedText(text if n == 1 else box.detailedText() + "\n" + text)
+        box.show()
+        self.unexpected_error.emit(summary)
+
     def _status(self, text: str, ms: int = 6000) -> None:
         self.statusBar().showMessage(text, ms)
 
@@ -492,9 +535,33 @@ class MainWindow(QMainWindow):
         if not self.maybe_save():
             return False
         self.fits.cancel()
-        self.model.new("untitled")
+        try:
+            self._replace_project(lambda: self.model.new("untitled"))
+        except Exception as exc:  # whatever went wrong, the window stays usable and says why
+            self.show_error("Cannot start a new project", _cause(exc))
+            return False
         self.undo_stack.clear()
         return True
+
+    def _replace_project(self, change) -> None:
+        """Run ``change()``, which replaces the model's project (new, open, recover).
+
+        The photo views are taken down first, so that none of them looks up a photo of the old
+        project in the new one while Qt removes it from its tab; whatever ``change`` raises, the
+        tabs are rebuilt for the project then open (the previous one when nothing changed).
+        """
+        before, shown = self.model.project, self.current_view()
+        shown = None if shown is None else shown.photo_id
+        self._clear_tabs()
+        try:
+            change()
+        except BaseException:
+            if self.model.project is not before:  # replaced, then something failed: its edits start now
+                self.undo_stack.clear()
+            self._on_project_replaced()
+            if self.model.project is before and shown is not None:
+                self.show_photo(shown)  # as it was
+            raise
 
     def open_dialog(self) -> bool:
         start = str(self.model.path.parent) if self.model.path is not None else ""
@@ -515,10 +582,11 @@ class MainWindow(QMainWindow):
                 "(e.g. before a crash). Recover them?",
                 QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
             recover = answer == QMessageBox.StandardButton.Yes
+        before = self.model.project
         try:
             self.fits.cancel()
             try:
-                self.model.open(path, recover=recover)
+                self._replace_project(lambda: self.model.open(path, recover=recover))
             except MissingPhotos as exc:
                 answer = QMessageBox.question(
                     self, "Missing photos",
@@ -528,12 +596,16 @@ class MainWindow(QMainWindow):
                 if answer != QMessageBox.StandardButton.Yes:
                     self._status(f"{path.name} not opened: photos are missing")
                     return False
-                self.model.open(path, recover=recover, allow_missing_photos=True)
+                self._replace_project(lambda: self.model.open(path, recover=recover, allow_missing_photos=True))
         except FaceStudioError as exc:
             self.show_error("Cannot open the project", str(exc))
             return False
         except OSError as exc:
             self.show_error("Cannot open the project", f"{path}: {exc.strerror or exc}")
+            return False
+        except Exception as exc:  # e.g. RecursionError from a file nested thousands deep
+            kept = "the previous project is still open" if self.model.project is before else "it is open as read"
+            self.show_error("Cannot open the project", f"{path.name}: {_cause(exc)} ({kept})")
             return False
         self.undo_stack.clear()
         self._add_recent(path)
@@ -630,9 +702,9 @@ class MainWindow(QMainWindow):
                 lock.unlock()
             return False
         try:
-            self.model.recover(f)
-        except (FaceStudioError, OSError) as exc:
-            self.show_error("Cannot recover the project", f"{f}: {exc}")
+            self._replace_project(lambda: self.model.recover(f))
+        except Exception as exc:  # a damaged recovery file is named, never a traceback
+            self.show_error("Cannot recover the project", f"{f}: {_cause(exc)}")
             if lock is not None:
                 lock.unlock()
             return False
@@ -798,10 +870,9 @@ class MainWindow(QMainWindow):
             self.tabs.setCurrentWidget(view)
         return view
 
-    def _rebuild_tabs(self):
-        current = self.current_view()
-        keep = current.photo_id if current is not None else None
-        self._rebuilding = True
+    def _clear_tabs(self) -> None:
+        """Take every photo view down (detached first: none looks its photo up again)."""
+        was, self._rebuilding = self._rebuilding, True
         try:
             for view in self.views.values():
                 view.detach()
@@ -809,6 +880,15 @@ class MainWindow(QMainWindow):
             for view in self.views.values():
                 view.deleteLater()
             self.views = {}
+        finally:
+            self._rebuilding = was
+
+    def _rebuild_tabs(self):
+        current = self.current_view()
+        keep = current.photo_id if current is not None else None
+        self._rebuilding = True
+        try:
+            self._clear_tabs()
             expr = self.model.expression_name
             for photo in self.model.photos:
                 view = PhotoView(self.model, self.undo_stack, expr, photo.id)
@@ -1106,6 +1186,9 @@ class MainWindow(QMainWindow):
         self._status(self.tracking_view.last_message, 0 if ok else 6000)
         return ok
 
+    def _on_tracking_ended(self, *_):
+        self._status(self.tracking_view.last_message, 20000)
+
     def open_tracking_dialog(self) -> bool:
         """Choose a tracking results folder and show it in the tracking view."""
         start = str(Path(self.model.path).parent / "results") if self.model.path is not None else ""
@@ -1153,17 +1236,19 @@ class MainWindow(QMainWindow):
         event.accept()
 
 
+def _cause(exc: BaseException) -> str:
+    """An exception in words for a message box: our own errors' messages as they are, anything
+    unexpected with its type; never a traceback."""
+    if isinstance(exc, FaceStudioError):
+        return str(exc)
+    if isinstance(exc, RecursionError):
+        return f"the file is nested too deeply to be read ({exc})"
+    return f"{type(exc).__name__}: {exc}"
+
+
 def _excepthook(exc_type, exc, tb):
-    """Unexpected errors: a dialog with the cause first, the traceback under "Show Details"."""
-    text = "".join(traceback.format_exception(exc_type, exc, tb))
-    sys.stderr.write(text)
-    app = QApplication.instance()
-    if app is None:
-        return
-    box = QMessageBox(QMessageBox.Icon.Critical, "Unexpected error", f"{exc_type.__name__}: {exc}")
-    box.setInformativeText("The project is still open; save it under a new name if in doubt.")
-    box.setDetailedText(text)
-    box.exec()
+    """Unexpected errors while no window is open: the traceback on stderr."""
+    sys.stderr.write("".join(traceback.format_exception(exc_type, exc, tb)))
 
 
 def run_studio(project: str | None = None, argv: list[str] | None = None) -> int:
@@ -1173,7 +1258,7 @@ def run_studio(project: str | None = None, argv: list[str] | None = None) -> int
     app.setApplicationName("Face Studio")
     window = MainWindow()
     window.show()
-    sys.excepthook = _excepthook
+    sys.excepthook = window.report_unexpected
     if project is not None:
         window.open_project(project, ask_to_save=False)
     else:

@@ -319,6 +319,8 @@ class PhotoView(QGraphicsView):
         self._space = False
         self._drawing: list[QPointF] | None = None
         self._freehand = False
+        self.detached = False  # set by detach(): the model may no longer hold this photo
+
 
         self.setScene(QGraphicsScene(self))
         # ~200 items: a linear scan beats keeping a BSP index up to date after every refit
@@ -336,6 +338,9 @@ class PhotoView(QGraphicsView):
         self.setVerticalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
 
         photo = self.photo
+        # kept: a view being torn down still fits its photo without asking the model (whose
+        # project may already be another one, see detach)
+        self.photo_size = (photo.width, photo.height)
         image, self.missing = load_photo_image(model.project.photo_path(photo), photo.width, photo.height)
         self.pixmap_item = QGraphicsPixmapItem(QPixmap.fromImage(image))
         self.pixmap_item.setOffset(-0.5, -0.5)  # pixel centres at integer scene coordinates
@@ -371,7 +376,13 @@ class PhotoView(QGraphicsView):
         m.features_changed.connect(self.rebuild_points)
 
     def detach(self):
-        """Stop observing the model (before the view is deleted)."""
+        """Stop observing the model (before the view is deleted).
+
+        From now on the view never looks its photo up again: the model may already hold another
+        project (File → New, Open) and Qt may still show or resize the view while it is removed
+        from its tab.
+        """
+        self.detached = True
         m = self.model
         m.points_changed.disconnect(self._on_points_changed)
         m.curves_changed.disconnect(self._on_curves_changed)
@@ -525,7 +536,7 @@ class PhotoView(QGraphicsView):
         super().showEvent(event)
         if not self.user_zoomed:
             self.fit_photo()
-        if self.overlay_stale:
+        if self.overlay_stale and not self.detached:
             self.update_overlay()
 
     def resizeEvent(self, event):
@@ -540,8 +551,8 @@ class PhotoView(QGraphicsView):
         return float(self.transform().m11())
 
     def fit_photo(self):
-        photo = self.photo
-        self.fitInView(QRectF(-0.5, -0.5, photo.width, photo.height), Qt.AspectRatioMode.KeepAspectRatio)
+        width, height = self.photo_size
+        self.fitInView(QRectF(-0.5, -0.5, width, height), Qt.AspectRatioMode.KeepAspectRatio)
 
     def zoom(self, factor: float, anchor: QPointF | None = None):
         s = self.scale_factor
