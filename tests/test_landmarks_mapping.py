@@ -5,6 +5,7 @@ import numpy as np
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.landmarks.mapping import (
     MESH_OF_IBUG68,
+    OUTLINE_CONFIDENCE,
     features_from_mesh,
     ibug68_from_mesh,
     ibug_index,
@@ -41,21 +42,35 @@ def test_view_presets_follow_the_azimuth_convention():
     assert all(preset_for_yaw(y) in PRESET_AZIMUTH_DEG for y in np.linspace(-90, 90, 37))
 
 
-def test_far_side_points_are_not_placed():
-    assert placed_ibug(0.0).all()  # a frontal photo places all 68
-    turned_left = placed_ibug(50.0)  # camera at the subject's left: their right side hides
-    assert not turned_left[IBUG68_NAMES.index("jaw_02")]
-    assert turned_left[IBUG68_NAMES.index("jaw_14")]
-    assert turned_left[IBUG68_NAMES.index("nose_bridge_3")]
-    assert not placed_ibug(-50.0)[IBUG68_NAMES.index("jaw_14")]
+def test_far_side_points_are_placed_in_three_quarter_views_and_hidden_in_profiles():
+    # 300-W's semi-frontal convention: all 68 marked up to a three-quarter view
+    assert placed_ibug(0.0).all() and placed_ibug(50.0).all() and placed_ibug(-50.0).all()
+    profile_left = placed_ibug(70.0)  # camera at the subject's left: their right side hides
+    assert not profile_left[IBUG68_NAMES.index("jaw_02")]
+    assert profile_left[IBUG68_NAMES.index("jaw_14")]
+    assert profile_left[IBUG68_NAMES.index("nose_bridge_3")]
+    assert not placed_ibug(-70.0)[IBUG68_NAMES.index("jaw_14")]
+
+
+def test_far_side_jaw_points_move_out_to_the_outline():
+    mesh = np.zeros((468, 3))
+    mesh[:, 0] = np.linspace(0.0, 100.0, 468)  # a face 100 px wide between x = 0 and 100 ...
+    mesh[:, 1] = np.tile([0.0, 120.0], 234)  # ... and 120 px high
+    mesh[33, :2], mesh[263, :2] = (30.0, 40.0), (70.0, 40.0)  # eyes level
+    mesh[MESH_OF_IBUG68[2], :2] = (20.0, 60.0)  # the far-side jaw point inside the outline
+    mesh[MESH_OF_IBUG68[14], :2] = (80.0, 60.0)  # the near side one
+    uv, confidence = ibug68_from_mesh(mesh, 40.0)  # camera at the subject's left: right side far
+    np.testing.assert_allclose(uv[2], (0.0, 60.0), atol=0.2)  # out to the outline, same height
+    np.testing.assert_allclose(uv[14], (80.0, 60.0))  # near side: where the mesh has it
+    assert confidence[2] <= OUTLINE_CONFIDENCE < confidence[14]
 
 
 def test_features_carry_mesh_points_and_confidences():
     mesh = np.random.default_rng(0).uniform(0, 500, (468, 3))
-    names = ["eye_r_outer", "jaw_02", "chin", "extra_001"]
-    points, confidence = features_from_mesh(mesh, 30.0, names)
-    assert set(points) == {"eye_r_outer", "chin"}  # jaw_02 hidden, extra_001 unmapped
-    np.testing.assert_array_equal(points["eye_r_outer"], mesh[33, :2])
+    names = ["eye_l_outer", "jaw_02", "chin", "extra_001"]
+    points, confidence = features_from_mesh(mesh, 70.0, names)
+    assert set(points) == {"eye_l_outer", "chin"}  # jaw_02 hidden in a profile, extra_001 unmapped
+    np.testing.assert_array_equal(points["eye_l_outer"], mesh[263, :2])
     assert set(confidence) == set(points)
     assert all(0.0 < c <= 1.0 for c in confidence.values())
     _, front = ibug68_from_mesh(mesh, 0.0)

@@ -31,10 +31,11 @@ class Placement:
     points : dict[str, (2,) float]
         feature name → ``[u, v]`` in the ORIGINAL photo's pixels (centres at integers, y down).
         Only features the mapping knows and sees: names that are no iBUG landmark
-        (``extra_*``) and points on the far side of a turned face are absent.
+        (``extra_*``) and far-side points of a profile are absent. Up to a three-quarter
+        view all are placed, far-side jaw points on the face's visible outline.
     confidence : dict[str, float]
-        same keys, in [0, 1]: low (0.1–0.3) for the jaw outline, up to 0.9 for eye and mouth
-        corners in a frontal view, lower as the head turns.
+        same keys, in [0, 1]: low (0.1–0.3) for the jaw outline (0.1 on the far side's
+        outline), up to 0.9 for eye and mouth corners in a frontal view, lower as the head turns.
     preset : str
         a key of :data:`photomodel.camera.PRESET_AZIMUTH_DEG` estimated from the points.
     yaw_deg : float
