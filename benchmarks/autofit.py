@@ -31,12 +31,15 @@ import numpy as np
 
 from app.cli import main as facestudio
 from photomodel.alignment import similarity_transform
+from photomodel.camera import orbit_camera
 from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.photos.reading import read_photo
 from photomodel.project import load_project
 from photomodel.samples import synthetic
 from photomodel.samples.real_clip import real_sample_project
 from photomodel.samples.sample_data import load_james_scan
+from photomodel.texturing.view_dependent import ViewDependentTexture
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
@@ -92,6 +95,34 @@ def depth_ratio(vertices: np.ndarray, mesh) -> float:
     return float(np.ptp((vertices[face] @ (s * R).T + t)[:, 2]) / np.ptp(mesh.vertices[face][:, 2]))
 
 
+def figure(project, vertices: np.ndarray, size: int = 360) -> np.ndarray:
+    """BGR picture of the real sample: a frame with its automatic clicks (violet), the fitted
+    model drawn view-dependently from the frames at −35°, 0° and 35°, and the texture."""
+    expr = project.expression("neutral")
+    result = expr.result
+    photos, cams = [], []
+    for p in expr.photos:
+        if p.id in result.cameras:
+            photos.append(read_photo(project.resolve(p.path)).image)
+            cams.append(result.cameras[p.id])
+    mesh = load_generic_mesh()
+    vdt = ViewDependentTexture(vertices, mesh.faces, cams, photos)
+    centre = vertices[mesh.face_mask].mean(0)
+    views = [vdt.render(orbit_camera(a, size, size, distance_mm=300.0, focal_mm=50.0, target=centre),
+                        background=0.85).color for a in (-35.0, 0.0, 35.0)]
+    views = [cv2.cvtColor((np.clip(v, 0, 1) * 255).astype(np.uint8), cv2.COLOR_RGB2BGR) for v in views]
+    first = expr.photos[0]
+    frame = cv2.imread(str(project.resolve(first.path)))
+    for uv in first.points.values():
+        cv2.circle(frame, (int(round(uv[0])), int(round(uv[1]))), 2, (230, 60, 170), -1, cv2.LINE_AA)
+    h, w = frame.shape[:2]
+    side = min(h, w)
+    x0 = int(np.clip(np.mean([uv[0] for uv in first.points.values()]) - side / 2, 0, w - side))
+    frame = cv2.resize(frame[:, x0:x0 + side], (size, size))
+    texture = cv2.resize(cv2.imread(str(project.resolve(result.texture.image))), (size, size))
+    return np.hstack([frame, *views, texture])
+
+
 def real_sample_section(args, log) -> dict:
     with tempfile.TemporaryDirectory(prefix="realsample-") as tmp:
         path = real_sample_project(Path(tmp), rebuild=True)
@@ -103,8 +134,7 @@ def real_sample_section(args, log) -> dict:
         ratio = depth_ratio(vertices, load_generic_mesh())
         out_dir = Path(getattr(args, "out", None) or Path(__file__).resolve().parent / "out")
         out_dir.mkdir(parents=True, exist_ok=True)
-        texture = cv2.imread(str(project.resolve(result.texture.image)))
-        cv2.imwrite(str(out_dir / "real_sample_texture.png"), texture)
+        cv2.imwrite(str(out_dir / "real_sample.png"), figure(project, vertices))
     out = {"photos": len(result.cameras), "rms_px": float(fit["rms_px"]), "depth_ratio": ratio,
            "start": fit.get("camera_solve", {}).get("start", "")}
     log(f"real sample: {out['photos']} frames, RMS {out['rms_px']:.2f} px, depth ratio {ratio:.2f} "
