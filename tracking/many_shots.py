@@ -55,7 +55,7 @@ from photomodel.exchange.files import atomic_write_bytes
 from photomodel.project import load_project
 from tracking.project_model import project_face_model
 from tracking.results import load_track_results
-from tracking.run import track_video
+from tracking.run import SAVE_EVERY, track_video
 
 __all__ = [
     "SUMMARY_JSON",
@@ -126,13 +126,15 @@ class ShotResult:
 class BatchProgress:
     """How far a batch is, as :func:`track_many` tells its ``progress``: shots ended (tracked,
     skipped, failed or cancelled) of ``shots``, ``failed`` among them, frames tracked by all workers
-    so far and ``seconds`` since the batch started (cluster start-up included)."""
+    so far, ``seconds`` since the batch started (cluster start-up included), and the
+    :class:`ShotResult` of each shot this batch ran, in the order they ended (``finished``)."""
 
     shots: int
     ended: int = 0
     failed: int = 0
     frames: int = 0
     seconds: float = 0.0
+    finished: list = field(default_factory=list)  # the ShotResults of the shots ended so far, as they ended
 
     @property
     def fps(self) -> float:
@@ -306,8 +308,8 @@ def _reporter(topic: str | None, index: int, video: Path, stop_name: str | None)
 
 
 def track_shot(project_path: str, video: str, out_dir: str, *, max_frames: int | None = None,
-               expressions: tuple | None = None, overlay: bool = True, index: int = 0, topic: str | None = None,
-               stop_name: str | None = None) -> ShotResult:  # fmt: skip
+               expressions: tuple | None = None, overlay: bool = True, save_every: int = SAVE_EVERY, index: int = 0,
+               topic: str | None = None, stop_name: str | None = None) -> ShotResult:  # fmt: skip
     """Track one shot in this (worker) process: :func:`tracking.run.track_video` into ``out_dir``,
     continuing what is there. A FaceStudioError (bad video, first pose, project) becomes a
     ``"failed"`` result naming it; other exceptions propagate (Dask retries them)."""
@@ -320,7 +322,7 @@ def track_shot(project_path: str, video: str, out_dir: str, *, max_frames: int |
         model, source = _worker_model(project_path, expressions)
         progress, cancel = _reporter(topic, index, video_path, stop_name)
         res = track_video(project_path, video_path, out, model=model, model_source=source, max_frames=max_frames,
-                          overlay=overlay, progress=progress, cancel=cancel)  # fmt: skip
+                          overlay=overlay, save_every=save_every, progress=progress, cancel=cancel)  # fmt: skip
     except FaceStudioError as exc:
         return ShotResult(video, out_dir, "failed", worker=worker, error=f"{type(exc).__name__}: {exc}")
     rms = [f["rms"] for f in res.frames]
@@ -385,8 +387,9 @@ def _outcome(future, shot: Shot) -> ShotResult:
 def track_many(project_path: str | os.PathLike, videos: Sequence[str | os.PathLike],
                out_root: str | os.PathLike | None = None, *, workers: int | None = None, scheduler: str | None = None,
                threads: int | None = None, max_frames: int | None = None, expressions: Sequence[str] | None = None,
-               overlay: bool = True, retries: int = 1, progress: Callable[[BatchProgress], None] | None = None,
-               stop: Callable[[], bool] | None = None, poll_s: float = 0.25) -> BatchResult:  # fmt: skip
+               overlay: bool = True, save_every: int = SAVE_EVERY, retries: int = 1,
+               progress: Callable[[BatchProgress], None] | None = None, stop: Callable[[], bool] | None = None,
+               poll_s: float = 0.25) -> BatchResult:  # fmt: skip
     """Track every video of ``videos`` with the project's face model, one Dask task per shot.
 
     Parameters
@@ -396,7 +399,7 @@ def track_many(project_path: str | os.PathLike, videos: Sequence[str | os.PathLi
     workers : processes of the embedded ``LocalCluster`` (default one per core, at most one per shot).
     scheduler : a Dask scheduler's address (``tcp://host:8786``): use its workers instead.
     threads : threads each worker may use (llvmpipe, OpenCV); default cores // workers (1 on a cluster).
-    max_frames, expressions, overlay : as :func:`tracking.run.track_video` takes them.
+    max_frames, expressions, overlay, save_every : as :func:`tracking.run.track_video` takes them.
     retries : how often a shot that raised something unexpected is tried again.
     progress : ``progress(BatchProgress)``, called every ``poll_s`` seconds and as shots end.
     stop : ``stop() -> bool``; True asks every running shot to save its frames and end (``"cancelled"``).
@@ -418,7 +421,7 @@ def track_many(project_path: str | os.PathLike, videos: Sequence[str | os.PathLi
         if todo:
             client, cluster, n = _connect(workers, scheduler, threads, len(todo))
             address, startup = client.scheduler.address, time.perf_counter() - t0
-            options = {"max_frames": max_frames, "overlay": overlay,
+            options = {"max_frames": max_frames, "overlay": overlay, "save_every": save_every,
                        "expressions": None if expressions is None else tuple(expressions)}  # fmt: skip
             _run_tasks(client, project, shots, todo, options, retries, results, state, t0, progress, stop, poll_s)
     finally:
@@ -446,6 +449,7 @@ def _run_tasks(client, project, shots, todo, options, retries, results, state, t
         for f in [f for f in futures if f.done()]:
             i = futures.pop(f)
             results[i] = _outcome(f, shots[i])
+            state.finished.append(results[i])
             state.ended += 1
             state.failed += results[i].status == "failed"
         if stop is not None and not stopping and stop():
