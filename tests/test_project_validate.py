@@ -51,7 +51,7 @@ CASES = [
     ("width not integer", lambda d: photo_dict(d).__setitem__("width", 64.5),
      ["expressions[0].photos[0].width: expected the image width in pixels"]),
     ("negative feature vertex", lambda d: d["features"][1].__setitem__("vertex", -3),
-     ["features[1].vertex: expected a generic-mesh vertex index (an integer >= 0), got -3"]),
+     ["features[1].vertex: expected a generic-mesh vertex index (an integer >= 0, below 2^31), got -3"]),
     ("negative curve vertex", lambda d: d["curves"][0]["vertices"].__setitem__(2, -1),
      ["curves[0].vertices[2]: expected a generic-mesh vertex index"]),
     ("pose not bool", lambda d: d["features"][0].__setitem__("pose", "yes"),

@@ -151,8 +151,20 @@ def _stored_path(p: str, origin: Path | None, folder: Path | None) -> str:
     return pp.as_posix()
 
 
+#: Beyond this magnitude a double has no digits after the decimal point worth rounding away
+#: (2^53: every double from there on is an integer), and ``np.round`` would overflow to inf.
+_ROUND_LIMIT = 2.0**53
+
+
 def _round_list(a: np.ndarray, decimals: int) -> list:
-    return np.round(np.asarray(a, dtype=float), decimals).tolist()
+    """``a`` rounded to ``decimals`` as nested lists; values too large to have decimals are kept
+    exactly (rounding -1e308 to 1e-4 would give -inf, a value nobody wrote)."""
+    a = np.asarray(a, dtype=float)
+    big = np.abs(a) >= _ROUND_LIMIT
+    if not big.any():
+        return np.round(a, decimals).tolist()
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.where(big, a, np.round(a, decimals)).tolist()
 
 
 def _camera_dict(cam: Camera) -> dict:

@@ -36,6 +36,7 @@ from jsonschema.exceptions import ValidationError, best_match
 
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import ProjectError
+from photomodel.project.jsontext import check_depth
 from photomodel.project.model import FORMAT_NAME, FORMAT_VERSION
 from photomodel.project.problems import did_you_mean, fmt_key, fmt_path, listing, problems_error, short
 
@@ -54,6 +55,7 @@ ROTATION_TOL = 1e-6
 def validate(d: Any, source: str) -> None:
     """All checks of a parsed project dict (steps 1-3 of the module docstring); ProjectError
     naming ``source`` and the JSON path of each problem."""
+    check_depth(d, source)  # every check below walks the tree recursively
     _check_version(d, source)
     # Older versions need no upgrade: version 2 only added the optional photo camera_group and
     # version 3 the optional click_sources, which older files' photos do not have (their clicks
@@ -114,7 +116,25 @@ def _validator():
         del node["additionalProperties"]
         node["x-leaves"] = kind
     cls = jsonschema.validators.extend(jsonschema.Draft202012Validator, {"x-leaves": _leaves_keyword})
-    return cls(schema)
+    return cls(_inline_refs(schema, schema))
+
+
+def _inline_refs(node, root: dict):
+    """``node`` with every local ``{"$ref": ...}`` replaced by (a copy of) what it points to.
+
+    Resolving a ``$ref`` is most of jsonschema's time on a project (168 features, each a
+    reference to a reference); the inlined schema validates 3x faster. The schema has no
+    recursive references, and no ``$ref`` with sibling keywords, so error paths keep the same
+    steps minus the ``$ref`` hops, which :func:`_expected_note` walks through anyway."""
+    if isinstance(node, dict):
+        if "$ref" in node:
+            if len(node) != 1:
+                raise ValueError(f"project schema: a $ref with sibling keywords is not inlined: {sorted(node)}")
+            return _inline_refs(_resolve_ref(root, node["$ref"]), root)
+        return {k: _inline_refs(v, root) for k, v in node.items() if k != "$defs"}
+    if isinstance(node, list):
+        return [_inline_refs(v, root) for v in node]
+    return node
 
 
 def _leaves_keyword(validator, kind, instance, schema):
@@ -307,10 +327,12 @@ def _result_problems(rp: str, r: dict, sizes: dict, defined: _Defined) -> list[t
             problems.append((at, f"camera image size {cam['width']}x{cam['height']} differs from photo "
                                  f"{pid!r} ({sizes[pid][0]}x{sizes[pid][1]})"))
         R = np.asarray(cam["rotation"], float)
-        err = float(np.abs(R.T @ R - np.eye(3)).max())
-        if err > ROTATION_TOL or np.linalg.det(R) < 0:
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge entry: inf/nan, refused below
+            err = float(np.abs(R.T @ R - np.eye(3)).max())
+            det = float(np.linalg.det(R))
+        if not err <= ROTATION_TOL or not det > 0:
             problems.append((f"{at}.rotation", f"not a rotation matrix (max |RᵀR − I| = {err:.2g}, "
-                                               f"det = {np.linalg.det(R):.6g})"))
+                                               f"det = {det:.6g})"))
     for name in r["points_3d"]:
         if name not in defined.feature_set:
             problems.append((f"{rp}.points_3d{fmt_key(name)}", f"no feature named {name!r} is defined"
