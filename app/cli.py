@@ -6,6 +6,8 @@
     facestudio texture PROJECT [--expression NAME] [--size 1024] [--json]
     facestudio track PROJECT --video PATH [--out DIR] [--first-pose JSON] [--focal-px F] [--frames N]
                      [--restart] [--correct FRAME --pose JSON] [--no-overlay] [--json]
+    facestudio track-many PROJECT VIDEO... [--workers N] [--scheduler ADDR] [--out DIR] [--frames N]
+                          [--threads N] [--expressions a,b] [--no-overlay] [--json]
     facestudio sample-data
     facestudio studio [PROJECT]
 
@@ -31,6 +33,7 @@ from photomodel.photos.intake import default_features, new_project_from_photos
 from photomodel.project import load_project, record_fit, save_project, save_results
 from photomodel.samples.sample_data import sample_data_dir
 from photomodel.texturing.job import TEXTURE_SIZES, encode_texture_outputs, fitted_expressions, texture_expression
+from tracking.many_shots import BatchProgress, BatchResult, track_many
 from tracking.results import default_out_dir, load_track_results
 from tracking.run import track_video
 
@@ -325,6 +328,77 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
     return 0
 
 
+def _batch_display(show: bool):
+    """``progress(BatchProgress)`` drawing a tqdm bar over the shots on stderr (frames/s overall,
+    failures), each failed shot written above it with its cause; and the bar, to close."""
+    bar = tqdm(total=None, unit="shot", file=sys.stderr, desc="shots", leave=False) if show else None
+    told = []
+
+    def progress(state: BatchProgress) -> None:
+        if bar is None:
+            return
+        bar.total = state.shots
+        for r in state.finished[len(told):]:
+            told.append(r)
+            if r.status == "failed":
+                tqdm.write(f"facestudio: {r.video} failed: {r.error}", file=sys.stderr)
+        bar.set_postfix_str(f"{state.frames} frames, {state.fps:.2f} frames/s, {state.failed} failed", refresh=False)
+        bar.update(state.ended - bar.n)
+
+    return progress, bar
+
+
+def _print_batch(result: BatchResult) -> None:
+    """The human summary of ``track-many``: one line per shot, then the totals and the summary files."""
+    for s in result.shots:
+        what = {"tracked": f"{s.tracked} frames tracked at {s.fps:.2f} frames/s"
+                           + (f" (continuing after frame {s.resumed_from - 1})" if s.resumed_from else ""),
+                "skipped": "already tracked, skipped", "cancelled": f"cancelled after {s.frames} frames",
+                "failed": f"FAILED: {s.error}"}[s.status]  # fmt: skip
+        print(f"{Path(s.video).name:<24} {what}; {s.frames} frames in {s.out_dir}")
+    where = f"{result.workers} workers" + (f" of {result.scheduler}" if result.scheduler else "")
+    print(f"{len(result.shots)} shots ({result.failed} failed), {result.tracked_frames} frames in "
+          f"{result.seconds:.1f} s on {where} (start-up {result.startup_s:.1f} s)")  # fmt: skip
+    for name, path in result.files.items():
+        print(f"  {name:<5} {path}")
+
+
+def cmd_track_many(args) -> int:
+    if args.frames is not None and args.frames < 1:
+        raise FaceStudioError(f"--frames {args.frames}: track at least one frame")
+    if args.workers is not None and args.workers < 1:
+        raise FaceStudioError(f"--workers {args.workers}: at least one worker")
+    progress, bar = _batch_display(not args.json or sys.stderr.isatty())
+    stop = []
+
+    def on_sigint(signum, frame):  # first Ctrl-C: every shot saves and stops; a second one stops now
+        stop.append(signum)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        print("\nfacestudio: stopping every shot after its frame (Ctrl-C again to stop at once)", file=sys.stderr)
+
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        names = None if args.expressions is None else [n.strip() for n in args.expressions.split(",") if n.strip()]
+        result = track_many(args.project, args.videos, args.out, workers=args.workers, scheduler=args.scheduler,
+                            threads=args.threads, max_frames=args.frames, expressions=names,
+                            overlay=not args.no_overlay, progress=progress, stop=lambda: bool(stop))  # fmt: skip
+    except KeyboardInterrupt:
+        print("facestudio: cancelled; every shot keeps the frames it saved, rerun to continue", file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if bar is not None:
+            bar.close()
+    if args.json:
+        print(json.dumps(result.summary() | {"files": {k: str(v) for k, v in result.files.items()}}, indent=1))
+    else:
+        _print_batch(result)
+    if result.cancelled:
+        print("facestudio: cancelled; the frames tracked so far are saved, rerun to continue", file=sys.stderr)
+        return 130
+    return 1 if result.failed else 0
+
+
 def cmd_sample_data(args) -> int:
 
     print(sample_data_dir())
@@ -396,6 +470,25 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--no-overlay", action="store_true", help="do not write the overlay video")
     k.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     k.set_defaults(func=cmd_track)
+    m = sub.add_parser("track-many", help="track many shots in parallel on Dask (this machine's cores, or a "
+                                          "cluster): each shot's results where `track` puts them, a summary")
+    m.add_argument("project", help="project file (*.facestudio.json); on a cluster, in a folder every worker reads")
+    m.add_argument("videos", nargs="+", help="video files or frame folders, one shot each (first pose of each: "
+                                             "<video stem>.first_pose.json beside it, as for `track`)")
+    m.add_argument("--workers", type=int, help="worker processes on this machine (default: one per core, at "
+                                               "most one per shot)")
+    m.add_argument("--scheduler", metavar="ADDR", help="a running Dask scheduler (tcp://host:8786): track on "
+                                                       "its workers instead of this machine's")
+    m.add_argument("--threads", type=int, help="threads each worker's renderer and OpenCV may use (default: "
+                                               "cores / workers; 1 on a cluster)")
+    m.add_argument("--out", type=Path, help="folder of the shots' results folders and the summary (default: "
+                                            "<project folder>/results); a rerun continues what is there")
+    m.add_argument("--frames", type=int, help="track only the first N frames of each shot")
+    m.add_argument("--expressions", help="comma-separated expressions of the face model, neutral first "
+                                         "(default: every expression of the project)")
+    m.add_argument("--no-overlay", action="store_true", help="do not write the shots' overlay videos")
+    m.add_argument("--json", action="store_true", help="print one JSON object (the summary) instead of the table")
+    m.set_defaults(func=cmd_track_many)
     s = sub.add_parser("sample-data", help="fetch, verify and cache the sample data; print its folder")
     s.set_defaults(func=cmd_sample_data)
     g = sub.add_parser("studio", help="open the studio window (click points, draw curves, fit, look)")
