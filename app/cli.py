@@ -310,7 +310,13 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
         "corrected": result.corrected,
         "complete": result.complete, "cancelled": result.cancelled, "fps": round(result.fps, 3),
         "diverged_frames": result.diverged, "mean_rms": float(sum(rms) / len(rms)) if rms else None, "files": files,
+        "first_pose": result.first_pose, "redetected": sum(f.get("start") == "detected" for f in result.frames),
+        "ignored_files": [str(p) for p in result.ignored],
     }  # fmt: skip
+    if result.ignored:
+        names = ", ".join(p.name for p in result.ignored[:5]) + (" …" if len(result.ignored) > 5 else "")
+        print(f"facestudio: {len(result.ignored)} image(s) in the frame folder do not match its frame names and were "
+              f"ignored: {names}", file=sys.stderr)  # fmt: skip
     if args.json:
         print(json.dumps(summary, indent=1))
     else:
@@ -318,7 +324,9 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
         if result.corrected is not None:
             resumed = f" (from frame {result.corrected}, corrected to the given pose)"
         print(f"tracked {result.tracked} frames{resumed} at {result.fps:.2f} frames/s; {len(result.frames)} frames "
-              f"in the results, {result.diverged} diverged, mean image RMS {summary['mean_rms'] or 0:.4f}")
+              f"in the results, {result.diverged} diverged, {summary['redetected']} fitted again from the landmark "
+              f"detector, mean image RMS {summary['mean_rms'] or 0:.4f}")
+        print(f"  first pose: {result.first_pose}")
         for name, path in files.items():
             print(f"  {name:<12} {path}")
     if result.cancelled:
@@ -449,15 +457,17 @@ def build_parser() -> argparse.ArgumentParser:
     t.set_defaults(func=cmd_texture)
     k = sub.add_parser("track", help="track head pose and expression through a video: JSON + CSV per frame, "
                                      "plots, overlay video")
-    k.add_argument("project", help="project file (*.facestudio.json); for now only the sample project has a "
-                                   "face model of several expressions")
+    k.add_argument("project", help="project file (*.facestudio.json) with its expressions fitted and textured; "
+                                   "a neutral one alone tracks head pose, more expressions add expression")
     k.add_argument("--video", required=True, help="video file (anything OpenCV decodes) or folder of PNG/JPG frames")
     k.add_argument("--out", type=Path, help="output folder (default: <project folder>/results/track_<video name>); "
                                             "a rerun continues what is there")
     k.add_argument("--first-pose", type=Path, help="first frame's pose or clicks, JSON (default: <video "
-                                                   "stem>.first_pose.json beside the video; see docs/tracking.md)")
+                                                   "stem>.first_pose.json beside the video if there is one, else "
+                                                   "found by the landmark detector; see docs/tracking.md)")
     k.add_argument("--focal-px", type=float, help="the video camera's focal length in pixels (overrides the "
-                                                  "first-pose file's)")
+                                                  "first-pose file's; default: the project's cameras of the "
+                                                  "video's size, else 0.9 x the frame width)")
     k.add_argument("--frames", type=int, help="track only the first N frames (a later run may raise N)")
     k.add_argument("--expressions", help="comma-separated expressions of the face model, neutral first "
                                          "(default: every expression of the project)")

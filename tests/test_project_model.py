@@ -150,7 +150,7 @@ def test_fitted_sample_model_is_cached_and_consistent(built):
 
 
 def test_the_model_is_built_from_the_projects_fitted_expressions(fitted_sample, project_copy):
-    with pytest.raises(ProjectError, match="at least two expressions"):
+    with pytest.raises(ProjectError, match="at least one expression"):
         project_face_model(new_project("someone"))
     with pytest.raises(FitError, match=r"not fitted: neutral, smile.*facestudio fit"):
         project_face_model(load_project(project_copy))  # the sample as shipped: photos and clicks only

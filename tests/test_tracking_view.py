@@ -246,3 +246,17 @@ def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, 
     # the view shows the corrected frame
     assert view.frame_count == 4 and view.current_frame == 2 and "corrected" in view.index_label.text()
     assert view.correct_button.isEnabled()
+
+
+def test_first_pose_dialog_is_prefilled_by_the_landmark_detector(qtbot, window, errors, fitted_project_copy):
+    video = video_of(fitted_project_copy)
+    stored = json.loads((video.with_name("james_track.first_pose.json")).read_text())
+    video.with_name("james_track.first_pose.json").unlink()  # no file: the detector places them
+    dlg = window.tracking_view.first_pose_dialog(video, modal=False)
+    qtbot.addWidget(dlg)
+    assert "landmark detector" in dlg.last_message
+    assert len(dlg.clicks) >= 6
+    # against the sample's clicks (the true projections + 0.5 px noise): the detector's points
+    # sit within a few px on this 300×300 render (its lip and brow points follow their own definitions)
+    err = [np.hypot(*(np.array(dlg.clicks[n]) - stored["clicks"][n])) for n in dlg.clicks if n in stored["clicks"]]
+    assert np.median(err) < 5.0, err

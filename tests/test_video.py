@@ -13,7 +13,7 @@ import pytest
 from app.cli import main
 from tracking.results import load_track_results
 from tracking.run import track_video
-from tracking.video import VideoError, VideoFrames
+from tracking.video import VideoError, VideoFrames, frame_files
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 VIDEO = SAMPLE / "video" / "james_track.mp4"
@@ -56,3 +56,15 @@ def test_unreadable_video_is_named(tmp_path, kind, fitted_sample):
 def test_cli_reports_a_bad_video_with_exit_code_2(tmp_path, capsys, fitted_sample):
     assert main(["track", str(fitted_sample), "--video", str(tmp_path / "none.mp4"), "--out", str(tmp_path / "o")]) == 2
     assert "none.mp4 does not exist" in capsys.readouterr().err
+
+
+def test_a_frame_folder_takes_one_frame_name_pattern_and_lists_what_it_ignored(tmp_path):
+    img = np.zeros((8, 10, 3), np.uint8)
+    for name in ("frame_2.png", "frame_10.png", "frame_1.png", "contact_sheet.png", "poster_1.jpg"):
+        cv2.imwrite(str(tmp_path / name), img if name.startswith("frame") else np.zeros((20, 20, 3), np.uint8))
+    (tmp_path / "notes.txt").write_text("not an image")
+    v = VideoFrames(tmp_path)
+    assert [p.name for p in v.files] == ["frame_1.png", "frame_2.png", "frame_10.png"]  # natural order
+    assert [p.name for p in v.ignored] == ["contact_sheet.png", "poster_1.jpg"]
+    assert (v.width, v.height) == (10, 8)  # frame 0 is a frame, not the contact sheet that sorted first
+    assert frame_files([tmp_path / "a.png", tmp_path / "b.png"]) == ([tmp_path / "a.png", tmp_path / "b.png"], [])

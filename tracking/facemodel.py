@@ -292,7 +292,8 @@ def build_face_model(
 
     Parameters
     ----------
-    names : sequence of m str, neutral first.
+    names : sequence of m str, neutral first; m = 1 (the neutral alone) gives a model of head
+        pose only (no region has a parameter).
     geometry : (m, n, 3) float mm.
     faces : (f, 3) int.
     uv : (n, 2) float shared by every texture, or (m, n, 2) one per expression; v up.
@@ -308,8 +309,8 @@ def build_face_model(
     names = tuple(names)
     E = np.asarray(geometry, float)
     m = len(names)
-    if m < 2 or E.ndim != 3 or E.shape[0] != m or E.shape[2] != 3:
-        raise ValueError(f"geometry must be (m, n, 3) with m = {m} ≥ 2 expressions, got {E.shape}")
+    if m < 1 or E.ndim != 3 or E.shape[0] != m or E.shape[2] != 3:
+        raise ValueError(f"geometry must be (m, n, 3) with m = {m} ≥ 1 expressions, got {E.shape}")
     n = E.shape[1]
     F = np.asarray(faces, np.int64)
     uv = np.asarray(uv, float)

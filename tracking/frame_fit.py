@@ -110,6 +110,9 @@ MIN_PIXELS = 200
 FD_STEPS = {"rotation": 1e-2, "translation": 2.0, "alpha": 0.3}
 #: Radius (mm) over which a rotation step is turned into image motion for the stopping test.
 HEAD_RADIUS_MM = 100.0
+#: Smallest robust scale σ (intensity units): a frame the model renders exactly (the benchmark's
+#: sequence a) would otherwise get σ → 0 and every pixel would count as an outlier.
+ROBUST_FLOOR = 0.005
 
 
 @dataclass
@@ -152,6 +155,11 @@ class TrackOptions:
     #: error with 1.0 → 0.0). 1.0: the paper's ε. A frame fitted in several ``rounds`` (the first)
     #: uses the paper's ε in all rounds but the last: the silhouette pulls a far start in.
     outside_weight: float = 0.0
+    #: robust error (beyond the paper, whose ε is plain least squares): Geman–McClure on each
+    #: pixel's residual with σ this many times the median residual of the frame (see
+    #: :meth:`FrameFitter._robust`); None: the paper's ε. A hand over the mouth then weighs like a
+    #: few pixels, not like the strongest edges of the image.
+    robust_scale: float | None = 3.0
 
     def __post_init__(self):
         for name in ("pose_jacobian", "expression_jacobian"):
@@ -182,7 +190,8 @@ class FrameResult:
     rms : float, image RMS over the covered pixels (intensity units, [0, 1] scale), unfiltered.
     pixels : int, covered pixels.
     evaluations : int, renderings used.
-    diverged : bool, rms over :data:`DIVERGED_RMS` or model (nearly) out of the frame.
+    diverged : bool, image RMS over :data:`DIVERGED_RMS` (with the robust error: over the pixels that
+        are not outliers, :meth:`FrameFitter._inlier_rms`) or model (nearly) out of the frame.
     history : list of float, ε after each accepted step.
     """
 
@@ -284,6 +293,7 @@ class _Eval:
     rms: float  # unfiltered image RMS over the covered pixels
     local: np.ndarray  # (N,) flat indices of the covered pixels in the crop
     sw: np.ndarray | None = None  # (h·w,) float32 √ of the pixels' weights in ε (None: all 1)
+    pixel_rms: np.ndarray | None = None  # (N,) float32 unfiltered RMS over RGB of each covered pixel
 
 
 class FrameFitter:
@@ -328,6 +338,7 @@ class FrameFitter:
         if not 0.0 <= o <= 1.0:
             raise ValueError(f"outside_weight must be within [0, 1], got {o}")
         self._face_weight, self._weighted = None, True
+        self._sigma2: dict[bool, float] = {}  # robust scale² per phase (filtered or not) of the frame
         if o < 1.0:
             face = smooth_membership(np.asarray(model.face_mask, np.int64), model.faces)[:, 1]
             face = np.maximum(face, 1.0 - model.membership[:, 0])  # and the control regions (the jaw)
@@ -352,7 +363,10 @@ class FrameFitter:
         diff = frame[y0:y1, x0:x1] - render.image[y0:y1, x0:x1]
         py, px = np.divmod(render.pixels, self.W)
         local = (py - y0) * (x1 - x0) + (px - x0)
-        rms = float(np.sqrt((diff * diff).sum() / max(3 * len(render.pixels), 1)))
+        # over the covered pixels only, each channel's residual clipped to the intensities' range
+        covered = np.clip(np.take(diff.reshape(-1, 3), local, axis=0), -1.0, 1.0)
+        pixel_rms = np.sqrt((covered * covered).mean(axis=1))
+        rms = float(np.sqrt((covered * covered).sum() / max(covered.size, 1)))
         if filtered:
             diff = bandpass(diff, self.options.bandpass)
         sw = None
@@ -360,8 +374,37 @@ class FrameFitter:
             sw = np.full((y1 - y0) * (x1 - x0), np.sqrt(self.options.outside_weight), np.float32)
             sw[local] = np.sqrt(np.maximum(render.interpolate(self._face_weight), 0.0))
             diff = diff * sw.reshape(y1 - y0, x1 - x0, 1)
-        eps = 0.5 * float((diff * diff).sum()) + self._penalty(weights, render)[0]
-        return _Eval(state, render, weights, diff, eps, box, rms, local, sw)
+        image_eps, robust = self._robust(diff, local, filtered)
+        if robust is not None:
+            diff = diff * robust.reshape(y1 - y0, x1 - x0, 1)
+            sw = robust if sw is None else sw * robust
+        eps = image_eps + self._penalty(weights, render)[0]
+        return _Eval(state, render, weights, diff, eps, box, rms, local, sw, pixel_rms)
+
+    def _robust(self, diff: np.ndarray, local: np.ndarray, filtered: bool) -> tuple[float, np.ndarray | None]:
+        """The image part of ε and the √ of the pixels' robust weights (h·w,) float32 (None: plain ε).
+
+        Geman–McClure on each pixel's residual norm ``r`` (RGB, after the filter and the face
+        weights): ``ρ(r) = ½ σ² r² / (σ² + r²)`` — quadratic for ``r ≪ σ``, bounded by ``½ σ²``
+        for an outlier (a hand over the mouth, hair across the brow), so an occluder cannot drag
+        the pose or the expression however different it looks. LM then works on the re-weighted
+        least squares of the same minimum (IRLS): rows weighted by ``√w = σ² / (σ² + r²)``.
+        ``σ`` is :attr:`TrackOptions.robust_scale` × the median ``r`` over the covered pixels of the
+        phase's first evaluation in this frame (:attr:`_sigma2`, per phase: filtered residuals
+        are smaller), so that ε stays one function within a phase (LM compares its values) and
+        the scale follows the footage (noise, lighting, the model's own texture error).
+        """
+        if self.options.robust_scale is None or not self._weighted:
+            return 0.5 * float((diff * diff).sum()), None
+        r2 = np.einsum("ijc,ijc->ij", diff, diff).reshape(-1)
+        s2 = self._sigma2.get(filtered)
+        if s2 is None:
+            med = float(np.median(np.sqrt(np.take(r2, local)))) if len(local) else 0.0
+            s2 = max(self.options.robust_scale * med, ROBUST_FLOOR) ** 2
+            self._sigma2[filtered] = s2
+        s2 = np.float32(s2)
+        w = s2 / (s2 + r2)
+        return 0.5 * float(s2) * float((r2 * w).sum()), w
 
     def _box(self, box: tuple, filtered: bool) -> tuple:
         """The crop of the residual: the model's box plus a margin (2 px; the bandpass's reach
@@ -691,6 +734,7 @@ class FrameFitter:
         start = self.evaluations
         history: list[float] = []
         ev = None
+        self._sigma2 = {}
         # a frame fitted in several rounds starts far from its optimum (the first frame, from the
         # user's pose and a neutral face): no tracking economies there (see fit())
         far = o.rounds > 1
@@ -705,6 +749,9 @@ class FrameFitter:
                           o.pose_jacobian, False, history, None if ev is None else ev.render, pose_tol,
                           not far)  # fmt: skip
             if not self.n_alpha:
+                if o.bandpass is not None:  # a pose-only model: the pose on the bandpassed images too
+                    ev = self._lm(frame, ev.state, np.arange(6), o.expression_iterations, o.pose_jacobian, True,
+                                  history, ev.render, None, not far)  # fmt: skip
                 continue
             filtered = o.bandpass is not None
             groups = (
@@ -720,9 +767,19 @@ class FrameFitter:
         npx, rms = len(ev.render.pixels), ev.rms  # the last rendering's unfiltered RMS
         return FrameResult(
             state=ev.state, weights=ev.weights, rms=rms, pixels=npx,
-            evaluations=self.evaluations - start, diverged=bool(rms > DIVERGED_RMS or npx < MIN_PIXELS),
-            history=history,
+            evaluations=self.evaluations - start,
+            diverged=bool(self._inlier_rms(ev) > DIVERGED_RMS or npx < MIN_PIXELS), history=history,
         )  # fmt: skip
+
+    def _inlier_rms(self, ev: _Eval) -> float:
+        """The image RMS that says whether a frame diverged: with the robust error, over the covered
+        pixels within 3× the median pixel residual (an occluding hand is not divergence: its pixels
+        are the outliers the robust error leaves out); else over every covered pixel."""
+        r = ev.pixel_rms
+        if self.options.robust_scale is None or r is None or not len(r):
+            return ev.rms
+        keep = r <= 3.0 * float(np.median(r))
+        return float(np.sqrt(np.mean(r[keep] ** 2)))
 
 
 _BLAS_CONTROLLER: list = []

@@ -76,7 +76,7 @@ def model_expressions(project, names: Sequence[str] | None = None) -> list[str]:
     Raises
     ------
     ProjectError
-        an unknown name, or fewer than two expressions.
+        an unknown name, or no expression at all (one, the neutral, gives a model of head pose only).
     FitError
         an expression that is not fitted or not textured; the message lists every such one with
         the commands that produce them.
@@ -92,10 +92,9 @@ def model_expressions(project, names: Sequence[str] | None = None) -> list[str]:
         for n in names:
             project.expression(n)  # ProjectError naming the known ones
     where = project.path if project.path is not None else project.name
-    if len(names) < 2:
-        raise ProjectError(f"{where}: tracking needs a face model of at least two expressions (a neutral one and "
-                           f"one more, each photographed with the rig); the project has {len(names)}: "
-                           f"{', '.join(names) or 'none'}")  # fmt: skip
+    if not names:
+        raise ProjectError(f"{where}: tracking needs a face model of at least one expression (a neutral one; "
+                           f"more expressions add expression tracking); the project has none")  # fmt: skip
     unfitted = [n for n in names if project.expression(n).result is None]
     untextured = [n for n in names if n not in unfitted and project.expression(n).result.texture is None]
     if unfitted or untextured:
@@ -258,7 +257,7 @@ def project_face_model(project, names=None) -> tuple[FaceModel, str]:
     Raises
     ------
     FitError, ProjectError
-        fewer than two expressions, or one not fitted or textured (the message says which and the
+        no expression, or one not fitted or textured (the message says which and the
         command that does it), or a missing or damaged mesh or texture file.
     """
     model, report = face_model_from_project(project, names)

@@ -147,8 +147,9 @@ CSV_COLUMNS = (
     ["rms", "pixels", "diverged", "steps", "evaluations", "seconds", "start"],
 )  # fmt: skip
 #: Where a frame's fit started (a record's ``start``): the first pose (frame 0), the prediction from
-#: the frames before (§6.2), or a pose the user gave for that frame (a correction).
-STARTS = ("first_pose", "predicted", "user")
+#: the frames before (§6.2), a pose the user gave for that frame (a correction), or the landmark
+#: detector's pose when the track had lost the face (:mod:`tracking.detected_pose`).
+STARTS = ("first_pose", "predicted", "user", "detected")
 
 
 def frame_record(index: int, result, model: FaceModel, seconds: float, start: str = "predicted") -> dict:
@@ -162,7 +163,9 @@ def frame_record(index: int, result, model: FaceModel, seconds: float, start: st
     region (rest excluded: it is always neutral); ``rms`` (image RMS, intensity in [0, 1]),
     ``pixels`` covered, ``diverged``, ``steps`` (accepted LM steps), ``evaluations`` (renderings),
     ``seconds``; ``start``: where the fit started (:data:`STARTS`: ``"first_pose"``,
-    ``"predicted"``, or ``"user"`` for a corrected frame). Floats at full precision: a run continues
+    ``"predicted"``, ``"user"`` for a corrected frame, ``"detected"`` for a frame fitted again from
+    the detector's pose). :func:`tracking.run.track_video` adds ``landmarks_xy``
+    {feature: [u, v]} px, the model's projected pose features. Floats at full precision: a run continues
     from them exactly.
     """
     if start not in STARTS:

@@ -47,7 +47,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +55,7 @@ import numpy as np
 from photomodel.errors import FaceStudioError, FitError
 from photomodel.exchange.files import atomic_write_bytes, encode_png
 from photomodel.project import load_project
+from tracking.detected_pose import REDETECT_EVERY, Redetector, detected_spec, video_focal_px
 from tracking.facemodel import FaceModel
 from tracking.first_pose import (
     FirstPose,
@@ -102,6 +103,8 @@ class TrackResult:
     seconds : float, fitting time of this run.
     files : dict name → Path of the files written.
     corrected : int or None, the frame this run corrected (re-tracked from the user's pose), if any.
+    ignored : list of Path, images of a frame folder that are not frames (:func:`tracking.video.frame_files`).
+    first_pose : str, where frame 0's pose came from (a file, or the landmark detector).
     """
 
     out_dir: Path
@@ -113,6 +116,8 @@ class TrackResult:
     seconds: float
     files: dict
     corrected: int | None = None
+    ignored: list = field(default_factory=list)
+    first_pose: str = ""
 
     @property
     def fps(self) -> float:
@@ -141,6 +146,7 @@ def track_video(
     correct_pose: dict | str | os.PathLike | None = None,
     plots: bool = True,
     overlay: bool = True,
+    redetect: int = REDETECT_EVERY,
     progress: Callable[[int, int | None], None] | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> TrackResult:
@@ -155,7 +161,9 @@ def track_video(
         :func:`tracking.project_model.project_face_model` of the project's ``expressions``, default
         all, neutral first).
     first_pose : first-pose JSON path or dict (:func:`tracking.first_pose.load_first_pose`); default
-        :func:`tracking.first_pose.default_first_pose_path`.
+        :func:`tracking.first_pose.default_first_pose_path` when that file exists, else the
+        landmark detector's pose of frame 0 (:func:`tracking.detected_pose.detected_spec`; focal
+        length ``focal_px``, else :func:`tracking.detected_pose.video_focal_px`).
     focal_px : the video camera's focal length in pixels, overriding the first-pose file's.
     max_frames : track frames 0 .. max_frames − 1 only (a later run may raise it and continue).
     options : :class:`tracking.frame_fit.TrackOptions`.
@@ -173,6 +181,9 @@ def track_video(
         starts from frame N alone, like frame 1 from frame 0), so a later rerun continues exactly.
     plots, overlay : write the plots (at the end of every run, cancelled or not) and the overlay
         video (only once the video, or its first ``max_frames``, is tracked).
+    redetect : the landmark detector checks the tracking every this many frames and after every
+        diverged frame, and a frame that lost the face is fitted again from the detector's pose
+        (:class:`tracking.detected_pose.Redetector`); 0 turns it off.
     progress : ``progress(done, total)`` after each frame (``total`` None if the video does not say).
     cancel : ``cancel() -> bool`` checked after each frame; True saves and stops.
 
@@ -189,6 +200,7 @@ def track_video(
     _check_request(correct_frame, correct_pose, restart)
     run = _Run.open(project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames,
                     options)  # fmt: skip
+    run.redetect = int(redetect)
     doc = new_results(project_path, run.video, run.model, run.model_source, run.first, run.options, max_frames)
     _take_earlier_results(run, doc, restart, correct_frame)
     if correct_frame is not None:
@@ -200,7 +212,8 @@ def track_video(
     ended, cancelled, seconds = _fit_frames(run, doc, fitter, starts, start, save_every, progress, cancel)
     files = _write_outputs(run, doc, fitter, ended, plots, overlay)
     records = doc["frames"]
-    return TrackResult(run.out, records, start, len(records) - start, ended, cancelled, seconds, files, correct_frame)
+    return TrackResult(run.out, records, start, len(records) - start, ended, cancelled, seconds, files, correct_frame,
+                       list(run.video.ignored), doc["first_pose"]["source"])  # fmt: skip
 
 
 def _check_request(correct_frame, correct_pose, restart: bool) -> None:
@@ -223,6 +236,7 @@ class _Run:
     options: TrackOptions
     max_frames: int | None
     out: Path
+    redetect: int = REDETECT_EVERY
 
     @classmethod
     def open(cls, project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames,
@@ -234,9 +248,12 @@ class _Run:
         if model is None:
             model, model_source = project_face_model(project, expressions)
         model_source = model_source or "given by the caller"
-        if first_pose is None:
+        if first_pose is None and default_first_pose_path(frames_in.path).is_file():
             first_pose = default_first_pose_path(frames_in.path)
-        fp = load_first_pose(first_pose, project, model, frames_in.width, frames_in.height, focal_px)
+        if first_pose is None:
+            fp = _detected_first_pose(project, model, frames_in, focal_px)
+        else:
+            fp = load_first_pose(first_pose, project, model, frames_in.width, frames_in.height, focal_px)
         options = options or TrackOptions()
         if max_frames is not None and max_frames < 1:
             raise FaceStudioError(f"the frame limit must be at least 1, got {max_frames}")
@@ -252,6 +269,24 @@ class _Run:
         with the run's camera."""
         return pose_from_spec(spec, where, self.project, self.model, self.video.width, self.video.height,
                               self.first.focal_px, frame)  # fmt: skip
+
+
+def _detected_first_pose(project, model: FaceModel, video: VideoFrames, focal_px: float | None) -> FirstPose:
+    """Frame 0's pose from the landmark detector (:mod:`tracking.detected_pose`), the focal length
+    ``focal_px`` or the project's (:func:`tracking.detected_pose.video_focal_px`)."""
+    focal_source = "given (--focal-px)"
+    if focal_px is None:
+        focal_px, focal_source = video_focal_px(project, video.width, video.height)
+    frame = next(video.frames(0, 1))[1]
+    spec = detected_spec(frame, project, focal_px)
+    if spec is None:
+        raise FitError(f"no face found in frame 0 of {video.path} by the landmark detector (or fewer than six of the "
+                       f"pose features): write the first frame's clicks into "
+                       f"{default_first_pose_path(video.path)} or pass --first-pose (see docs/tracking.md)")
+    fp = pose_from_spec(spec, "first pose", project, model, video.width, video.height, None, 0)
+    fp.source = (f"landmark detector on frame 0: {len(spec['clicks'])} pose features, pose by "
+                 f"tracking.frame_fit.pose_from_clicks; focal length {focal_px:.1f} px, {focal_source}")
+    return fp
 
 
 def _take_earlier_results(run: _Run, doc: dict, restart: bool, correct_frame: int | None) -> None:
@@ -317,23 +352,23 @@ def _fit_frames(run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: 
     count, limit = run.video.count, run.max_frames
     total = count if limit is None else (limit if count is None else min(limit, count))
     # the prediction restored from the last two saved frames, not reaching back across a start
-    anchor = max((f for f in starts if f < start), default=0)
+    # (the first pose, a correction, a re-detection)
+    detected = [r["frame"] for r in records[:start] if r.get("start") == "detected"]
+    anchor = max([f for f in starts if f < start] + detected, default=0)
     states = [state_of(r) for r in records[max(anchor, start - 2) : start]]
+    watch = Redetector(run.project, run.first.focal_px, run.redetect)
+    if records[:start]:
+        watch.last_diverged = bool(records[start - 1]["diverged"])
     cancelled, ended, seconds = False, False, 0.0
     unsaved = 0
     try:
         for i, frame in run.video.frames(start, limit):
             t0 = time.perf_counter()
-            if i in starts:  # fitted from the pose in several rounds (track_frames' first_rounds)
-                kind, pose = starts[i]
-                (res,) = track_frames(fitter, [frame], pose.state)
-                states = []
-            else:
-                kind = "predicted"
-                (res,) = track_frames(fitter, [frame], run.first.state, previous=states)
+            res, kind, states = _fit_frame(run, fitter, watch, i, frame, starts, states)
             dt = time.perf_counter() - t0
             seconds += dt
             records.append(frame_record(i, res, run.model, dt, kind))
+            records[-1]["landmarks_xy"] = watch.landmarks(fitter, res.state)
             states = (states + [res.state])[-2:]
             unsaved += 1
             if unsaved >= save_every:
@@ -350,6 +385,27 @@ def _fit_frames(run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: 
         save_results(run.out, doc, False)
         raise
     return ended, cancelled, seconds
+
+
+def _fit_frame(run: _Run, fitter: FrameFitter, watch: Redetector, i: int, frame: np.ndarray, starts: dict,
+               states: list) -> tuple:  # fmt: skip
+    """Fit frame ``i``: from a start pose (frame 0, a correction; several rounds), else from the
+    prediction of ``states`` — and again from the detector's pose when the detector says the
+    track lost the face (:class:`tracking.detected_pose.Redetector`). Returns (FrameResult, start
+    kind, the states the prediction continues from)."""
+    if i in starts:  # fitted from the pose in several rounds (track_frames' first_rounds)
+        _, pose = starts[i]
+        (res,) = track_frames(fitter, [frame], pose.state)
+        watch.last_diverged = bool(res.diverged)
+        return res, starts[i][0], []
+    (res,) = track_frames(fitter, [frame], run.first.state, previous=states)
+    spec = watch.restart_spec(i, frame, fitter, res)
+    if spec is None:
+        return res, "predicted", states
+    pose = run.pose(spec, f"detector on frame {i}", i)
+    (again,) = track_frames(fitter, [frame], pose.state)
+    watch.last_diverged = bool(again.diverged)
+    return again, "detected", []
 
 
 def _write_outputs(run: _Run, doc: dict, fitter: FrameFitter, ended: bool, plots: bool,

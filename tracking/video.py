@@ -2,8 +2,9 @@
 
 * **A video file**: anything OpenCV's :class:`cv2.VideoCapture` decodes; its frame count and frame
   rate are read from the container when it says (:data:`DEFAULT_FPS` otherwise).
-* **A frame folder**: PNG/JPG images (:data:`IMAGE_SUFFIXES`) in natural name order (``f2.png``
-  before ``f10.png``), all of the first one's size.
+* **A frame folder**: PNG/JPG images (:data:`IMAGE_SUFFIXES`) named by one frame-name pattern
+  (:func:`frame_files`: the most common pattern with a number; other images are ignored and listed
+  in ``ignored``) in natural name order (``f2.png`` before ``f10.png``), all of the first one's size.
 
 Errors are :class:`VideoError` naming the file.
 """
@@ -21,7 +22,7 @@ import numpy as np
 
 from photomodel.errors import FaceStudioError
 
-__all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "VideoError", "VideoFrames"]
+__all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "VideoError", "VideoFrames", "frame_files", "frame_pattern"]
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 #: Frame rate of a frame folder, or of a video file whose container gives none.
@@ -36,6 +37,31 @@ def _natural_key(path: Path):
     return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", path.name)]
 
 
+def frame_pattern(path: Path) -> str:
+    """The frame-name pattern of an image file: its name with every run of digits as ``#``
+    (``frame_0012.png`` → ``frame_#.png``), lower case."""
+    return re.sub(r"\d+", "#", path.name.lower())
+
+
+def frame_files(images: list[Path]) -> tuple[list[Path], list[Path]]:
+    """The frames of a folder's images and the images that are not frames.
+
+    The frames are the images of the most common :func:`frame_pattern` that has a number in it
+    (ties: the one whose first file sorts first), in natural order (``f2.png`` before
+    ``f10.png``); every other image (a contact sheet, a poster frame, ``notes.png``) is ignored
+    and returned, sorted, so that the caller can say so. A folder without numbered names keeps
+    all its images."""
+    groups: dict[str, list[Path]] = {}
+    for p in sorted(images, key=_natural_key):
+        groups.setdefault(frame_pattern(p), []).append(p)
+    numbered = [k for k in groups if "#" in k]
+    if not numbered:
+        return sorted(images, key=_natural_key), []
+    best = max(numbered, key=lambda k: len(groups[k]))  # max keeps the first of equals
+    ignored = sorted((p for k, ps in groups.items() if k != best for p in ps), key=_natural_key)
+    return groups[best], ignored
+
+
 class VideoFrames:
     """Frames of a video file or of a folder of images, as (H, W, 3) float32 RGB in [0, 1].
 
@@ -46,6 +72,7 @@ class VideoFrames:
     Attributes
     ----------
     path : Path (absolute); is_folder : bool; files : list of Path (a folder's frames, in order);
+    ignored : list of Path, a folder's images that do not match its frame-name pattern (:func:`frame_files`);
     count : int or None, the number of frames (None when the container does not say);
     fps : float; width, height : int, the first frame's size.
 
@@ -61,11 +88,12 @@ class VideoFrames:
             raise VideoError(f"the video {self.path} does not exist")
         self.is_folder = self.path.is_dir()
         self.fps = DEFAULT_FPS
+        self.ignored: list[Path] = []
         if self.is_folder:
-            self.files = sorted((p for p in self.path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES),
-                                key=_natural_key)  # fmt: skip
-            if not self.files:
+            images = [p for p in self.path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES]
+            if not images:
                 raise VideoError(f"the frame folder {self.path} holds no PNG or JPG images")
+            self.files, self.ignored = frame_files(images)
             self.count: int | None = len(self.files)
             first = self._read_image(self.files[0])
         else:

@@ -65,6 +65,7 @@ from app.qt.texture_views import to_qimage
 from app.qt.workers import JobController
 from photomodel.camera import focal_mm_to_px
 from photomodel.errors import FaceStudioError
+from tracking.detected_pose import detected_spec, video_focal_px
 from tracking.first_pose import default_first_pose_path
 from tracking.frame_fit import FrameFitter, pose_from_clicks
 from tracking.overlay_video import overlay_frame
@@ -822,6 +823,7 @@ class FirstPoseDialog(QDialog):
 
     def _prefill(self) -> None:
         if not self.path.is_file():
+            self._prefill_detected()
             return
         try:
             spec = json.loads(self.path.read_text())
@@ -842,6 +844,22 @@ class FirstPoseDialog(QDialog):
         except (TypeError, ValueError) as exc:
             self.last_message = f"{self.path}: some entries were ignored ({exc})"
             self.info.setText(self.last_message)
+
+    def _prefill_detected(self) -> None:
+        """No first-pose file yet: the landmark detector's pose features of the frame (~0.1 s) and
+        the focal length of the project's cameras (:mod:`tracking.detected_pose`), for the user to
+        check and drag."""
+        focal, source = video_focal_px(self.project, self.width, self.height)
+        self.focal_box.setValue(focal)
+        spec = detected_spec(self.frame_image, self.project, focal)
+        if spec is None:
+            self.last_message = "the landmark detector found no face in this frame: click the features"
+        else:
+            for name, uv in spec["clicks"].items():
+                self.set_click(name, uv)
+            self.last_message = (f"{len(spec['clicks'])} features placed by the landmark detector (check them, "
+                                 f"drag any that are off); focal length: {source}")  # fmt: skip
+        self.info.setText(self.last_message)
 
     def _select(self, row: int) -> None:
         item = self.features.item(row)
