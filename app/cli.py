@@ -25,6 +25,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from app.progress import StageProgress
 from photomodel.errors import FaceStudioError, MissingClicks, ProjectError
 from photomodel.landmarks import place_landmarks
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
@@ -40,19 +41,11 @@ from tracking.run import track_video
 #: Texture sizes ``facestudio texture`` accepts (texels per side).
 
 
-def _progress_bar(enabled: bool):
-    """A tqdm bar over pipeline stages on stderr (silent with --json unless a TTY)."""
-    if not enabled:
-        return None, lambda stage, frac: None
-
-    bar = tqdm(total=100, file=sys.stderr, bar_format="{desc:<32} {bar} {percentage:3.0f}%", leave=False)
-
-    def update(stage: str, frac: float) -> None:
-        bar.set_description_str(stage)
-        bar.n = int(round(frac * 100))
-        bar.refresh()
-
-    return bar, update
+def _progress_bar(enabled: bool, task: str):
+    """The command's progress on stderr (:class:`app.progress.StageProgress`: a bar on a terminal,
+    a line per stage and 10 % step in a log; silent with --json unless a TTY), twice: to close, to call."""
+    progress = StageProgress(task, enabled=enabled)
+    return progress, progress
 
 
 def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
@@ -98,7 +91,7 @@ def cmd_new(args) -> int:
         features, curves = source.features, source.curves
     else:
         features, curves = default_features(load_generic_mesh())
-    bar, progress = _progress_bar(not args.json or sys.stderr.isatty())
+    bar, progress = _progress_bar(not args.json or sys.stderr.isatty(), "new")
     try:
         project, warnings = new_project_from_photos(
             args.photos, target, features=features, curves=curves, expression=args.expression,
@@ -149,12 +142,16 @@ def cmd_fit(args) -> int:
     except ProjectError as e:  # the fit needs only the clicks; say so and go on
         print(f"facestudio: warning: {e} (fitting from the stored clicks)", file=sys.stderr)
     out = {"project": str(Path(args.project)), "expressions": []}
-    bar, progress = _progress_bar(not args.json or sys.stderr.isatty())
+    bar, progress = _progress_bar(not args.json or sys.stderr.isatty(), "fit")
     try:
         results = []
-        for name in names:
+        for i, name in enumerate(names):
             options = FitOptions(refine=not args.no_refine)
-            result = fit_expression(project, name, mesh, options, progress=progress)
+
+            def stage(label, frac, i=i, name=name):  # which expression, and the whole run's fraction
+                progress(f"{name} ({i + 1}/{len(names)}): {label}", (i + frac) / len(names))
+
+            result = fit_expression(project, name, mesh, options, progress=stage)
             results.append((name, result))
             # in memory at once: an expression fitted next may take its cameras from this one
             record_fit(project, name, result)
@@ -199,12 +196,12 @@ def cmd_texture(args) -> int:
     project = load_project(args.project)
     names = fitted_expressions(project, args.expression)
     generic = load_generic_mesh()
-    bar, progress = _progress_bar(not args.json or sys.stderr.isatty())
+    bar, progress = _progress_bar(not args.json or sys.stderr.isatty(), "texture")
     prepared = []
     try:
         for i, name in enumerate(names):
             def stage(label, frac, i=i, name=name):
-                progress(f"{name}: {label}", (i + frac) / len(names))
+                progress(f"{name} ({i + 1}/{len(names)}): {label}", (i + frac) / len(names))
 
             # §5.2.4: ears, hair and neck from the single best photo (needs the generic topology)
             job = texture_expression(project, name, args.size, face_mask=generic.face_mask,
@@ -263,18 +260,12 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
     if (args.correct is None) != (args.pose is None):
         raise FaceStudioError("--correct FRAME and --pose FILE go together: the frame to correct and its pose "
                               "(clicks of frame FRAME in the first-pose format)")  # fmt: skip
-    show = not args.json or sys.stderr.isatty()
-    bar = None
+    bar, show = _progress_bar(not args.json or sys.stderr.isatty(), "track")
     stop = []
 
-    def progress(done: int, total: int | None) -> None:
-        nonlocal bar
-        if not show:
-            return
-        if bar is None:
-
-            bar = tqdm(total=total, initial=done - 1, unit="frame", file=sys.stderr, desc="tracking", leave=False)
-        bar.update(done - bar.n)
+    def progress(done: int, total: int | None) -> None:  # the video, the frame, the fraction of the run
+        of = f" of {total}" if total else ""
+        show(f"{Path(args.video).name}", done / total if total else 0.0, f"frame {done}{of}")
 
     def on_sigint(signum, frame):  # first Ctrl-C: stop after this frame; a second one stops now
         stop.append(signum)
@@ -291,8 +282,7 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
                              correct_pose=args.pose, overlay=not args.no_overlay,
                              progress=progress, cancel=lambda: bool(stop))  # fmt: skip
     except KeyboardInterrupt:
-        if bar is not None:
-            bar.close()
+        bar.close()
         if out_dir is None:
             out_dir = default_out_dir(args.project, args.video)
         print(f"facestudio: cancelled; {_frames_saved(out_dir)} frames saved in {out_dir}, rerun to continue",

@@ -21,6 +21,7 @@ from PySide6.QtGui import QKeySequence  # noqa: E402
 from PySide6.QtWidgets import QFileDialog  # noqa: E402
 
 from app.qt.photo_view import PhotoView  # noqa: E402
+from photomodel.project.codec import project_from_dict, project_to_dict  # noqa: E402
 
 
 def photo_tabs(window) -> list[str]:
@@ -152,3 +153,21 @@ def test_status_bar_says_how_tracking_ended(qtbot, studio_window, project_copy, 
     qtbot.waitUntil(lambda: not w.tracking_view.jobs.busy, timeout=60_000)
     qtbot.waitUntil(lambda: " into " not in w.statusBar().currentMessage(), timeout=5_000)
     assert w.statusBar().currentMessage() == w.tracking_view.last_message != ""
+
+
+def test_a_fit_of_photos_removed_meanwhile_is_not_stored(qtbot, studio_window, project_copy, messages):
+    """Found by the monkey: a photo removed while its expression was being fitted left the fit's
+    camera of that photo in the project, which then could not be saved."""
+    w = studio_window
+    assert w.open_project(project_copy)
+    w.show_photo("right")
+    assert w.run_fit()
+    w.act_remove_photo.trigger()  # while the fit runs
+    qtbot.waitUntil(lambda: not w.fits.busy, timeout=60_000)
+    assert w.model.fit() is None and w.model.expression.result is None and w._progress is None
+    project_from_dict(project_to_dict(w.model.project, project_copy))  # still valid
+    assert w.save() and not messages
+    w.undo_stack.undo()  # the photo is back; a new fit is of all five
+    assert w.run_fit()
+    qtbot.waitUntil(lambda: not w.fits.busy, timeout=60_000)
+    assert set(w.model.fit().cameras) == {p.id for p in w.model.photos}

@@ -91,8 +91,20 @@ class FitTask(_CancellableTask):
         self.snapshot = model.fit_snapshot()
         self.previous = model.warm_start(expression) if warm else None  # read here, on the GUI thread
         self.generation = model.generation
+        self.photo_ids = self.photos_now()  # a result for another set of photos is not applied
         self.overlay_photos = tuple(overlay_photos)
         self.lines = model.overlay_lines if self.overlay_photos else None  # built (once) on the GUI thread
+
+    def photos_now(self) -> tuple[str, ...] | None:
+        """The ids of the expression's photos now (None: the expression is gone)."""
+        try:
+            return tuple(p.id for p in self.model.project.expression(self.expression).photos)
+        except FaceStudioError:
+            return None
+
+    def still_valid(self) -> bool:
+        """Whether the result may be applied: same project, the expression and its photos unchanged."""
+        return self.generation == self.model.generation and self.photos_now() == self.photo_ids
 
     def _compute(self):  # worker thread
         result, seconds, cold = self.model.compute_fit(
@@ -209,12 +221,9 @@ class FitController(QObject):
     def _on_finished(self, task: FitTask, result, seconds: float, cold: bool = False, overlays=None) -> None:
         if task is not self.task:
             return
-        applied = task.generation == self.model.generation
-        if applied:
-            try:
-                self.model.project.expression(task.expression)
-            except FaceStudioError:
-                applied = False
+        # a photo added or removed meanwhile (or undone), another project: the fit is of photos
+        # that are no longer the expression's, and storing it would make the project invalid
+        applied = task.still_valid()
         if applied:
             self.model.apply_fit(task.expression, result, seconds, overlays=overlays)
             self.last_fit_s = seconds
@@ -223,6 +232,8 @@ class FitController(QObject):
         self._end(task)
         if applied:
             self.finished.emit(task.expression, seconds)
+        else:  # superseded: whoever waits for this fit (a progress dialog) hears it ended
+            self.cancelled.emit()
         self._continue()
 
     def _on_ended(self, task: FitTask, failed: str | None = None, cancelled: bool = False) -> None:
