@@ -40,7 +40,7 @@ SEEDS, ACTIONS_PER_SEED = 10, 210
 #: Children run at once.
 JOBS = 2
 #: A child taking longer than this is counted as a crash (hung).
-CHILD_TIMEOUT_S = 300
+CHILD_TIMEOUT_S = 900
 #: Every EMPTY_EVERY-th seed starts from an empty project.
 EMPTY_EVERY = 4
 
