@@ -17,7 +17,7 @@ from tracking.detected_pose import DEFAULT_FOCAL_WIDTHS, Redetector, landmark_er
 from tracking.first_pose import pose_from_spec
 from tracking.frame_fit import FrameFitter, FrameResult, FrameState
 from tracking.results import load_track_results
-from tracking.run import track_video
+from tracking.run import _work_fitter, _work_frame, track_video
 from tracking.samples.ground_truth import VideoTruth, fitted_sample_model, model_gauge
 from tracking.video import VideoFrames
 
@@ -106,3 +106,21 @@ def test_landmark_error_is_the_mean_distance_over_common_features():
     b = {"x": [3.0, 4.0], "y": [10.0, 0.0]}
     assert landmark_error_px(a, b) == pytest.approx(2.5)
     assert landmark_error_px(a, {}) == float("inf")
+
+
+def test_a_large_face_is_fitted_on_frames_reduced_by_an_integer_factor(truth):
+    model = fitted_sample_model()
+    s, Rg, tg = model_gauge(model)
+    state = FrameState(truth.R[0] @ Rg, (truth.t[0] + truth.R[0] @ (s * Rg @ model.centre + tg)) / s,
+                       np.zeros(sum(model.n_alpha)))  # fmt: skip
+    small = FrameFitter(model, truth.focal_px, truth.width, truth.height)
+    assert _work_fitter(small, state) is small  # the sample's ~150 px face: fitted as it is
+    big = FrameFitter(model, 2 * truth.focal_px, 2 * truth.width, 2 * truth.height)  # a ~300 px face
+    work = _work_fitter(big, state)
+    assert (work.W, work.H, work.f) == (truth.width, truth.height, truth.focal_px)
+    # the same pose seen by both cameras: pixel centres map exactly as the k × k area average does
+    X = model.geometry[0][model.face_mask][::50]
+    np.testing.assert_allclose(big.camera(state).project(X), 2 * (work.camera(state).project(X) + 0.5) - 0.5,
+                               atol=1e-9)  # fmt: skip
+    frame = np.random.default_rng(0).random((2 * truth.height, 2 * truth.width, 3)).astype(np.float32)
+    np.testing.assert_allclose(_work_frame(frame, work)[5, 7], frame[10:12, 14:16].mean(axis=(0, 1)), atol=1e-6)
