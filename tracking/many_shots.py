@@ -38,6 +38,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import logging
 import os
 import time
 import uuid
@@ -356,7 +357,7 @@ def _connect(workers: int | None, scheduler: str | None, threads: int | None, sh
         raise FaceStudioError(f"--workers {n}: at least one worker")
     per = threads or max(1, cores // n)
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           env={"LP_NUM_THREADS": str(per)})  # fmt: skip
+                           silence_logs=logging.ERROR, env={"LP_NUM_THREADS": str(per)})  # fmt: skip
     client = Client(cluster)
     client.register_plugin(PinThreads(per))
     return client, cluster, n
