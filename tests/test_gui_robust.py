@@ -171,3 +171,44 @@ def test_a_fit_of_photos_removed_meanwhile_is_not_stored(qtbot, studio_window, p
     assert w.run_fit()
     qtbot.waitUntil(lambda: not w.fits.busy, timeout=60_000)
     assert set(w.model.fit().cameras) == {p.id for p in w.model.photos}
+
+
+def test_studio_command_on_a_bad_project_does_not_block_headless(qtbot, qapp, project_copy, monkeypatch, capsys):
+    """``QT_QPA_PLATFORM=offscreen facestudio studio deep.json``: the error is a non-modal box and a
+    line on stderr (no modal box nobody could close); the window opens on an empty project."""
+    from PySide6.QtCore import QEventLoop, QSettings, QTimer
+    from PySide6.QtWidgets import QApplication, QMessageBox
+
+    from app.cli import main
+    from app.qt.main_window import MainWindow
+
+    monkeypatch.setattr(sys, "excepthook", sys.excepthook)  # run_studio installs the window's
+    monkeypatch.setattr("app.qt.main_window.QSettings", lambda *a: QSettings(str(project_copy.parent / "s.ini"),
+                                                                         QSettings.Format.IniFormat))
+    monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: pytest.fail("a modal box in a headless run"))
+    deep = project_copy.parent / "deep.facestudio.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    seen = {}
+
+    def inspect_and_close():
+        for w in QApplication.topLevelWidgets():
+            if isinstance(w, MainWindow) and w.isVisible():
+                boxes = [b for b in w.findChildren(QMessageBox) if b.isVisible()]
+                seen["boxes"] = [(b.windowTitle(), b.text(), b.isModal()) for b in boxes]
+                seen["photos"] = len(w.model.photos)
+                for b in boxes:
+                    b.close()
+                w.close()
+
+    def exec_():
+        loop = QEventLoop()
+        QTimer.singleShot(200, lambda: (inspect_and_close(), loop.quit()))
+        loop.exec()
+        return 0
+
+    monkeypatch.setattr(QApplication, "exec", staticmethod(exec_))
+    assert main(["studio", str(deep)]) == 0
+    assert seen["photos"] == 0 and len(seen["boxes"]) == 1
+    title, text, modal = seen["boxes"][0]
+    assert title == "Cannot open the project" and "deep.facestudio.json" in text and not modal
+    assert "Cannot open the project" in capsys.readouterr().err

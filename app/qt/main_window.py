@@ -42,7 +42,7 @@ import uuid
 from pathlib import Path
 
 from PySide6.QtCore import QDateTime, QLockFile, QSettings, QStandardPaths, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QActionGroup, QKeySequence, QUndoStack
+from PySide6.QtGui import QAction, QActionGroup, QGuiApplication, QKeySequence, QUndoStack
 from PySide6.QtWidgets import (
     QApplication,
     QComboBox,
@@ -78,6 +78,8 @@ from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import FaceStudioError, ProjectError
 from photomodel.project import FILE_SUFFIX
 
+#: Qt platforms without a screen: error boxes there do not block (:func:`run_studio`).
+HEADLESS_PLATFORMS = ("offscreen", "minimal")
 #: Autosave period (ms).
 AUTOSAVE_INTERVAL_MS = 60_000
 MAX_RECENT = 8
@@ -191,6 +193,7 @@ class MainWindow(QMainWindow):
         self.show_curves = True
         self._progress: QProgressDialog | None = None
         self._rebuilding = False
+        self.blocking_dialogs = True  # run_studio: False on a headless platform (offscreen, minimal)
         self.unexpected_errors: list[str] = []  # report_unexpected: "Type: message" of each
         self._error_box: QMessageBox | None = None
         self._unexpected_in_box = 0  # errors in the box now shown
@@ -476,8 +479,19 @@ class MainWindow(QMainWindow):
 
     # ------------------------------------------------------------------ errors
     def show_error(self, title: str, message: str) -> None:
-        """A dialog whose text is the cause (never a bare traceback)."""
-        QMessageBox.critical(self, title, message)
+        """A dialog whose text is the cause (never a bare traceback).
+
+        Modal, except where nobody could close it (:attr:`blocking_dialogs` False: a headless
+        run, see :func:`run_studio`): then a non-modal box and a line on stderr.
+        """
+        if self.blocking_dialogs:
+            QMessageBox.critical(self, title, message)
+            return
+        sys.stderr.write(f"facestudio: {title}: {message}\n")
+        box = QMessageBox(QMessageBox.Icon.Critical, title, message, parent=self)
+        box.setWindowModality(Qt.WindowModality.NonModal)
+        box.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        box.show()
 
     def report_unexpected(self, exc_type, exc, tb) -> None:
         """The studio's ``sys.excepthook``: an error nobody expected, shown without blocking.
@@ -1257,6 +1271,8 @@ def run_studio(project: str | None = None, argv: list[str] | None = None) -> int
     app.setOrganizationName("FaceStudio")
     app.setApplicationName("Face Studio")
     window = MainWindow()
+    # headless (a script, CI): an error box nobody can close must not stop the run
+    window.blocking_dialogs = QGuiApplication.platformName() not in HEADLESS_PLATFORMS
     window.show()
     sys.excepthook = window.report_unexpected
     if project is not None:
