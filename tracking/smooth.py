@@ -34,8 +34,10 @@ again at the new pose and weights. Two rounds are the default.
 Pighin et al.); the tracker keeps them in ``[0, 1]`` with its piecewise-quadratic penalty ``D``
 (``c (w − bound)²`` outside, ``c`` = :attr:`tracking.frame_fit.TrackOptions.penalty` × covered
 pixels) and never beyond :data:`tracking.facemodel.WEIGHT_RANGE`. The clip solve uses the same
-``D``: after a solve, the pieces of ``D`` that the weights entered are added to their frames'
-blocks and the system is solved again (an active set, at most :data:`ACTIVE_SET_PASSES` passes);
+``D``, which is convex and piecewise quadratic: the system is solved with the pieces of ``D`` that
+the weights of the last solution are on, until those pieces stop changing (Newton's method on the
+pieces, an active set; at most :data:`ACTIVE_SET_PASSES` passes, starting with none — a weight
+out of range only at the tracked start is not held at its bound);
 a frame whose weights would still leave ``WEIGHT_RANGE`` has its change from the tracked ``α``
 shortened until they do not.
 """
@@ -223,15 +225,14 @@ def _within_range(model: FaceModel, before: np.ndarray, after: np.ndarray) -> np
 def _solve_in_range(model, A, B, alpha0, pixels, penalty, lams) -> np.ndarray:
     """Eq. (17) with the active set of ``D`` (module docstring)."""
     c = penalty * np.maximum(pixels, 1).astype(float)
-    sides = _sides(weight_curves(model, alpha0))
+    sides = np.zeros_like(_sides(weight_curves(model, alpha0)))
     for _ in range(ACTIVE_SET_PASSES):
         H, rhs = _penalty_terms(model, alpha0, c, sides)
         alpha = solve_clip(A + H, B + rhs, *lams)
-        entered = _sides(weight_curves(model, alpha))
-        merged = np.where(sides != 0, sides, entered)
-        if np.array_equal(merged, sides):
+        now = _sides(weight_curves(model, alpha))
+        if np.array_equal(now, sides):
             break
-        sides = merged
+        sides = now
     return _within_range(model, alpha0, alpha)
 
 
