@@ -497,13 +497,31 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def error_json(exc: FaceStudioError) -> dict:
+def error_json(exc: Exception, message: str | None = None) -> dict:
     """An error as ``--json`` prints it: its kind and message; a fit's missing clicks as a checklist
     (:class:`~photomodel.errors.MissingClicks`: one entry per feature or photo still to click)."""
-    out = {"type": type(exc).__name__, "message": str(exc)}
+    out = {"type": type(exc).__name__, "message": str(exc) if message is None else message}
     if isinstance(exc, MissingClicks):
         out.update(expression=exc.expression, checklist=exc.checklist)
     return out
+
+
+def permission_message(exc: PermissionError) -> str:
+    """What a user reads when the disk refuses a write: the folder, and what to do."""
+    where = Path(exc.filename) if exc.filename else None
+    if where is not None and not where.is_dir():
+        where = where.parent
+    folder = f"in {where}" if where is not None else "the results"
+    return (f"could not write {folder}: {exc.strerror or exc}; make the folder writable (or copy the "
+            f"project to a folder you can write to) and run the command again")
+
+
+def _report_error(args, exc: Exception, message: str | None = None) -> int:
+    """Exit status 2 after printing ``exc`` on stderr (and as one JSON object with --json)."""
+    print(f"facestudio: error: {exc if message is None else message}", file=sys.stderr)
+    if getattr(args, "json", False):  # --json: one JSON object on stdout, the error too
+        print(json.dumps({"error": error_json(exc, message)}, indent=1))
+    return 2
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -512,10 +530,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except FaceStudioError as e:
-        print(f"facestudio: error: {e}", file=sys.stderr)
-        if getattr(args, "json", False):  # --json: one JSON object on stdout, the error too
-            print(json.dumps({"error": error_json(e)}, indent=1))
-        return 2
+        return _report_error(args, e)
+    except PermissionError as e:  # a folder the user cannot write to, wherever a command writes
+        return _report_error(args, e, permission_message(e))
     except KeyboardInterrupt:
         print("facestudio: cancelled; nothing was written", file=sys.stderr)
         return 130
