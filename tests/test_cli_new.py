@@ -90,7 +90,7 @@ def test_new_project_from_a_folder_with_automatic_clicks(tmp_path, folder, monke
 
     p = load_project(target)
     text = json.loads(target.read_text())
-    assert text["version"] == 3 and p.name == "me"
+    assert text["version"] == 4 and p.name == "me"
     e = p.expression("neutral")
     first, none = e.photo("IMG_0001"), e.photo("IMG_0003")
     assert first.path == "photos/IMG_0001.jpg" and (first.width, first.height) == (160, 120)

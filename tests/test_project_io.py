@@ -138,3 +138,30 @@ def test_save_keeps_the_file_permissions_and_so_does_the_backup(tmp_path, saved)
     assert stat.S_IMODE(path.stat().st_mode) == 0o600
     assert stat.S_IMODE(Path(str(path) + ".bak").stat().st_mode) == 0o600
     assert temp_files(tmp_path) == []
+
+
+def _orphan(folder: Path, name: str, age_s: float) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    f = folder / name
+    f.write_text("half a file")
+    t = f.stat().st_mtime - age_s
+    os.utime(f, (t, t))
+    return f
+
+
+@pytest.mark.parametrize("when", ["load", "save"])
+def test_temporaries_of_a_killed_save_are_removed_on_the_next_load_or_save(tmp_path, saved, when):
+    path, _ = saved
+    results = path.parent / "results"
+    old = [_orphan(path.parent, f".{path.name}.ab12cd_9.tmp", 3600),  # a killed project save
+           _orphan(results, ".neutral.obj.x1y2z3w4.tmp", 3600)]  # a killed mesh write
+    kept = [_orphan(path.parent, f".{path.name}.qwertyui.tmp", 5),  # a save in progress elsewhere
+            _orphan(path.parent, "notes.tmp", 3600), _orphan(path.parent, ".hidden.tmp", 3600),
+            _orphan(results, ".neutral.obj.TOOLONGNAME.tmp", 3600)]  # not our pattern
+    project = load_project(path)
+    if when == "save":
+        for f in old:  # made again after the load: only the save removes them now
+            _orphan(f.parent, f.name, 3600)
+        save_project(project)
+    assert not any(f.exists() for f in old)
+    assert all(f.exists() for f in kept)

@@ -101,9 +101,9 @@ CASES = [
      ['expressions[0].photos[0].points["left eye"]: no feature named']),
     ("wrong format", lambda d: d.__setitem__("format", "blender"),
      ["not a Face Studio project file", '"blender"']),
-    ("newer version", lambda d: d.__setitem__("version", 4),
-     ["james.facestudio.json: written by a newer Face Studio (project format version 4; "
-      "this version reads up to 3)"]),
+    ("newer version", lambda d: d.__setitem__("version", 5),
+     ["james.facestudio.json: written by a newer Face Studio (project format version 5; "
+      "this version reads up to 4)"]),
     ("version zero", lambda d: d.__setitem__("version", 0), ["unknown project format version 0"]),
     ("version string", lambda d: d.__setitem__("version", "1"), ['version: expected an integer', '"1"']),
 ]
@@ -278,7 +278,7 @@ def test_invalid_cameras_from_is_not_saved(tmp_path):
 # format version 2: version 1 read, photo camera_group
 # ---------------------------------------------------------------------------------------
 def test_version_1_file_loads_and_is_saved_as_the_current_version(tmp_path, saved):
-    """Version 1 needs no upgrade (it has no camera groups); saving writes version 3."""
+    """Version 1 needs no upgrade (it has no camera groups); saving writes version 4."""
     _, d = saved
     d["version"] = 1
     p = load_dict(tmp_path, d)
@@ -286,7 +286,7 @@ def test_version_1_file_loads_and_is_saved_as_the_current_version(tmp_path, save
     assert all(ph.camera_group is None for e in p.expressions for ph in e.photos)
     assert p.camera_groups("neutral") == [0, 1]  # each photo a camera of its own
     again = json.loads(save_project(p, tmp_path / "v3.facestudio.json").read_text())
-    assert again["version"] == 3 and again["expressions"] == d["expressions"]
+    assert again["version"] == 4 and again["expressions"] == d["expressions"]
     # the committed sample project is a version-1 file and still loads
     sample = load_project(Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json")
     assert sample.camera_groups("neutral") == [0, 1, 2, 3, 4]
@@ -327,7 +327,7 @@ def test_version_3_round_trip_of_automatic_clicks(tmp_path):
     path = save_project(p)
     d = json.loads(path.read_text())
     pd = photo_dict(d, 0, 0)
-    assert d["version"] == 3
+    assert d["version"] == 4
     # the clicks stay plain [u, v]; their origin sits beside them, in feature order
     assert pd["points"]["eye_l"] == [41.25, 12.5]
     assert list(pd["click_sources"]) == ["eye_l", "jaw_00"]
@@ -349,7 +349,7 @@ def test_version_2_file_loads_unchanged_and_its_clicks_are_the_users(tmp_path, s
     assert all(ph.sources == {} and ph.confidence == {} for e in p.expressions for ph in e.photos)
     assert p.expression("neutral").photo("front").click_source("nose_tip") == "user"
     again = json.loads(save_project(p, tmp_path / "v3.facestudio.json").read_text())
-    assert again["version"] == 3 and again["expressions"] == d["expressions"]
+    assert again["version"] == 4 and again["expressions"] == d["expressions"]
 
 
 @pytest.mark.parametrize("value, expected", [

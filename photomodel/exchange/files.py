@@ -12,8 +12,10 @@ one. :func:`atomic_write_bytes` is the one such writer of the code base; the pro
 from __future__ import annotations
 
 import os
+import re
 import stat
 import tempfile
+import time
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -22,6 +24,11 @@ import numpy as np
 
 #: Permissions of a new file (``mkstemp`` makes 0600; outputs are ordinary documents).
 NEW_FILE_MODE = 0o644
+#: A temporary file of an atomic write older than this (seconds) was left behind by a process
+#: that was killed mid-write (a write takes seconds at most): :func:`remove_stale_temp_files`.
+STALE_TEMP_S = 600.0
+#: The name :func:`atomic_write_bytes` gives its temporary file: ``.<name>.<8 random>.tmp``.
+_TEMP_NAME = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp$")
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, backup: bool = False,
@@ -57,6 +64,31 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, backup: bool = F
         raise
     _fsync_dir(path.parent)
     return path
+
+
+def remove_stale_temp_files(folder: str | os.PathLike, max_age_s: float = STALE_TEMP_S) -> list[Path]:
+    """Delete the temporary files that killed atomic writes left in ``folder``; returns them.
+
+    Only files named as :func:`atomic_write_bytes` names its own (``.<name>.<8 random
+    characters>.tmp``) and last modified more than ``max_age_s`` seconds ago: a write in
+    progress elsewhere is seconds old. A folder that cannot be read or written is left as it is.
+    """
+    removed = []
+    cutoff = time.time() - max_age_s
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        if not _TEMP_NAME.match(entry.name):
+            continue
+        try:
+            if entry.is_file(follow_symlinks=False) and entry.stat().st_mtime < cutoff:
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+        except OSError:
+            continue  # gone meanwhile, or not ours to delete
+    return removed
 
 
 def _mode_for(path: Path) -> int:

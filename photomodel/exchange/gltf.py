@@ -151,14 +151,29 @@ def encode_glb(vertices, faces, *, uv=None, texture=None, name: str = "face", un
     bytes
         the ``.glb`` file.
     """
+    doc = GlbDocument()
+    add_face_mesh(doc, vertices, faces, uv=uv, texture=texture, name=name, unlit=unlit)
+    doc.gltf.scenes.append(gl.Scene(nodes=[len(doc.gltf.nodes) - 1]))
+    doc.gltf.scene = 0
+    return doc.to_bytes()
+
+
+def add_face_mesh(doc: GlbDocument, vertices, faces, *, uv=None, texture=None, name: str = "face",
+                  unlit: bool = True) -> tuple[gl.Primitive, np.ndarray]:
+    """Add the (textured) face to ``doc`` as one mesh and one node (:func:`encode_glb`'s parameters).
+
+    Returns the triangle primitive and ``source`` (n',) int: the mesh vertex each file vertex is
+    (vertices ``0 … n−1`` in order, then the seam copies), for attributes added later (morph
+    targets: ``delta[source]``).
+    """
     v, f = check_mesh(vertices, faces)
     if (uv is None) != (texture is None):
         raise ValueError("give both uv and texture for a textured glb, or neither")
-    doc = GlbDocument()
     normals = vertex_normals(v, f)
     normals[~np.any(normals, axis=1)] = (0.0, 0.0, 1.0)  # unused vertices: glTF wants unit normals
     attributes = gl.Attributes()
     pbr = gl.PbrMetallicRoughness(metallicFactor=0.0, roughnessFactor=1.0)
+    source = np.arange(len(v))
     if uv is not None:
         t = check_uv(uv, len(v), len(f))
         source, uv_out, f = split_uv_seams(len(v), f, t)
@@ -176,15 +191,14 @@ def encode_glb(vertices, faces, *, uv=None, texture=None, name: str = "face", un
     material = gl.Material(name=f"{name}_material", pbrMetallicRoughness=pbr, doubleSided=True)
     if unlit:
         material.extensions = {UNLIT: {}}
-        doc.gltf.extensionsUsed.append(UNLIT)
+        if UNLIT not in doc.gltf.extensionsUsed:
+            doc.gltf.extensionsUsed.append(UNLIT)
     doc.gltf.materials.append(material)
-    doc.gltf.meshes.append(gl.Mesh(name=name, primitives=[
-        gl.Primitive(attributes=attributes, indices=indices, material=len(doc.gltf.materials) - 1,
-                     mode=gl.TRIANGLES)]))
+    primitive = gl.Primitive(attributes=attributes, indices=indices, material=len(doc.gltf.materials) - 1,
+                             mode=gl.TRIANGLES)  # fmt: skip
+    doc.gltf.meshes.append(gl.Mesh(name=name, primitives=[primitive]))
     doc.gltf.nodes.append(gl.Node(name=name, mesh=len(doc.gltf.meshes) - 1))
-    doc.gltf.scenes.append(gl.Scene(nodes=[len(doc.gltf.nodes) - 1]))
-    doc.gltf.scene = 0
-    return doc.to_bytes()
+    return primitive, source
 
 
 #: The eight bytes every PNG file starts with (PNG spec §5.2).

@@ -1,4 +1,4 @@
-"""The project file (format version 3, reads 1 and 2) in one place, for the CLI and the studio alike.
+"""The project file (format version 4, reads 1 to 3) in one place, for the CLI and the studio alike.
 
 * :mod:`~photomodel.project.model` — the dataclasses (``Project``, ``Expression``, ``Photo``,
   ``Feature``, ``CurveDef``, ``ExpressionResult``, ``TextureResult``), format constants, ``new_project``;
@@ -28,15 +28,19 @@ from photomodel.project.model import (
     Feature,
     Photo,
     Project,
+    RigRecord,
     TextureResult,
     new_project,
 )
 from photomodel.project.results import (
+    RIG_FILE,
     expression_result,
+    load_rig_shapes,
     record_fit,
     save_results,
     store_fit_meshes,
     store_fit_result,
+    store_rig,
     store_texture_result,
     texture_files,
 )
@@ -55,11 +59,14 @@ __all__ = [
     "Feature",
     "Photo",
     "Project",
+    "RIG_FILE",
+    "RigRecord",
     "TextureResult",
     "default_filename",
     "encode_project",
     "expression_result",
     "load_project",
+    "load_rig_shapes",
     "new_project",
     "project_schema",
     "record_fit",
@@ -67,6 +74,7 @@ __all__ = [
     "save_results",
     "store_fit_meshes",
     "store_fit_result",
+    "store_rig",
     "store_texture_result",
     "texture_files",
     "write_project",

@@ -30,6 +30,7 @@ from photomodel.project.model import (
     Feature,
     Photo,
     Project,
+    RigRecord,
     TextureResult,
 )
 from photomodel.project.validate import validate
@@ -56,7 +57,7 @@ def project_to_dict(project: Project, target: Path | None) -> dict:
 
     order = {"feature": {f.name: i for i, f in enumerate(project.features)},
              "curve": {c.name: i for i, c in enumerate(project.curves)}}
-    return {
+    d = {
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "name": project.name,
@@ -66,6 +67,11 @@ def project_to_dict(project: Project, target: Path | None) -> dict:
         "curves": [{"name": c.name, "vertices": [int(v) for v in c.vertices]} for c in project.curves],
         "expressions": [_expression_dict(e, order, stored) for e in project.expressions],
     }
+    if project.rig is not None:  # optional (version 4): projects without a rig omit the key
+        rig = project.rig
+        d["rig"] = {"source": rig.source, "neutral": rig.neutral, "shapes": list(rig.shapes),
+                    "file": stored(rig.file), "report": _jsonable(rig.report)}  # fmt: skip
+    return d
 
 
 def _ordered(d: dict, order: dict) -> list:
@@ -215,8 +221,16 @@ def project_from_dict(d: Any, path: str | os.PathLike | None = None) -> Project:
         features=[Feature(f["name"], f["vertex"], f["pose"]) for f in d["features"]],
         curves=[CurveDef(c["name"], c["vertices"]) for c in d.get("curves", [])],
         expressions=[_expression_from_dict(e) for e in d["expressions"]],
+        rig=_rig_from_dict(d.get("rig")),
         path=None if path is None else Path(path).absolute(),
     )
+
+
+def _rig_from_dict(r: dict | None) -> RigRecord | None:
+    if r is None:
+        return None
+    return RigRecord(source=r["source"], neutral=r["neutral"], shapes=list(r["shapes"]), file=r["file"],
+                     report=plain(r.get("report", {})))  # fmt: skip
 
 
 def _expression_from_dict(e: dict) -> Expression:

@@ -25,7 +25,7 @@ import re
 from pathlib import Path
 
 from photomodel.errors import ProjectError
-from photomodel.exchange.files import atomic_write_bytes
+from photomodel.exchange.files import atomic_write_bytes, remove_stale_temp_files
 from photomodel.project.codec import project_from_dict, project_to_dict
 from photomodel.project.jsontext import dumps, parse_json, scan_parsed
 from photomodel.project.model import FILE_SUFFIX, Project
@@ -42,7 +42,16 @@ def load_project(path: str | os.PathLike) -> Project:
     """Read and validate a project file; raises :class:`ProjectError` naming the problem."""
     path = Path(path)
     data = parse_json(_read_text(path), path.name)
-    return project_from_dict(data, path)
+    project = project_from_dict(data, path)
+    remove_orphan_temp_files(path.parent)
+    return project
+
+
+def remove_orphan_temp_files(folder: Path) -> list[Path]:
+    """Temporary files left in a project folder and its ``results/`` by a save that was killed
+    (:func:`photomodel.exchange.files.remove_stale_temp_files`: our own names, older than ten
+    minutes), removed when the project is next loaded or saved; returns them."""
+    return remove_stale_temp_files(folder) + remove_stale_temp_files(Path(folder) / "results")
 
 
 def _read_text(path: Path) -> str:
@@ -94,6 +103,7 @@ def write_project(project: Project, target: Path, data: bytes) -> Path:
     except OSError as exc:
         raise ProjectError(f"{target}: could not save the project: {exc.strerror or exc}") from exc
     project.path = target
+    remove_orphan_temp_files(target.parent)
     return target
 
 

@@ -39,7 +39,10 @@ FORMAT_NAME = "facestudio-project"
 #: * 3 — a photo may say which of its clicks were placed automatically (``click_sources``:
 #:   feature → ``{"source": "auto", "confidence": c}``). Upgrading: nothing to do (every click
 #:   of an older file was made by hand, source ``"user"``).
-FORMAT_VERSION = 3
+#: * 4 — a project may hold a ``rig``: ARKit-style blend shapes on the fitted neutral
+#:   (``facestudio rig``; the displacements in a file beside the project). Upgrading: nothing to
+#:   do (an older project has no rig).
+FORMAT_VERSION = 4
 #: Where a click came from: the artist (``"user"``, the default) or the landmark detector.
 CLICK_SOURCES = ("user", "auto")
 FILE_SUFFIX = ".facestudio.json"
@@ -334,6 +337,27 @@ class Expression:
 
 
 @dataclass
+class RigRecord:
+    """The project's rig (``facestudio rig``, :mod:`photomodel.rig`; format version 4).
+
+    Attributes
+    ----------
+    source : str, where the expression shapes came from: ``"ict-facekit"``.
+    neutral : str, the expression whose fitted mesh the shapes displace.
+    shapes : list[str], the shapes' names (ARKit's), in the file's order.
+    file : str, the ``.npz`` with ``names`` (k,) and ``deltas`` (k, n, 3) float32 mm, relative to
+        the project folder (``results/rig.npz``).
+    report : dict, free-form facts of the build (registration landmark error, seconds…).
+    """
+
+    source: str
+    neutral: str
+    shapes: list[str]
+    file: str
+    report: dict = field(default_factory=dict)
+
+
+@dataclass
 class Project:
     """A Face Studio project (see ``docs/project-format.md``).
 
@@ -344,6 +368,7 @@ class Project:
     features : list[Feature]
     curves : list[CurveDef]
     expressions : list[Expression]
+    rig : RigRecord or None, the blend-shape rig (format version 4), absent until ``facestudio rig``.
     path : Path or None, the project file (absolute) once loaded or saved.
     """
 
@@ -352,6 +377,7 @@ class Project:
     features: list[Feature] = field(default_factory=list)
     curves: list[CurveDef] = field(default_factory=list)
     expressions: list[Expression] = field(default_factory=list)
+    rig: RigRecord | None = None
     path: Path | None = field(default=None, compare=False)
 
     # -- look-ups --------------------------------------------------------------------

@@ -22,12 +22,14 @@ The one path shared by ``facestudio fit`` / ``facestudio texture`` (:mod:`app.cl
   whole, old or new).
 
 :func:`store_fit_result` and :func:`store_texture_result` store one result without saving the
-project file (the caller saves it, e.g. after several).
+project file (the caller saves it, e.g. after several); :func:`store_rig` the rig (format version 4,
+``results/rig.npz``) and :func:`load_rig_shapes` reads it back.
 """
 
 from __future__ import annotations
 
 import copy
+import io
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -37,7 +39,7 @@ from photomodel.errors import FitError, ProjectError
 from photomodel.exchange import files as exchange_files  # looked up at call time (tests replace it)
 from photomodel.exchange.mesh import write_mesh
 from photomodel.project.io import default_filename, encode_project, target_file, write_project
-from photomodel.project.model import ExpressionResult, Project, TextureResult
+from photomodel.project.model import ExpressionResult, Project, RigRecord, TextureResult
 from photomodel.texturing.job import encode_texture_outputs
 
 
@@ -212,3 +214,44 @@ def _recorded(project: Project, folder: Path, path: Path) -> str:
     if project.path is not None and folder == project.path.parent:
         return path.relative_to(folder).as_posix()
     return path.as_posix()
+
+
+#: Where ``facestudio rig`` stores the rig's displacements, relative to the project folder.
+RIG_FILE = "results/rig.npz"
+
+
+def store_rig(project: Project, *, neutral: str, names: Sequence[str], deltas: np.ndarray, report: dict,
+              folder: Path | None = None) -> None:  # fmt: skip
+    """Write the rig's displacements (``results/rig.npz``: ``names`` (k,), ``deltas`` (k, n, 3)
+    float32 mm) atomically and record it in ``project.rig`` (format version 4); the caller saves
+    the project file afterwards, as with :func:`store_fit_result`."""
+    names = [str(n) for n in names]
+    D = np.asarray(deltas, np.float32)
+    if D.ndim != 3 or D.shape[0] != len(names) or D.shape[2] != 3:
+        raise ValueError(f"deltas must be (k, n, 3) with k = {len(names)} names, got {D.shape}")
+    folder = _folder(project, folder)
+    path = folder / RIG_FILE
+    buf = io.BytesIO()
+    np.savez_compressed(buf, names=np.array(names), deltas=D)
+    try:
+        exchange_files.atomic_write_bytes(path, buf.getvalue())
+    except OSError as exc:
+        raise ProjectError(f"cannot write the rig file {path}: {exc}") from exc
+    project.rig = RigRecord(source="ict-facekit", neutral=neutral, shapes=names, file=_recorded(project, folder, path),
+                            report=copy.deepcopy(report))  # fmt: skip
+
+
+def load_rig_shapes(project: Project) -> tuple[list[str], np.ndarray]:
+    """The project's rig: shape names and (k, n, 3) float mm displacements; ProjectError when it has
+    none or its file is missing or does not match the record."""
+    if project.rig is None:
+        raise ProjectError(f"project {project.name!r} has no rig; run `facestudio rig` first")
+    path = project.resolve(project.rig.file)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            names, deltas = [str(n) for n in z["names"]], z["deltas"].astype(float)
+    except (OSError, ValueError, KeyError) as exc:
+        raise ProjectError(f"cannot read the rig file {path}: {exc}; run `facestudio rig` again") from exc
+    if names != list(project.rig.shapes):
+        raise ProjectError(f"{path}: its shapes differ from the project's rig record; run `facestudio rig` again")
+    return names, deltas

@@ -57,9 +57,9 @@ def validate(d: Any, source: str) -> None:
     naming ``source`` and the JSON path of each problem."""
     check_depth(d, source)  # every check below walks the tree recursively
     _check_version(d, source)
-    # Older versions need no upgrade: version 2 only added the optional photo camera_group and
+    # Older versions need no upgrade: version 2 only added the optional photo camera_group,
     # version 3 the optional click_sources, which older files' photos do not have (their clicks
-    # are all the artist's). (A future change that renames or restructures a field
+    # are all the artist's), and version 4 the optional rig. (A future change that renames or restructures a field
     # converts the older dict here, before the schema check.)
     _check_schema(d, source)
     problems = cross_reference_problems(d)
@@ -262,6 +262,11 @@ def cross_reference_problems(d: dict) -> list[tuple[str, str]]:
     defined = _Defined(features, curves, frozenset(features), frozenset(curves))
     for ei, e in enumerate(d["expressions"]):
         problems += _expression_problems(f"expressions[{ei}]", e, defined)
+    rig = d.get("rig")
+    names = [e["name"] for e in d["expressions"]]
+    if rig is not None and rig["neutral"] not in names:
+        problems.append(("rig.neutral", f"names no expression ({short(rig['neutral'])}); "
+                                        f"expressions: {listing(names)}{did_you_mean(rig['neutral'], names)}"))
     return problems
 
 

@@ -1,0 +1,119 @@
+"""A project's blend shapes and a tracked performance, gathered for an animated glTF export.
+
+The targets of ``facestudio export --glb`` are
+
+* the rig's shapes (ARKit's names, :mod:`photomodel.rig`, stored by ``facestudio rig``), and
+* the **photographed expressions, one target per control region**: the tracking model blends
+  each region with its own weights (Pighin et al. 2002, §6.1.1, Eq. 4), ``X_i = Σ_r μ_ir Σ_k
+  w_rk E_k,i`` with ``Σ_k w_rk = 1`` in every region (:func:`tracking.facemodel.expression_basis`)
+  and the rest region neutral, so
+
+      X = E_1 + Σ_(r ≠ rest) Σ_(k ≥ 2) w_rk · μ_r (E_k − E_1)
+
+  exactly: target ``<expression>_<region>`` is ``μ_r (E_k − E_1)`` and a tracked frame's weight
+  ``w_rk`` (``track.json``'s ``weights[region][expression]``) is its weight, unchanged.
+
+The base mesh is the model's ``E_1`` (the neutral fit), with the neutral's texture and its
+cylindrical coordinates; triangles crossing the texture's seam are left out, as in tracking.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from photomodel.errors import FaceStudioError
+from photomodel.exchange.gltf_animation import Performance
+from photomodel.project import load_rig_shapes
+from tracking.facemodel import CONTROL_REGIONS, FaceModel
+from tracking.project_model import face_model_from_project
+
+__all__ = ["BlendShapes", "arkit_weights", "blend_shapes", "track_performance", "region_targets"]
+
+
+@dataclass
+class BlendShapes:
+    """What a rigged glb holds: the neutral (n, 3) mm, faces (m, 3), deltas (k, n, 3) mm, k names,
+    uv (n, 2) (v up) and the texture PNG bytes (or None)."""
+
+    neutral: np.ndarray
+    faces: np.ndarray
+    deltas: np.ndarray
+    names: list
+    uv: np.ndarray | None
+    texture_png: bytes | None
+    rig_shapes: int
+    photographed: int
+
+
+def region_targets(model: FaceModel) -> tuple[list[str], np.ndarray]:
+    """``<expression>_<region>`` names and ``μ_r (E_k − E_1)`` (mm) of every controlled region and
+    expression after the neutral (see the module notes)."""
+    names, deltas = [], []
+    for r, region in enumerate(CONTROL_REGIONS):
+        if r == 0:
+            continue
+        for k in range(1, model.m):
+            names.append(f"{model.names[k]}_{region}")
+            deltas.append(model.membership[:, r, None] * (model.geometry[k] - model.geometry[0]))
+    return names, np.array(deltas).reshape(len(names), *model.geometry.shape[1:])
+
+
+def blend_shapes(project, expressions=None) -> tuple[BlendShapes, FaceModel]:
+    """The glb's targets of ``project`` (rig first, if it has one; then the photographed expressions
+    per region) on the face model of ``expressions`` (default: as tracking chooses)."""
+    model, _report = face_model_from_project(project, expressions)
+    names, deltas = region_targets(model)
+    rig_names, rig_deltas = ([], np.zeros((0, *model.geometry.shape[1:])))
+    if project.rig is not None:
+        if project.rig.neutral != model.names[0]:
+            raise FaceStudioError(f"the rig was made on {project.rig.neutral!r} but the face model's neutral is "
+                                  f"{model.names[0]!r}; run `facestudio rig` again")  # fmt: skip
+        rig_names, rig_deltas = load_rig_shapes(project)
+    texture = project.expression(model.names[0]).result.texture
+    png = project.resolve(texture.image).read_bytes() if texture is not None else None
+    shapes = BlendShapes(neutral=model.geometry[0], faces=model.faces,
+                         deltas=np.concatenate([rig_deltas, deltas]), names=list(rig_names) + names,
+                         uv=model.uv[0] if png is not None else None, texture_png=png,
+                         rig_shapes=len(rig_names), photographed=len(names))  # fmt: skip
+    return shapes, model
+
+
+def track_performance(doc: dict, names: list[str]) -> Performance:
+    """The ``track.json`` document ``doc`` as a :class:`Performance` over the targets ``names``:
+    each tracked ``weights[region][expression]`` on target ``<expression>_<region>``, the others 0."""
+    frames = doc["frames"]
+    fps = float(doc["video"].get("fps") or 0.0)
+    if not frames:
+        raise FaceStudioError("the tracking results hold no frame yet; run `facestudio track` first")
+    if fps <= 0:
+        raise FaceStudioError("the tracking results do not say the video's frame rate")
+    index = {n: i for i, n in enumerate(names)}
+    W = np.zeros((len(frames), len(names)))
+    for f, rec in enumerate(frames):
+        for region, weights in rec["weights"].items():
+            for expr, w in weights.items():
+                i = index.get(f"{expr}_{region}")
+                if i is not None:
+                    W[f, i] = w
+    cam = doc["camera"]
+    return Performance(times_s=np.array([r["frame"] for r in frames], float) / fps, weights=W,
+                       rotation=np.array([r["R"] for r in frames], float),
+                       translation_mm=np.array([r["t_mm"] for r in frames], float),
+                       focal_px=float(cam["focal_px"]), width=int(cam["width"]), height=int(cam["height"]))  # fmt: skip
+
+
+def arkit_weights(shapes: BlendShapes, weights: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """(f, r) the rig's weights in [0, 1] closest to the frames posed by the photographed targets'
+    ``weights`` (f, k) (bounded least squares over the vertices of ``mask``, default all): a tracked
+    performance said in ARKit's shapes, for other tools (Live Link CSV)."""
+    r = shapes.rig_shapes
+    if r == 0:
+        raise FaceStudioError("the project has no rig; run `facestudio rig` first")
+    sel = slice(None) if mask is None else np.asarray(mask, bool)
+    A = shapes.deltas[:r, sel].reshape(r, -1).T  # (3n', r)
+    B = shapes.deltas[r:, sel].reshape(len(shapes.deltas) - r, -1).T  # (3n', k)
+    W = np.asarray(weights, float)[:, r:] if np.shape(weights)[1] == len(shapes.names) else np.asarray(weights, float)
+    return np.array([lsq_linear(A, B @ w, bounds=(0.0, 1.0)).x for w in W])
