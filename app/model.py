@@ -897,10 +897,17 @@ class StudioModel:
         the fitted meshes and textures held in memory and not yet saved there."""
         fits = {name: fit.vertices for name, fit in self.fits.items()
                 if fit.vertices is not None and self.project.expression(name).result is not None
-                and (moved or not fit.saved)}
+                and (moved or not fit.saved or not self._meshes_on_disk(name))}
         textures = [(tex.job, *texture_files(self.project, tex.job, folder))
                     for tex in self.textures.values() if moved or not tex.saved]
         return fits, textures
+
+    def _meshes_on_disk(self, name: str) -> bool:
+        """Whether the mesh files the expression's result names are there: a fit put back by an
+        undo names the files of the fit it replaced, which a save since has removed
+        (:func:`photomodel.project.results.save_results`), so it is written again."""
+        r = self.project.expression(name).result
+        return all(p is not None and self.project.resolve(p).is_file() for p in (r.mesh_obj, r.mesh_ply))
 
     def _take_written_paths(self, written: Path) -> None:
         """After "save as": result and generic-mesh paths as written, relative to the new folder

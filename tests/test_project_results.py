@@ -7,6 +7,7 @@ end to end in tests/test_cli*.py, tests/test_studio_model.py and tests/test_gui_
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -172,7 +173,7 @@ def test_a_failed_result_file_leaves_the_project_file_as_it_was(saved, tmp_path,
 
 def test_interrupted_before_the_project_file_the_previous_one_stays(saved, tmp_path, monkeypatch):
     """Killed after the result files, before the project file: the previous project file is intact
-    and every result file whole (each written atomically)."""
+    with the meshes of its own fit (the new ones went under new names), every file whole."""
     store_fit_result(saved, "neutral", _fit(), FACES)
     save_project(saved)
     before = saved.path.read_bytes()
@@ -186,5 +187,25 @@ def test_interrupted_before_the_project_file_the_previous_one_stays(saved, tmp_p
         save_results(saved, fits={"neutral": VERTICES + 1.0}, faces=FACES)
     assert saved.path.read_bytes() == before
     r = load_project(saved.path).expression("neutral").result
-    np.testing.assert_allclose(read_mesh(tmp_path / r.mesh_obj)[0], VERTICES + 1.0)  # whole, not half
+    for rel in (r.mesh_obj, r.mesh_ply):  # the old pair: the stored result and its mesh, one fit
+        np.testing.assert_allclose(read_mesh(tmp_path / rel)[0], VERTICES)
     assert temp_files(tmp_path) == [] and temp_files(tmp_path / "results") == []
+
+
+def test_a_refit_switches_to_new_mesh_files_and_removes_the_old(saved, tmp_path):
+    record_fit(saved, "neutral", _fit())
+    save_results(saved, fits={"neutral": VERTICES}, faces=FACES)
+    first = saved.expression("neutral").result.mesh_obj
+    assert first == "results/neutral.obj"
+    record_fit(saved, "neutral", _fit(shift=1.0))
+    save_results(saved, fits={"neutral": VERTICES + 1.0}, faces=FACES)
+    r = load_project(saved.path).expression("neutral").result
+    assert re.fullmatch(r"results/neutral\.[0-9a-f]{8}\.obj", r.mesh_obj) and r.mesh_ply == r.mesh_obj[:-3] + "ply"
+    np.testing.assert_allclose(read_mesh(tmp_path / r.mesh_ply)[0], VERTICES + 1.0)
+    assert sorted(p.name for p in (tmp_path / "results").glob("neutral*")) == sorted(
+        Path(p).name for p in (r.mesh_obj, r.mesh_ply))  # the replaced fit's files are gone
+    record_fit(saved, "neutral", _fit(shift=2.0))  # and the next re-fit takes the plain names again
+    save_results(saved, fits={"neutral": VERTICES + 2.0}, faces=FACES)
+    r = load_project(saved.path).expression("neutral").result
+    assert (r.mesh_obj, r.mesh_ply) == ("results/neutral.obj", "results/neutral.ply")
+    assert len(list((tmp_path / "results").glob("neutral*"))) == 2

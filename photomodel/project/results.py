@@ -14,12 +14,16 @@ The one path shared by ``facestudio fit`` / ``facestudio texture`` (:mod:`app.cl
   1. records the result files in the project (paths relative to the folder of the file being
      written);
   2. serialises and validates the project — if it is invalid nothing at all is written;
-  3. writes the result files, each atomically (a reader never finds half a file);
-  4. writes the project file, atomically and last, keeping the previous one as ``.bak``.
+  3. writes the result files, each atomically (a reader never finds half a file); a re-fit's
+     meshes go under new names (``results/<expr>.<fit id>.obj|.ply``, :func:`fit_mesh_paths`)
+     when the earlier fit's are there, so the files the saved project names are never replaced;
+  4. writes the project file, atomically and last, keeping the previous one as ``.bak``;
+  5. removes the meshes of the replaced fits, which no expression names any more.
 
-  The project file never names a result file that is not completely on disk: a crash, a kill or
-  a full disk before step 4 leaves the previous project file in place (and each result file
-  whole, old or new).
+  The project file never names a result file that is not completely on disk, and its fitted
+  result and mesh files always come from one fit: a crash, a kill or a full disk before step 4
+  leaves the previous project file with its own meshes (the new files are removed by the next
+  save of that expression).
 
 :func:`store_fit_result` and :func:`store_texture_result` store one result without saving the
 project file (the caller saves it, e.g. after several); :func:`store_rig` the rig (format version 4,
@@ -29,7 +33,9 @@ project file (the caller saves it, e.g. after several); :func:`store_rig` the ri
 from __future__ import annotations
 
 import copy
+import hashlib
 import io
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -65,10 +71,34 @@ def record_fit(project: Project, expression_name: str, fit) -> ExpressionResult:
     return result
 
 
-def fit_mesh_paths(project: Project, expression_name: str, folder: Path) -> dict[str, Path]:
-    """``{"mesh_obj": <folder>/results/<expr>.obj, "mesh_ply": <folder>/results/<expr>.ply}``."""
+def fit_mesh_paths(project: Project, expression_name: str, folder: Path,
+                   vertices: np.ndarray | None = None) -> dict[str, Path]:
+    """``{"mesh_obj": <folder>/results/<expr>.obj, "mesh_ply": <folder>/results/<expr>.ply}``.
+
+    With the fit's ``vertices``, and a mesh of that name already in ``folder`` (an earlier fit,
+    which the project file on disk still names): ``results/<expr>.<fit id>.obj|.ply`` instead,
+    the fit id the first 8 hex digits of the vertices' SHA-1. So a re-fit never overwrites the
+    files the saved project names, and a kill before the project file is written leaves the old
+    result with its own mesh (:func:`save_results` removes the replaced files afterwards)."""
     rel_obj, rel_ply = project.default_result_paths(expression_name)
-    return {"mesh_obj": folder / rel_obj, "mesh_ply": folder / rel_ply}
+    paths = {"mesh_obj": folder / rel_obj, "mesh_ply": folder / rel_ply}
+    if vertices is not None and any(p.exists() for p in paths.values()):
+        fit_id = hashlib.sha1(np.ascontiguousarray(vertices, dtype=np.float64).tobytes()).hexdigest()[:8]
+        paths = {k: p.with_name(f"{p.stem}.{fit_id}{p.suffix}") for k, p in paths.items()}
+    return paths
+
+
+def _remove_replaced_meshes(project: Project, folder: Path, names) -> None:
+    """After the project file is written: the mesh files of expressions ``names`` (``<expr>.obj``,
+    ``<expr>.<fit id>.obj``, and ``.ply``) in ``folder/results`` that no expression names any more."""
+    named = {project.resolve(p) for e in project.expressions if e.result is not None
+             for p in (e.result.mesh_obj, e.result.mesh_ply) if p is not None}
+    for name in names:
+        stem = re.escape(Path(project.default_result_paths(name)[0]).stem)
+        pattern = re.compile(rf"^{stem}(\.[0-9a-f]{{8}})?\.(obj|ply)$")
+        for f in (folder / "results").glob("*"):
+            if pattern.match(f.name) and f.absolute() not in named:
+                f.unlink(missing_ok=True)
 
 
 def store_fit_meshes(project: Project, expression_name: str, vertices: np.ndarray, faces: np.ndarray,
@@ -185,7 +215,7 @@ def save_results(project: Project, target=None, *, fits: Mapping[str, np.ndarray
     """
     target = target_file(project, target)
     folder = target.parent
-    meshes = {name: fit_mesh_paths(project, name, folder) for name in (fits or {})}
+    meshes = {name: fit_mesh_paths(project, name, folder, fits[name]) for name in (fits or {})}
     for name, paths in meshes.items():  # 1. record
         _record_meshes(project, name, folder, paths)
     for job, _files, rel in textures:
@@ -196,7 +226,10 @@ def save_results(project: Project, target=None, *, fits: Mapping[str, np.ndarray
         _write_meshes(paths, fits[name], faces)
     for job, files, _rel in textures:
         _write_texture(job, files)
-    return write_project(project, target, data)  # 4. the project file, last
+    written = write_project(project, target, data)  # 4. the project file, last
+    if project.path == written:  # 5. the meshes of the fits replaced, no longer named
+        _remove_replaced_meshes(project, folder, meshes)
+    return written
 
 
 def _folder(project: Project, folder: Path | None) -> Path:
