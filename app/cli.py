@@ -8,6 +8,8 @@
                      [--restart] [--correct FRAME --pose JSON] [--no-overlay] [--json]
     facestudio track-many PROJECT VIDEO... [--workers N] [--scheduler ADDR] [--out DIR] [--frames N]
                           [--threads N] [--expressions a,b] [--no-overlay] [--json]
+    facestudio edit PROJECT --track DIR [--scale NAME=F] [--span A:B] [--replace A:B@F] [--no-smooth]
+                    --out edited.mp4 [--json]
     facestudio rig PROJECT [--neutral NAME] [--json]
     facestudio export PROJECT --glb out.glb [--track DIR | --livelink take.csv] [--csv out.csv] [--json]
     facestudio sample-data
@@ -27,6 +29,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from app.edit_command import add_edit_parser
 from app.progress import StageProgress
 from app.rig_command import add_rig_parsers
 from photomodel.errors import FaceStudioError, MissingClicks, ProjectError
@@ -492,6 +495,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--no-overlay", action="store_true", help="do not write the shots' overlay videos")
     m.add_argument("--json", action="store_true", help="print one JSON object (the summary) instead of the table")
     m.set_defaults(func=cmd_track_many)
+    add_edit_parser(sub)
     add_rig_parsers(sub)
     s = sub.add_parser("sample-data", help="fetch, verify and cache the sample data; print its folder")
     s.set_defaults(func=cmd_sample_data)

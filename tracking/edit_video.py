@@ -91,7 +91,7 @@ def most_similar_frames(weights: np.ndarray, targets: np.ndarray) -> np.ndarray:
 
 
 def edit_frames(fitter: FrameFitter, frames, states, edits: list[dict], flow: FlowOptions | None = None,
-                progress=None) -> tuple[list, np.ndarray, dict]:  # fmt: skip
+                progress=None, only=None) -> tuple[list, np.ndarray, dict]:  # fmt: skip
     """The edited frames of a clip (steps 3–4 of the module docstring).
 
     Parameters
@@ -102,10 +102,12 @@ def edit_frames(fitter: FrameFitter, frames, states, edits: list[dict], flow: Fl
     edits : list of edit dicts (:mod:`tracking.edit`).
     flow : FlowOptions, optional.
     progress : callable ``(frame)``, optional.
+    only : sequence of int, optional, the frames to write (default all; the most similar frame is
+        still chosen from the whole clip).
 
     Returns
     -------
-    images : list of T (H, W, 3) float32; alphas : (T, a) edited parameters;
+    images : list of the written (H, W, 3) float32 frames; alphas : (T, a) edited parameters;
     counts : {"edited", "filled_similar", "filled_texture"}.
     """
     model = fitter.model
@@ -116,8 +118,8 @@ def edit_frames(fitter: FrameFitter, frames, states, edits: list[dict], flow: Fl
     similar = most_similar_frames(W, W_new)
     counts = {"edited": 0, "filled_similar": 0, "filled_texture": 0}
     out = []
-    for t, (frame, st) in enumerate(zip(frames, states, strict=True)):
-        frame = np.asarray(frame, np.float32)
+    for n, t in enumerate(range(len(states)) if only is None else only):
+        frame, st = np.asarray(frames[t], np.float32), states[t]
         if np.abs(new[t] - alphas[t]).max(initial=0.0) < UNCHANGED_ALPHA:
             out.append(frame)
         else:
@@ -129,7 +131,7 @@ def edit_frames(fitter: FrameFitter, frames, states, edits: list[dict], flow: Fl
             counts["filled_similar"] += res.filled_similar
             counts["filled_texture"] += res.filled_texture
         if progress is not None:
-            progress(t)
+            progress(n)
     return out, new, counts
 
 
@@ -189,7 +191,8 @@ def _fraction(fps: float) -> Fraction:
 
 def edit_track(track_dir: str | os.PathLike, edits: list[dict], *, smooth: SmoothOptions | None = None,
                out_video: str | os.PathLike | None = None, frames_dir: str | os.PathLike | None = None,
-               flow: FlowOptions | None = None, progress=None) -> EditReport:  # fmt: skip
+               flow: FlowOptions | None = None, project: str | os.PathLike | None = None,
+               progress=None) -> EditReport:  # fmt: skip
     """Edit the expressions of the tracked video in ``track_dir`` (module docstring).
 
     Parameters
@@ -200,6 +203,7 @@ def edit_track(track_dir: str | os.PathLike, edits: list[dict], *, smooth: Smoot
     out_video : a video file to write (``.mp4``), optional.
     frames_dir : a folder for the PNG frames, optional (default ``<out_video stem>_frames`` beside
         the video, or ``track_dir/edited_frames`` without one).
+    project : the project file of the face model (default: the one ``track.json`` names).
     progress : callable ``(stage, done, total)``, optional.
 
     Raises
@@ -214,7 +218,7 @@ def edit_track(track_dir: str | os.PathLike, edits: list[dict], *, smooth: Smoot
     if not records:
         raise FaceStudioError(f"{track_dir}/track.json holds no tracked frame")
     report = progress or (lambda stage, done, total: None)
-    model, _ = project_face_model(load_project(doc["project"]))
+    model, _ = project_face_model(load_project(doc["project"] if project is None else project))
     cam = doc["camera"]
     fitter = FrameFitter(model, cam["focal_px"], cam["width"], cam["height"])
     video = VideoFrames(doc["video"]["path"])

@@ -219,9 +219,10 @@ def edit_frame(renderer, model: FaceModel, camera: Camera, frame: np.ndarray, tr
             s_frame, s_cam, s_alpha = similar
             sflow = expression_flow(renderer, model, raster, s_cam, model.geometry_at(s_alpha))
             ok = ~sflow.hidden & todo[sflow.pixels]
-            src = sflow.source[ok]
-            fill[sflow.pixels[ok]] = cv2.remap(np.asarray(s_frame, np.float32), src[:, 0:1], src[:, 1:2],
-                                               cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[:, 0]  # fmt: skip
+            if ok.any():
+                src = sflow.source[ok]
+                fill[sflow.pixels[ok]] = cv2.remap(np.asarray(s_frame, np.float32), src[:, 0:1], src[:, 1:2],
+                                                   cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[:, 0]  # fmt: skip
             todo[sflow.pixels[ok]] = False
             n_similar = int(ok.sum())
         if todo.any():
