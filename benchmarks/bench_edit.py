@@ -32,7 +32,7 @@ PSNR with peak 1 (intensities in [0, 1]); pixels identical everywhere give 120 d
 
 Run::
 
-    .venv/bin/python benchmarks/bench_edit.py [--frames 100] [--sequences bd] [--json]
+    .venv/bin/python benchmarks/bench_edit.py [--frames 100] [--sequences bd] [--json] [--png strip.png]
 """
 
 from __future__ import annotations
@@ -143,14 +143,16 @@ def face_masks(renderer, fitter, states, alphas_new, t: int) -> tuple[np.ndarray
     return face, ~near
 
 
-def edit_accuracy(run: dict, frames, truth) -> list[dict]:
-    """The edits of :data:`EDITS` on the smoothed (b) track against the truth (module docstring)."""
+def edit_accuracy(run: dict, frames, truth, png: Path | None = None) -> list[dict]:
+    """The edits of :data:`EDITS` on the smoothed (b) track against the truth (module docstring);
+    ``png``: a strip of the middle compared frame — input, then per edit the written frame, the
+    truth and 4× their absolute difference."""
     fitter, states = run["fitter"], run["states"]
     model = fitter.model
     renderer = get_renderer()
     k = EXPRESSION_NAMES.index("smile")
     sel = [t for t in EDIT_FRAMES if t < len(frames)]
-    rows = []
+    rows, strip = [], [frames[sel[len(sel) // 2]]]
     for op, factor in EDITS:
         edit = {"op": "scale", "expression": "smile", "factor": factor}
         images, new, counts = edit_frames(fitter, frames, states, [edit], only=sel)
@@ -165,9 +167,14 @@ def edit_accuracy(run: dict, frames, truth) -> list[dict]:
             face_db.append(psnr(images[j], gt, face))
             out_db.append(psnr(images[j], frames[t], outside))
             paste_db.append(psnr(paste, gt, face))
+            if j == len(sel) // 2:
+                strip += [images[j], gt, np.minimum(4 * np.abs(images[j] - gt), 1.0)]
         rows.append({"op": op, "factor": factor, "psnr_face_db": float(np.mean(face_db)),
                      "psnr_outside_db": float(np.min(out_db)), "psnr_face_paste_db": float(np.mean(paste_db)),
                      "frames": sel, "psnr_face_min_db": float(np.min(face_db)), **counts})  # fmt: skip
+    if png is not None:
+        rgb = np.clip(np.rint(np.hstack(strip) * 255), 0, 255).astype(np.uint8)
+        cv2.imwrite(str(png), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
     return rows
 
 
@@ -177,12 +184,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sequences", default="bd", help="smoothing sequences among b, d (the edits use b)")
     ap.add_argument("--second-difference", type=float, default=SmoothOptions.second_difference)
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--png", type=Path, help="write the middle compared frame: input | per edit: written, truth, "
+                                             "4x |difference|")
     args = ap.parse_args(argv)
     truth = video_truth(args.frames)
     seqs = sequence_frames(truth, args.sequences)
     options = SmoothOptions(second_difference=args.second_difference)
     runs = {s: smooth_sequence(s, seqs[s], truth, options) for s in dict.fromkeys("b" + args.sequences) if s in seqs}
-    edits = edit_accuracy(runs["b"], seqs["b"], truth)
+    edits = edit_accuracy(runs["b"], seqs["b"], truth, args.png)
     used = [runs[s] for s in args.sequences if s in runs]
     smooth = {f"{key}_{kind}": float(np.mean([r[kind][key] for r in used]))
               for key in ("jitter", "rmse", "peak_err") for kind in ("frame", "smooth")}  # fmt: skip
