@@ -26,6 +26,7 @@ import json
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
@@ -40,9 +41,11 @@ from photomodel.photos.intake import default_features, new_project_from_photos
 from photomodel.project import load_project, record_fit, save_project, save_results
 from photomodel.samples.sample_data import sample_data_dir
 from photomodel.texturing.job import TEXTURE_SIZES, encode_texture_outputs, fitted_expressions, texture_expression
-from tracking.many_shots import BatchProgress, BatchResult, track_many
 from tracking.results import default_out_dir, load_track_results
 from tracking.run import track_video
+
+if TYPE_CHECKING:  # the batch module loads Dask: imported where track-many runs
+    from tracking.many_shots import BatchProgress, BatchResult
 
 #: Texture sizes ``facestudio texture`` accepts (texels per side).
 
@@ -381,6 +384,8 @@ def cmd_track_many(args) -> int:
         print("\nfacestudio: stopping every shot after its frame (Ctrl-C again to stop at once)", file=sys.stderr)
 
     previous = signal.signal(signal.SIGINT, on_sigint)
+    # an optional heavy library (Dask, ~1-2 s to import): only the command that needs it loads it
+    from tracking.many_shots import track_many  # noqa: PLC0415
     try:
         names = None if args.expressions is None else [n.strip() for n in args.expressions.split(",") if n.strip()]
         result = track_many(args.project, args.videos, args.out, workers=args.workers, scheduler=args.scheduler,
