@@ -9,6 +9,8 @@ cancellable progress dialog; the results land in :func:`tracking.results.default
 * the footage frame with the model rendered over it — :func:`tracking.overlay_video.overlay_frame`, the
   code path of ``overlay.mp4`` — or the bare frame (a switch);
 * a frame scrubber (slider, frame label; ←/→ step a frame, Home/End jump);
+* an *Edit* tab (:class:`app.qt.edit_panel.EditPanel`, issue 16): scale or replace a weight curve
+  over a span, the edited frame beside the original, undo/redo, export;
 * the parameter curves of :func:`tracking.plots.track_plots` (weights per region, rotation,
   translation, RMS: the paper's Figs. 12–19), each with a vertical marker at the current frame
   drawn on a copy of the plot image (:func:`plot_with_marker`).
@@ -60,6 +62,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.model import StudioModel
+from app.qt.edit_panel import EditPanel
 from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.texture_views import to_qimage
 from app.qt.workers import JobController
@@ -214,6 +217,11 @@ class TrackingView(QWidget):
             area.setWidgetResizable(True)
             self.plot_labels[name] = label
             self.plot_tabs.addTab(area, title)
+        # expression editing (issue 16): thin widgets over tracking.edit_session.EditSession
+        self.edit_panel = EditPanel(self.model)
+        self.plot_tabs.addTab(self.edit_panel, "Edit")
+        self.plot_tabs.currentChanged.connect(
+            lambda i: self.edit_panel.refresh() if self.plot_tabs.widget(i) is self.edit_panel else None)
         split = QSplitter(Qt.Orientation.Horizontal)
         split.addWidget(left)
         split.addWidget(self.plot_tabs)
@@ -457,6 +465,7 @@ class TrackingView(QWidget):
         self.slider.blockSignals(False)
         self.slider.setEnabled(bool(self._records))
         self.caption.setText(self._caption())
+        self.edit_panel.set_review(self.review)
         self._show_frame(0)
         self._update_buttons()
         return True
