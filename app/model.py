@@ -46,14 +46,18 @@ from photomodel.project import (
     Photo,
     Project,
     load_project,
+    load_rig_shapes,
     new_project,
     record_fit,
     save_project,
     save_results,
+    store_rig,
     texture_files,
 )
+from photomodel.rig.build import RigBuilder
 from photomodel.texturing.job import load_stored_texture, load_texture_photos, texture_expression
 from photomodel.texturing.view_dependent import ViewDependentTexture
+from tracking.project_model import register_expression
 
 #: Suffix of the autosave file written next to the project (``<file>.autosave``).
 AUTOSAVE_SUFFIX = ".autosave"
@@ -128,6 +132,37 @@ class TextureState:
 
 
 @dataclass
+class RigState:
+    """The project's rig as the studio shows it: blend shapes on the fitted neutral, with weights.
+
+    Attributes
+    ----------
+    neutral : str, the expression the rig was made on (``project.rig.neutral``).
+    vertices : (N, 3) float mm, that expression's fitted mesh.
+    names : list of str, the rig's ARKit shapes, then the photographed expressions.
+    deltas : (k, N, 3) float mm, each shape's displacement from ``vertices``; a photographed
+        expression's is its fitted mesh registered onto the neutral
+        (:func:`tracking.project_model.register_expression`) minus the neutral.
+    arkit : int, how many of ``names`` are the rig's (ARKit) shapes; the rest are photographed.
+    weights : (k,) float in [0, 1].
+    """
+
+    neutral: str
+    vertices: np.ndarray
+    names: list
+    deltas: np.ndarray
+    arkit: int
+    weights: np.ndarray
+
+    def posed(self) -> np.ndarray:
+        """The neutral plus Σ wᵢ·Δᵢ."""
+        used = np.flatnonzero(self.weights)
+        if not len(used):
+            return self.vertices
+        return self.vertices + np.tensordot(self.weights[used], self.deltas[used], axes=1)
+
+
+@dataclass
 class FitState:
     """The last fit of one expression as the studio holds it.
 
@@ -183,6 +218,9 @@ class StudioModel:
         read (the message names the file); it is not shown, the project stays open.
     active_feature_changed (name or None), active_curve_changed (name or None).
     modified_changed (bool), path_changed (Path or None).
+    rig_changed () — the rig shown (:meth:`rig`) may have changed: another project, a new fit of
+        an expression, or a rig built (:meth:`set_rig`); its weights are back to 0.
+    rig_weights_changed () — a rig weight moved (:meth:`set_rig_weight`, :meth:`reset_rig_weights`).
     """
 
     def __init__(self, project: Project | None = None, mesh_loader: Callable | None = None):
@@ -200,7 +238,13 @@ class StudioModel:
         self.active_curve_changed = Signal()
         self.modified_changed = Signal()
         self.path_changed = Signal()
+        self.rig_changed = Signal()
+        self.rig_weights_changed = Signal()
 
+        self._rig: RigState | None = None
+        self._rig_read = False
+        self.rig_problem: str | None = None  # why the project's rig is not shown
+        self.fit_changed.connect(self._drop_rig)  # a new neutral or expression: read the rig again
         self._mesh_loader = mesh_loader
         self._mesh = None
         self._lines = None
@@ -768,6 +812,104 @@ class StudioModel:
         return tex
 
     # ------------------------------------------------------------------ files
+    # ------------------------------------------------------------------ the rig
+    def rig(self) -> RigState | None:
+        """The project's rig with its weights (read once per project and fit), or None: no rig
+        (``facestudio rig``, :meth:`set_rig`), or it cannot be shown (:attr:`rig_problem` says why)."""
+        if self._rig_read:
+            return self._rig
+        self._rig_read, self._rig, self.rig_problem = True, None, None
+        record = self.project.rig
+        if record is None:
+            return None
+        fit = self.fits.get(record.neutral)
+        if fit is None or fit.vertices is None:
+            self.rig_problem = f"the rig's neutral {record.neutral!r} has no fitted mesh"
+            return None
+        try:
+            names, deltas = load_rig_shapes(self.project)
+        except ProjectError as exc:
+            self.rig_problem = str(exc)
+            return None
+        if deltas.shape[1:] != fit.vertices.shape:
+            self.rig_problem = f"the rig has {deltas.shape[1]} vertices, the fitted mesh {len(fit.vertices)}"
+            return None
+        extra_names, extra = self._photographed_deltas(record.neutral, fit.vertices)
+        D = np.concatenate([deltas, np.reshape(extra, (-1, *fit.vertices.shape))])
+        self._rig = RigState(record.neutral, fit.vertices, list(names) + extra_names, D, len(names),
+                             np.zeros(len(D)))
+        return self._rig
+
+    def _photographed_deltas(self, neutral: str, N: np.ndarray) -> tuple[list[str], list[np.ndarray]]:
+        """The other fitted expressions as shapes on the neutral: registered onto it as tracking's
+        face model does (rigid when fitted with its cameras, else a similarity), minus it."""
+        names, deltas = [], []
+        weight = self.mesh.face_mask.astype(float)
+        for e in self.project.expressions:
+            fit = self.fits.get(e.name)
+            if e.name == neutral or fit is None or fit.vertices is None or fit.vertices.shape != N.shape:
+                continue
+            try:
+                shared = getattr(e, "cameras_from", None) == neutral
+                moved, _ = register_expression(fit.vertices, N, weight, scale=not shared)
+            except FitError:
+                continue
+            names.append(e.name)
+            deltas.append(moved - N)
+        return names, deltas
+
+    def rig_vertices(self) -> np.ndarray | None:
+        """The rig's neutral + Σ wᵢ·Δᵢ while any weight is not 0, else None."""
+        rig = self.rig()
+        if rig is None or not np.any(rig.weights):
+            return None
+        return rig.posed()
+
+    def set_rig_weight(self, name: str, weight: float) -> None:
+        """Set one shape's weight (clipped to [0, 1]); the project is not changed."""
+        rig = self.rig()
+        if rig is None:
+            raise ProjectError("the project has no rig to pose")
+        if name not in rig.names:
+            raise ProjectError(f"the rig has no shape {name!r}")
+        w = float(np.clip(weight, 0.0, 1.0))
+        i = rig.names.index(name)
+        if rig.weights[i] != w:
+            rig.weights[i] = w
+            self.rig_weights_changed.emit()
+
+    def reset_rig_weights(self) -> None:
+        """Every weight back to 0: the neutral."""
+        rig = self.rig()
+        if rig is not None and np.any(rig.weights):
+            rig.weights[:] = 0.0
+            self.rig_weights_changed.emit()
+
+    def compute_rig(self, neutral: str | None = None):
+        """``(neutral, RigResult)``: the rig of a fitted expression (default: the rig's, else the
+        first), as ``facestudio rig`` makes it (:class:`photomodel.rig.build.RigBuilder`); a few
+        seconds, for a worker. Reads only the fitted mesh, taken now."""
+        name = neutral or (self.project.rig.neutral if self.project.rig is not None else None)
+        name = name or (self.project.expressions[0].name if self.project.expressions else None)
+        fit = self.fits.get(name) if name is not None else None
+        if fit is None or fit.vertices is None:
+            raise FitError(f"expression {name!r} is not fitted; fit it first")
+        vertices = fit.vertices.copy()
+        return lambda: (name, RigBuilder(self.mesh).rig(vertices))
+
+    def set_rig(self, neutral: str, rig) -> None:
+        """Store a rig (:meth:`compute_rig`'s result) in the project (``results/rig.npz`` written
+        now next to the project file; the project is then modified) and show it."""
+        if self.project.path is None:
+            raise ProjectError("save the project first: the rig is written next to the project file")
+        store_rig(self.project, neutral=neutral, names=rig.names, deltas=rig.deltas, report=dict(rig.report))
+        self._touch()
+        self._drop_rig()
+
+    def _drop_rig(self, *args) -> None:
+        self._rig, self._rig_read, self.rig_problem = None, False, None
+        self.rig_changed.emit()
+
     def new(self, name: str = "untitled") -> None:
         """Replace the project by a new one with the default features and curves."""
         self._set_project(self._blank_project(name))
@@ -975,6 +1117,7 @@ class StudioModel:
         self.project_replaced.emit()
         self.modified_changed.emit(False)
         self.path_changed.emit(project.path)
+        self._drop_rig()
         self.load_stored_texture(self.expression_name)
 
 
@@ -1017,6 +1160,7 @@ __all__ = [
     "FaceStudioError",
     "FitState",
     "MissingPhotos",
+    "RigState",
     "Signal",
     "StudioModel",
     "autosave_path",

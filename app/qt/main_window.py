@@ -29,7 +29,11 @@ shown, :meth:`~app.model.StudioModel.load_stored_texture`; a damaged file is nam
 bar and that texture is simply not shown). *Expression → Side by
 side* docks the :class:`~app.qt.texture_views.ExpressionsView`. *Tracking → Track video…* / *Open
 results…* dock the :class:`~app.qt.tracking_view.TrackingView` (§6.2: the footage with the model
-overlaid, a frame scrubber, the parameter curves). Every failure is shown in a dialog whose text is the cause
+overlaid, a frame scrubber, the parameter curves). The *Rig* dock (:class:`~app.qt.rig_panel.RigPanel`)
+lists the project's blend shapes (``facestudio rig``) with a slider each, posing the 3D view;
+*Rig → Build rig* makes the rig of the fitted neutral in a worker and writes it next to the
+project (``results/rig.npz``; the project file records it when saved). Every failure is shown in a
+dialog whose text is the cause
 (e.g. ``james.facestudio.json: expressions[0].photos[2].points.nose_tip: expected [u, v] …``).
 """
 
@@ -70,6 +74,7 @@ from app.qt.photo_import import PhotoImporter
 from app.qt.photo_view import CURVE, POINTS, PhotoView
 from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.qt_compat import check_pyside
+from app.qt.rig_panel import RigPanel
 from app.qt.texture_views import ExpressionsView, WeightMapPanel
 from app.qt.tracking_view import TrackingView
 from app.qt.view3d import View3D
@@ -176,6 +181,8 @@ class MainWindow(QMainWindow):
         self.undo_stack = QUndoStack(self)
         self.fits = FitController(self.model, self)
         self.jobs = JobController(self.model, self)
+        self.rig_jobs = JobController(self.model, self)  # Rig → Build rig
+        self._rig_progress: QProgressDialog | None = None
         self.importer = PhotoImporter(self)  # New from photos…, photos added with automatic landmarks
         if recovery_file is not None:
             self.recovery_file = Path(recovery_file)
@@ -280,6 +287,16 @@ class MainWindow(QMainWindow):
         dockt.hide()
         self.tracking_dock = dockt
 
+        self.rig_panel = RigPanel(self.model)
+        dockr = QDockWidget("Rig", self)
+        dockr.setObjectName("rig")
+        dockr.setWidget(self.rig_panel)
+        dockr.setFeatures(movable | QDockWidget.DockWidgetFeature.DockWidgetClosable)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dockr)
+        self.tabifyDockWidget(dock, dockr)
+        dock.raise_()
+        self.rig_dock = dockr
+
 
     def _connect_signals(self):
         """The window follows the model, the undo stack and the workers."""
@@ -305,6 +322,9 @@ class MainWindow(QMainWindow):
         self.jobs.finished.connect(self._on_texture_finished)
         self.jobs.failed.connect(self._on_texture_failed)
         self.jobs.cancelled.connect(self._on_texture_cancelled)
+        self.rig_jobs.finished.connect(self._on_rig_finished)
+        self.rig_jobs.failed.connect(self._on_rig_failed)
+        self.rig_jobs.cancelled.connect(self._on_rig_cancelled)
         # the status bar's "tracking … into …" is replaced by how the run ended (after the
         # tracking view, connected first, has written its last_message)
         track = self.tracking_view.jobs
@@ -341,6 +361,9 @@ class MainWindow(QMainWindow):
                                      tip="add photographs of the current expression and place their landmarks")
         self.act_remove_photo = A("Remove current photo", self.remove_current_photo)
         self.act_quit = A("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        self.act_build_rig = A("&Build rig", self.run_build_rig,
+                               tip="ARKit's blend shapes on the fitted neutral (as `facestudio rig`), written next to "
+                                   "the project")
         self.act_undo = self.undo_stack.createUndoAction(self, "&Undo")
         self.act_undo.setShortcut(QKeySequence.StandardKey.Undo)
         self.act_redo = self.undo_stack.createRedoAction(self, "&Redo")
@@ -427,6 +450,9 @@ class MainWindow(QMainWindow):
         tr.addAction(self.act_first_pose)
         tr.addAction(self.act_track_video)
         tr.addAction(self.act_open_tracking)
+        rg = mb.addMenu("R&ig")
+        rg.addAction(self.act_build_rig)
+        rg.addAction(self.rig_dock.toggleViewAction())
         v = mb.addMenu("&View")
         for a in (self.act_mode_points, self.act_mode_curve):
             v.addAction(a)
@@ -439,6 +465,7 @@ class MainWindow(QMainWindow):
         v.addAction(self.weights_dock.toggleViewAction())
         v.addAction(self.expressions_dock.toggleViewAction())
         v.addAction(self.tracking_dock.toggleViewAction())
+        v.addAction(self.rig_dock.toggleViewAction())
 
     def _build_toolbar(self):
         tb = self.addToolBar("Main")
@@ -1121,6 +1148,56 @@ class MainWindow(QMainWindow):
         self.weights_dock.show()
         self._show_weights_for_stored = False
 
+    # ------------------------------------------------------------------ rig
+    def run_build_rig(self) -> bool:
+        """Build the rig of the fitted neutral in a worker (a few seconds), with a progress dialog."""
+        if self.rig_jobs.busy:
+            self._status("a rig is already being built")
+            return False
+        try:
+            if self.model.project.path is None:
+                raise FaceStudioError("save the project first: the rig is written next to the project file")
+            compute = self.model.compute_rig()
+        except FaceStudioError as exc:
+            self.show_error("Cannot build the rig", str(exc))
+            return False
+
+        def work(progress, cancel):
+            progress("transferring ICT-FaceKit's 51 expressions onto the neutral…", 0.1)
+            return compute()
+
+        self.rig_jobs.start(work)
+        self._rig_progress = open_progress(self, "Rig", "Building the rig…", self.rig_jobs.cancel)
+        self._rig_progress.setRange(0, 0)  # busy: the transfer reports no steps
+        self._status("building the rig…", 0)
+        return True
+
+    def _close_rig_progress(self):
+        close_progress(self._rig_progress, self.rig_jobs.cancel)
+        self._rig_progress = None
+
+    def _on_rig_finished(self, result):
+        self._close_rig_progress()
+        neutral, rig = result
+        try:
+            self.model.set_rig(neutral, rig)
+        except FaceStudioError as exc:
+            self.show_error("Cannot store the rig", str(exc))
+            return
+        self.rig_dock.show()
+        self.rig_dock.raise_()
+        self._status(f"rig of {neutral!r}: {len(rig.names)} ARKit shapes in {self.model.project.rig.file}; "
+                     "save the project to keep it")
+
+    def _on_rig_failed(self, message: str):
+        self._close_rig_progress()
+        self._status("")
+        self.show_error("Building the rig failed", message)
+
+    def _on_rig_cancelled(self):
+        self._close_rig_progress()
+        self._status("rig building cancelled; nothing changed")
+
     def _on_texture_load_failed(self, expression: str, message: str):
         self._status(f"{message}{REEXTRACT_HINT}", 20000)
 
@@ -1243,6 +1320,7 @@ class MainWindow(QMainWindow):
             return
         self.fits.shutdown()
         self.jobs.shutdown()
+        self.rig_jobs.shutdown()
         self.importer.shutdown()
         self.tracking_view.jobs.shutdown()
         self.autosave_timer.stop()

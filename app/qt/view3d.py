@@ -14,6 +14,9 @@ without moving) on the mesh picks the nearest named feature as the active one; t
 features are drawn as dots, the active one ringed and named; the pose feature to click next (the
 first of the fit's checklist, :meth:`~app.model.StudioModel.next_feature`) is ringed in orange and
 named "next".
+While a weight of the project's rig is not 0 (the studio's rig panel, :class:`~app.qt.rig_panel.RigPanel`)
+the view shows the rig's neutral + Σ wᵢ·Δᵢ (:meth:`~app.model.StudioModel.rig_vertices`), with the
+neutral's cylindrical texture when that is the expression shown, else shaded.
 """
 
 from __future__ import annotations
@@ -78,7 +81,8 @@ class View3D(QWidget):
         self.setMinimumSize(160, 160)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setMouseTracking(False)
-        for sig in (model.project_replaced, model.expression_changed, model.fit_changed, model.features_changed):
+        for sig in (model.project_replaced, model.expression_changed, model.fit_changed, model.features_changed,
+                    model.rig_changed, model.rig_weights_changed):
             sig.connect(self.invalidate)
         model.active_feature_changed.connect(lambda *_: self.update())
         model.points_changed.connect(lambda *_: self.update())  # the next feature to click may change
@@ -90,6 +94,12 @@ class View3D(QWidget):
     # ------------------------------------------------------------------ what is shown
     def vertices(self) -> tuple[np.ndarray, str]:
         """The vertices shown and a caption."""
+        posed = self.model.rig_vertices()
+        if posed is not None:
+            rig = self.model.rig()
+            moved = [f"{n} {w:.2f}" for n, w in zip(rig.names, rig.weights, strict=True) if w]
+            more = f" +{len(moved) - 3}" if len(moved) > 3 else ""
+            return posed, f"rig on {rig.neutral} — {', '.join(moved[:3])}{more}"
         fit = self.model.fit()
         if fit is not None and fit.vertices is not None:
             how = (" — view-dependent texture" if self.view_dependent is not None
@@ -140,6 +150,11 @@ class View3D(QWidget):
         t0 = time.perf_counter()
         faces = self.model.mesh.faces
         vd = self.view_dependent
+        texture = self.texture
+        if self.model.rig_vertices() is not None:  # the rig posed: its geometry, not the photos'
+            vd = None
+            if self.model.rig().neutral != self.model.expression_name:
+                texture = None
         if vd is not None and len(vd.vertices) != len(V):
             vd = None  # made for another mesh
         if vd is not None:
@@ -147,8 +162,8 @@ class View3D(QWidget):
             # its depth serves the feature dots
             out = vd.render(cam, background=BACKGROUND)
             color = out.color
-        elif self.texture is not None:
-            uv, image, index, tfaces = self.texture
+        elif texture is not None:
+            uv, image, index, tfaces = texture
             Vt, Ft = (V, faces) if index is None else (V[index], tfaces)
             # the photographs hold the lighting: no shading on top (as the view-dependent image)
             out = get_renderer().render(cam, Vt, Ft, background=BACKGROUND, uv=uv, texture=image)
