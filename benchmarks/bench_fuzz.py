@@ -96,40 +96,49 @@ def _strategy(kind: str):
     return mutants(_base(), kind)
 
 
-def _fuzz_tasks(total: int, seed0: int) -> list[tuple[str, int, int]]:
-    """Tasks of at most :data:`TASK` mutants, every kind its share of ``total`` (small kinds
-    capped by :data:`SMALL_KINDS`, their rest shared by the others)."""
-    capped = {k: min(SMALL_KINDS.get(k, total), math.ceil(total / len(MUTATIONS))) for k in MUTATIONS}
-    big = [k for k in MUTATIONS if k not in SMALL_KINDS]
-    rest = total - sum(capped[k] for k in SMALL_KINDS)
-    share = {k: (capped[k] if k in SMALL_KINDS else math.ceil(rest / len(big))) for k in MUTATIONS}
+def _fuzz_tasks(total: int, seed0: int, kinds=MUTATIONS) -> list[tuple[str, int, int]]:
+    """Tasks of at most :data:`TASK` mutants, each of ``kinds`` its share of ``total`` (small
+    kinds capped by :data:`SMALL_KINDS`, their rest shared by the others)."""
+    small = [k for k in kinds if k in SMALL_KINDS]
+    big = [k for k in kinds if k not in SMALL_KINDS]
+    share = {k: min(SMALL_KINDS[k], math.ceil(total / len(kinds))) for k in small}
+    rest = total - sum(share.values())
+    share.update({k: math.ceil(rest / len(big)) for k in big})
     tasks = []
-    for k, n in share.items():
+    for k in kinds:
         if k in SMALL_KINDS:  # one run: hypothesis does not repeat a mutant within a run
-            tasks.append((k, seed0, n))
+            tasks.append((k, seed0, share[k]))
             continue
-        for i in range(math.ceil(n / TASK)):
-            tasks.append((k, seed0 + 1000 * MUTATIONS.index(k) + i, min(TASK, n - i * TASK)))
+        for i in range(math.ceil(share[k] / TASK)):
+            tasks.append((k, seed0 + 1000 * MUTATIONS.index(k) + i, min(TASK, share[k] - i * TASK)))
     return tasks
 
 
 def fuzz_section(args, log) -> dict:
-    """``{"fuzz": {"mutants", "loaded", "project_errors", "other_exceptions", "by_kind"}}``."""
-    tasks = _fuzz_tasks(args.mutants, args.seed)
+    """``{"fuzz": {"mutants", "loaded", "project_errors", "other_exceptions", "by_kind"}}``.
+
+    A small kind may run out of distinct mutants before its share; the shortfall is then drawn
+    from the other kinds on fresh seeds, so that at least ``args.mutants`` are checked."""
     by_kind: dict[str, Counter] = {k: Counter() for k in MUTATIONS}
     examples: list[str] = []
     t0 = time.perf_counter()
+    tasks = _fuzz_tasks(args.mutants, args.seed)
     with Pool(args.workers) as pool:
-        for i, r in enumerate(pool.imap_unordered(_fuzz_task, tasks), 1):
-            by_kind[r["kind"]].update(r["counts"])
-            examples += r["examples"]
-            done = sum(sum(c.values()) for c in by_kind.values())
-            if i % 10 == 0 or i == len(tasks):
-                log(f"fuzz: {done} mutants, {sum(c['other'] for c in by_kind.values())} other exceptions, "
-                    f"{time.perf_counter() - t0:.0f} s")
+        for attempt in range(1, 4):
+            for i, r in enumerate(pool.imap_unordered(_fuzz_task, tasks), 1):
+                by_kind[r["kind"]].update(r["counts"])
+                examples += r["examples"]
+                if i % 10 == 0 or i == len(tasks):
+                    log(f"fuzz: {_done(by_kind)} mutants, {sum(c['other'] for c in by_kind.values())} other "
+                        f"exceptions, {time.perf_counter() - t0:.0f} s")
+            missing = args.mutants - _done(by_kind)
+            if missing <= 0:
+                break
+            big = [k for k in MUTATIONS if k not in SMALL_KINDS]
+            tasks = _fuzz_tasks(missing, args.seed + 100_000 * attempt, big)
     for e in examples[:10]:
         log("other exception: " + e)
-    total = Counter()
+    total: Counter = Counter()
     for c in by_kind.values():
         total.update(c)
     return {"fuzz": {"mutants": sum(total.values()), "loaded": total["loaded"],
@@ -137,6 +146,10 @@ def fuzz_section(args, log) -> dict:
                      "seconds": round(time.perf_counter() - t0, 1),
                      "by_kind": {k: {"mutants": sum(c.values()), "loaded": c["loaded"],
                                      "other_exceptions": c["other"]} for k, c in by_kind.items()}}}
+
+
+def _done(by_kind: dict) -> int:
+    return sum(sum(c.values()) for c in by_kind.values())
 
 
 def _benign_task(task: tuple[int, int]) -> dict:
