@@ -1323,6 +1323,7 @@ class MainWindow(QMainWindow):
         self.rig_jobs.shutdown()
         self.importer.shutdown()
         self.tracking_view.jobs.shutdown()
+        self.tracking_view.edit_panel.jobs.shutdown()  # an export of edited frames
         self.autosave_timer.stop()
         self._drop_recovery()  # the project was saved, discarded or unchanged: nothing left to recover
         event.accept()
