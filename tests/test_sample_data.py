@@ -14,7 +14,7 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 
 from photomodel.errors import SampleDataError
-from photomodel.samples import sample_data
+from photomodel.samples import fetch, sample_data
 from photomodel.samples.sample_data import (
     FILE_SHA256,
     JAMES_TO_IBUG68,
@@ -39,9 +39,9 @@ def test_cached_files_match_their_checksums():
 def test_cache_folder_follows_environment(monkeypatch, tmp_path):
     monkeypatch.delenv("FACESTUDIO_CACHE", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    assert sample_data.cache_dir() == tmp_path / "xdg" / "facestudio"
+    assert fetch.cache_dir() == tmp_path / "xdg" / "facestudio"
     monkeypatch.setenv("FACESTUDIO_CACHE", str(tmp_path / "mine"))
-    assert sample_data.cache_dir() == tmp_path / "mine"
+    assert fetch.cache_dir() == tmp_path / "mine"
 
 
 @pytest.fixture

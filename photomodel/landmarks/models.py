@@ -15,7 +15,7 @@ read out of it (:mod:`photomodel.samples.fetch`: archive and file checksums, cac
 install). The full-range detector of the same wheel is not used: it is stored sparse and
 OpenCV 5 cannot import its ``DENSIFY`` operator.
 
-Cache: ``<cache>/mediapipe-0.10.21/`` (see :func:`photomodel.samples.sample_data.cache_dir`).
+Cache: ``<cache>/mediapipe-0.10.21/`` (see :func:`photomodel.samples.fetch.cache_dir`).
 Offline, set ``FACESTUDIO_MEDIAPIPE_WHEEL`` to a local copy of the wheel.
 
 ``python -m photomodel.landmarks.models`` fetches the models ahead of time (install.sh runs it)
@@ -27,8 +27,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from photomodel.errors import SampleDataError
-from photomodel.samples.fetch import PackageFiles, package_files
+from photomodel.samples.fetch import PackageFiles, package_files, print_folder
 
 LANDMARK_MODEL = "face_landmark.tflite"
 DETECTION_MODEL = "face_detection_short_range.tflite"
@@ -77,12 +76,7 @@ def model_dir() -> Path:
 def main(argv: list[str] | None = None) -> int:
     """``python -m photomodel.landmarks.models``: fetch and verify the models, print their folder."""
     del argv
-    try:
-        print(model_dir())
-    except SampleDataError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
-    return 0
+    return print_folder(model_dir)
 
 
 if __name__ == "__main__":

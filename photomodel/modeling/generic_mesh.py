@@ -40,7 +40,8 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from photomodel.rendering.renderer import vertex_normals
-from photomodel.samples.sample_data import Template, _load_npz, _save_npz, cache_dir, load_template
+from photomodel.samples.fetch import cache_dir
+from photomodel.samples.sample_data import Template, _load_npz, _save_npz, load_template
 
 #: Cache key of the built mesh; change it whenever the recipe below changes its output.
 GENERIC_MESH_VERSION = "2-faces16000"

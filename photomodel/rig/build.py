@@ -39,7 +39,8 @@ from photomodel.modeling.generic_mesh import GENERIC_MESH_VERSION, GenericMesh
 from photomodel.rig.ict import RIG_SHAPES, IctModel, arkit_deltas, load_ict
 from photomodel.rig.registration import Registration, register_ict
 from photomodel.rig.transfer import DeformationTransfer, soft_triangles
-from photomodel.samples.sample_data import _load_npz, _save_npz, cache_dir
+from photomodel.samples.fetch import cache_dir
+from photomodel.samples.sample_data import _load_npz, _save_npz
 
 __all__ = ["Rig", "RigBuilder", "load_registration", "IDENTITY_MODES", "IDENTITY_RIDGE", "SUPPORT_MM",
            "REGISTRATION_VERSION"]  # fmt: skip

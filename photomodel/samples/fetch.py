@@ -23,11 +23,24 @@ import sys
 import tarfile
 import tempfile
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from photomodel.errors import SampleDataError
-from photomodel.samples.sample_data import cache_dir
+
+#: Environment variable naming Face Studio's cache folder.
+ENV_CACHE = "FACESTUDIO_CACHE"
+
+
+def cache_dir() -> Path:
+    """Face Studio's cache folder (not created): ``$FACESTUDIO_CACHE``, else
+    ``$XDG_CACHE_HOME/facestudio``, else ``~/.cache/facestudio``."""
+    if os.environ.get(ENV_CACHE):
+        return Path(os.environ[ENV_CACHE]).expanduser()
+    if os.environ.get("XDG_CACHE_HOME"):
+        return Path(os.environ["XDG_CACHE_HOME"]).expanduser() / "facestudio"
+    return Path.home() / ".cache" / "facestudio"
 
 
 @dataclass(frozen=True)
@@ -48,6 +61,9 @@ class PackageFiles:
         arguments that pin the archive kind, e.g. ``("--only-binary=:all:", "--platform", ...)``.
     env_archive : str
         environment variable naming a local copy of the archive (offline installs).
+    note : str
+        a sentence of advice for this archive, added to every error (e.g. what pip needs to
+        prepare a source distribution).
     """
 
     package: str
@@ -57,6 +73,7 @@ class PackageFiles:
     members: dict[str, tuple[str, str]] = field(hash=False)
     pip_args: tuple[str, ...]
     env_archive: str
+    note: str = ""
 
     @property
     def folder(self) -> Path:
@@ -70,6 +87,7 @@ class PackageFiles:
             f"download {self.archive_name} by other means and set {self.env_archive}=/path/to/"
             f"{self.archive_name}, or set FACESTUDIO_CACHE to a folder whose "
             f"{self.package}-{self.version}/ subfolder already holds {', '.join(self.members)}."
+            + (f" {self.note}" if self.note else "")
         )
 
 
@@ -185,3 +203,14 @@ def _install_atomically(spec: PackageFiles, staged: Path, target: Path) -> None:
             raise
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def print_folder(folder: Callable[[], Path]) -> int:
+    """What a fetching module's ``python -m`` does: call ``folder`` (fetch and verify), print the
+    folder; exit status 1 with the error on stderr when it fails."""
+    try:
+        print(folder())
+    except SampleDataError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    return 0

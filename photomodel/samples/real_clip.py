@@ -28,8 +28,7 @@ from photomodel.exchange.files import atomic_write_bytes
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.intake import default_features, new_project_from_photos
 from photomodel.project import save_project
-from photomodel.samples.fetch import PackageFiles, package_files
-from photomodel.samples.sample_data import cache_dir
+from photomodel.samples.fetch import PackageFiles, cache_dir, package_files
 
 CLIP = "WolfgangLanger_Pexels.mp4"
 

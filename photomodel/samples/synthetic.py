@@ -39,7 +39,8 @@ from trimesh.triangles import closest_point
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, orbit_camera, rodrigues
 from photomodel.rendering.renderer import get_renderer, vertex_normals
-from photomodel.samples.sample_data import _load_npz, _save_npz, cache_dir
+from photomodel.samples.fetch import cache_dir
+from photomodel.samples.sample_data import _load_npz, _save_npz
 from photomodel.texturing import visibility
 
 if TYPE_CHECKING:  # imported lazily at run time: only these functions need the sample data

@@ -36,7 +36,8 @@ from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.project import load_project, save_project, store_fit_result, store_texture_result
 from photomodel.rendering.renderer import get_renderer
-from photomodel.samples.sample_data import cache_dir, load_james_scan
+from photomodel.samples.fetch import cache_dir
+from photomodel.samples.sample_data import load_james_scan
 from photomodel.samples.synthetic import HEAD_CENTRE_MM, barycentric_coordinates, scan_surface, true_correspondence
 from photomodel.texturing.job import encode_texture_outputs, texture_expression
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions
@@ -278,7 +279,7 @@ def fitted_sample_project(progress=None) -> Path:
     """A copy of the sample project with every expression fitted and textured, as a user gets with
     ``facestudio fit`` then ``facestudio texture``: the path of its project file.
 
-    Made once in the cache (:func:`photomodel.samples.sample_data.cache_dir`, folder ``fitted_james/<key>``,
+    Made once in the cache (:func:`photomodel.samples.fetch.cache_dir`, folder ``fitted_james/<key>``,
     the key a hash of the project file, its photos and :data:`FITTED_SAMPLE_VERSION`; about half a
     minute on two cores) and reused; ``progress(stage, fraction)`` is told how far it got. Tests and
     benchmarks track with the face model of this project (:func:`fitted_sample_model`).
