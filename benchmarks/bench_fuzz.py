@@ -24,8 +24,6 @@ on its own seed; the figures do not depend on the number of workers' timing, onl
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
 import sys
@@ -38,6 +36,7 @@ from multiprocessing import Pool
 from pathlib import Path
 
 from hypothesis import HealthCheck, Phase, given, seed, settings
+from sections import run_sections, section_parser  # benchmarks/sections.py
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository, when not installed
 
@@ -202,27 +201,12 @@ if (Path(__file__).with_name("monkey.py")).exists():  # the studio's monkey sect
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    ap = section_parser(__doc__.splitlines()[0])
     ap.add_argument("--mutants", type=int, default=10_000, help="harmful mutants (the bar: >= 10 000)")
     ap.add_argument("--benign", type=int, default=1000, help="benign mutants")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes checking mutants")
     ap.add_argument("--seed", type=int, default=0, help="first hypothesis seed")
-    ap.add_argument("--only", choices=list(SECTIONS), action="append", help="run only these sections")
-    args = ap.parse_args(argv)
-    log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    out: dict = {}
-    for key, section in SECTIONS.items():
-        if args.only and key not in args.only:
-            continue
-        out.update(section(args, log))
-    if args.json:
-        print(json.dumps(out, indent=1))
-    else:
-        for key, value in out.items():
-            print(f"{key}: {json.dumps(value)}")
-    return 0
+    return run_sections(ap, SECTIONS, argv)
 
 
 if __name__ == "__main__":

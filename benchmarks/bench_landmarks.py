@@ -34,13 +34,12 @@ The mapping's nose line and nostrils were chosen on renders of the same scan at 
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import time
 
 import numpy as np
 from autofit import auto_fit_section, real_sample_section  # the fit sections (benchmarks/autofit.py)
+from sections import run_sections, section_parser  # benchmarks/sections.py
 
 from photomodel.camera import orbit_camera
 from photomodel.errors import NoFaceFound
@@ -147,24 +146,9 @@ SECTIONS = {"menpo": menpo_section, "yaw_bins": yaw_section, "auto_fit": auto_fi
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    ap = section_parser(__doc__.splitlines()[0])
     ap.add_argument("--renders", type=int, default=25, help="renders of the scan from -90 to 90 degrees")
-    ap.add_argument("--only", choices=list(SECTIONS), action="append", help="run only these sections")
-    args = ap.parse_args(argv)
-    log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    out: dict = {}
-    for key, section in SECTIONS.items():
-        if args.only and key not in args.only:
-            continue
-        out.update(section(args, log))
-    if args.json:
-        print(json.dumps(out, indent=1))
-    else:
-        for key, value in out.items():
-            print(f"{key}: {value}")
-    return 0
+    return run_sections(ap, SECTIONS, argv)
 
 
 if __name__ == "__main__":
