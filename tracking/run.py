@@ -12,8 +12,9 @@
   outlined (written when the whole video is tracked), and ``overlay_last.png``, its last frame
   (:mod:`tracking.overlay_video`).
 
-Cancel-safe and resumable: the results are written atomically every :data:`SAVE_EVERY` frames,
-when ``cancel()`` says stop and on Ctrl-C, so the files on disk are always complete and valid for
+Cancel-safe and resumable: the results are written atomically every :data:`SAVE_EVERY` frames
+(less often once writing the growing file would cost more than 1/:data:`SAVE_OVERHEAD` of the
+fitting), when ``cancel()`` says stop and on Ctrl-C, so the files on disk are always complete and valid for
 the frames they list. A second run with the same settings on the same folder continues after the
 last saved frame, its prediction restored from the last two saved frames (the JSON keeps the
 parameters at full precision, so a resumed run computes what an uninterrupted one would). Other
@@ -90,6 +91,10 @@ __all__ = ["SAVE_EVERY", "WORK_FACE_PX", "TrackResult", "track_video"]
 
 #: Results are written after every this many tracked frames (and at the end, on cancel, on Ctrl-C).
 SAVE_EVERY = 5
+#: … or less often: a save waits until the frames fitted since the last one took this many times as
+#: long as writing the file did (saves cost at most ~5 % of the fitting; on the real clip's first 60
+#: frames, re-encoding the growing track.json every 5 frames took 8 % and grew with every frame).
+SAVE_OVERHEAD = 20.0
 #: Frames are fitted reduced by an integer factor so that the face is at most about this tall (px):
 #: the cost grows with the covered pixels, and the benchmark's 300×300 sample (face ~150 px) is
 #: tracked to 0.5° at full size. The real clip's face (~265 px of 640×360) is fitted at 320×180.
@@ -374,7 +379,7 @@ def _fit_frames(run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: 
     if records[:start]:
         watch.last_diverged = bool(records[start - 1]["diverged"])
     cancelled, ended, seconds = False, False, 0.0
-    unsaved = 0
+    unsaved, since_save, save_cost = 0, 0.0, 0.0
     try:
         for i, frame in run.video.frames(start, limit):
             t0 = time.perf_counter()
@@ -385,9 +390,13 @@ def _fit_frames(run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: 
             records[-1]["landmarks_xy"] = watch.landmarks(fitter, res.state)
             states = (states + [res.state])[-2:]
             unsaved += 1
-            if unsaved >= save_every:
+            since_save += dt
+            # every save_every frames, but writing the whole file (it grows with the clip) may take
+            # at most 1/SAVE_OVERHEAD of the fitting time: quadratic in the clip's length otherwise
+            if unsaved >= save_every and since_save >= SAVE_OVERHEAD * save_cost:
+                t_save = time.perf_counter()
                 save_results(run.out, doc, False)
-                unsaved = 0
+                save_cost, unsaved, since_save = time.perf_counter() - t_save, 0, 0.0
             if progress is not None:
                 progress(i + 1, total)
             if cancel is not None and cancel():
