@@ -241,62 +241,45 @@ class MainWindow(QMainWindow):
         self.panel = FeaturePanel(self.model, undo_stack=self.undo_stack)
         self.panel.jump_requested.connect(self.jump_to)
         self.panel.photo_requested.connect(self.show_photo)
-        dock = QDockWidget("Features and fit", self)
-        dock.setObjectName("features")
-        dock.setWidget(self.panel)
-        movable = QDockWidget.DockWidgetFeature.DockWidgetMovable | QDockWidget.DockWidgetFeature.DockWidgetFloatable
-        dock.setFeatures(movable)
-        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dock)
-        self.features_dock = dock
+        left, right = Qt.DockWidgetArea.LeftDockWidgetArea, Qt.DockWidgetArea.RightDockWidgetArea
+        bottom = Qt.DockWidgetArea.BottomDockWidgetArea
+        dock = self.features_dock = self._dock("Features and fit", "features", self.panel, left, closable=False)
 
         self.view3d = View3D(self.model)
-        dock3 = QDockWidget("3D view", self)
-        dock3.setObjectName("view3d")
-        dock3.setWidget(self.view3d)
-        dock3.setFeatures(movable)
-        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock3)
+        dock3 = self.view3d_dock = self._dock("3D view", "view3d", self.view3d, right, closable=False)
         self.resizeDocks([dock, dock3], [330, 400], Qt.Orientation.Horizontal)
-        self.view3d_dock = dock3
 
         self.weights_panel = WeightMapPanel(self.model)
-        dockw = QDockWidget("Texture and weight maps", self)
-        dockw.setObjectName("weight_maps")
-        dockw.setWidget(self.weights_panel)
-        dockw.setFeatures(movable | QDockWidget.DockWidgetFeature.DockWidgetClosable)
-        self.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dockw)
+        dockw = self.weights_dock = self._dock("Texture and weight maps", "weight_maps", self.weights_panel, right)
         self.splitDockWidget(dock3, dockw, Qt.Orientation.Vertical)  # under the 3D view
         dockw.hide()  # shown by the first texture
-        self.weights_dock = dockw
 
         self.expressions_view = ExpressionsView(self.model)
-        docke = QDockWidget("Expressions side by side", self)
-        docke.setObjectName("expressions")
-        docke.setWidget(self.expressions_view)
-        docke.setFeatures(movable | QDockWidget.DockWidgetFeature.DockWidgetClosable)
-        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, docke)
+        docke = self.expressions_dock = self._dock("Expressions side by side", "expressions",
+                                                   self.expressions_view, bottom)
         docke.hide()
-        self.expressions_dock = docke
 
         self.tracking_view = TrackingView(self.model)
-        dockt = QDockWidget("Tracking", self)
-        dockt.setObjectName("tracking")
-        dockt.setWidget(self.tracking_view)
-        dockt.setFeatures(movable | QDockWidget.DockWidgetFeature.DockWidgetClosable)
-        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, dockt)
+        dockt = self.tracking_dock = self._dock("Tracking", "tracking", self.tracking_view, bottom)
         self.tabifyDockWidget(docke, dockt)
         dockt.hide()
-        self.tracking_dock = dockt
 
         self.rig_panel = RigPanel(self.model)
-        dockr = QDockWidget("Rig", self)
-        dockr.setObjectName("rig")
-        dockr.setWidget(self.rig_panel)
-        dockr.setFeatures(movable | QDockWidget.DockWidgetFeature.DockWidgetClosable)
-        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dockr)
-        self.tabifyDockWidget(dock, dockr)
+        self.rig_dock = self._dock("Rig", "rig", self.rig_panel, left)
+        self.tabifyDockWidget(dock, self.rig_dock)
         dock.raise_()
-        self.rig_dock = dockr
 
+    def _dock(self, title: str, name: str, widget, area, *, closable: bool = True) -> QDockWidget:
+        """A movable, floatable dock (closable unless told) holding ``widget``, added at ``area``."""
+        dock = QDockWidget(title, self)
+        dock.setObjectName(name)
+        dock.setWidget(widget)
+        features = QDockWidget.DockWidgetFeature.DockWidgetMovable | QDockWidget.DockWidgetFeature.DockWidgetFloatable
+        if closable:
+            features |= QDockWidget.DockWidgetFeature.DockWidgetClosable
+        dock.setFeatures(features)
+        self.addDockWidget(area, dock)
+        return dock
 
     def _connect_signals(self):
         """The window follows the model, the undo stack and the workers."""
