@@ -328,11 +328,10 @@ def plausibility_problem(cameras, points, generic_points, names=None, view_names
             return f"photo {vnames[j]!r} got a focal length of {fmm:.3g} mm (35 mm equivalent)"
     if len(pts) < 4:
         return None
-    s, R, t = similarity_transform(pts, gen)
-    aligned = pts @ (s * R).T + t
+    aligned = _aligned(pts, gen)
     size = float(np.sqrt(((gen - gen.mean(0)) ** 2).sum(1).mean()))
     misfit = float(np.sqrt(((aligned - gen) ** 2).sum(1).mean()))
-    ratio = _depth_ratio(pts, gen)
+    ratio = _depth_ratio(aligned, gen)
     if not DEPTH_RATIO_RANGE[0] <= ratio <= DEPTH_RATIO_RANGE[1]:
         return (f"the face came out {ratio * np.ptp(gen[:, 2]):.0f} mm deep after scaling to the generic head "
                 f"(the generic head's features span {np.ptp(gen[:, 2]):.0f} mm)")
@@ -342,14 +341,19 @@ def plausibility_problem(cameras, points, generic_points, names=None, view_names
     return None
 
 
-def _depth_ratio(points: np.ndarray, generic_points: np.ndarray) -> float:
-    """The depth extent of ``points`` after a similarity onto the generic head's, over the generic
-    head's (1 where the generic head has no depth)."""
+def _aligned(points: np.ndarray, generic_points: np.ndarray) -> np.ndarray:
+    """``points`` moved onto the generic head's by their least-squares similarity."""
     s, R, t = similarity_transform(points, generic_points)
+    return points @ (s * R).T + t
+
+
+def _depth_ratio(aligned: np.ndarray, generic_points: np.ndarray) -> float:
+    """The depth extent of points already aligned onto the generic head's (:func:`_aligned`), over
+    the generic head's (1 where the generic head has no depth)."""
     depth_gen = float(np.ptp(generic_points[:, 2]))
     if depth_gen <= 1e-9:
         return 1.0
-    return float(np.ptp((points @ (s * R).T + t)[:, 2])) / depth_gen
+    return float(np.ptp(aligned[:, 2])) / depth_gen
 
 
 # ----------------------------------------------------------------------------------------------
@@ -541,7 +545,10 @@ def _depth_from_prior(prob, st, used, sigma, p0, template, names, vname):
     measure a different depth, the bundle-adjustment minimum is kept.
     """
     m = len(p0)
-    if m < 4 or not sigma > 0 or DEPTH_RATIO_USUAL[0] <= _depth_ratio(st.m, p0) <= DEPTH_RATIO_USUAL[1]:
+    if m < 4 or not sigma > 0:
+        return None
+    free_ratio = _depth_ratio(_aligned(st.m, p0), p0)
+    if DEPTH_RATIO_USUAL[0] <= free_ratio <= DEPTH_RATIO_USUAL[1]:
         return None
     e_free = prob.evaluate(st, used)[4]
     saved = prob.valid, prob.prior, prob.beta
@@ -558,7 +565,7 @@ def _depth_from_prior(prob, st, used, sigma, p0, template, names, vname):
     delta = float(((e_alt**2).sum() - (e_free**2).sum()) / sigma**2)
     if not delta < stats.chi2.ppf(0.95, 3 * m - 7):
         return None
-    if abs(_depth_ratio(alt.m, p0) - _depth_ratio(st.m, p0)) < DEPTH_RATIO_MOVE_MIN:
+    if abs(_depth_ratio(_aligned(alt.m, p0), p0) - free_ratio) < DEPTH_RATIO_MOVE_MIN:
         return None  # the prior barely moves it: the clicks do hold this depth, keep their minimum
     cams = prob.cameras(alt, template)
     if plausibility_problem(cams, alt.m, p0, names, vname) is not None:
