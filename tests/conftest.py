@@ -4,6 +4,7 @@ import os
 import shutil
 from pathlib import Path
 
+import exchange_data
 import pytest
 
 from photomodel.modeling.generic_mesh import load_generic_mesh
@@ -140,3 +141,16 @@ def studio_window(qtbot, tmp_path, messages):
     yield w
     w.fits.shutdown()
     w.model.modified = False  # no unsaved-changes prompt when the test ends
+
+
+# -- the exchange tests' data (tests/exchange_data.py), one copy per test module ---------------------
+@pytest.fixture(scope="module", name="sphere")
+def sphere_fixture():
+    """The seamed test sphere of :func:`exchange_data.sphere`."""
+    return exchange_data.sphere()
+
+
+@pytest.fixture(scope="module", name="texture")
+def texture_fixture():
+    """The every-texel-unique texture of :func:`exchange_data.texture`."""
+    return exchange_data.texture()

@@ -21,9 +21,7 @@ from exchange_data import (
     assert_reopened_renders_like_the_original,
     glb_accessor,
     seam_corners,
-    sphere,
     texel_uv,
-    texture,
 )
 from PIL import Image
 
@@ -35,16 +33,6 @@ from photomodel.rendering.sampling import sample_texture
 # glTF 2.0 constants, from the spec
 GLB_MAGIC, JSON_CHUNK, BIN_CHUNK = 0x46546C67, 0x4E4F534A, 0x004E4942
 FLOAT, UNSIGNED_INT, ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER, TRIANGLES = 5126, 5125, 34962, 34963, 4
-
-
-@pytest.fixture(scope="module", name="sphere")
-def sphere_fixture():
-    return sphere()
-
-
-@pytest.fixture(scope="module", name="texture")
-def texture_fixture():
-    return texture()
 
 
 def glb_chunks(data: bytes) -> tuple[dict, bytes]:

@@ -15,24 +15,12 @@ from exchange_data import (
     POS_TOL_MM,
     assert_reopened_renders_like_the_original,
     seam_corners,
-    sphere,
-    texture,
 )
 from PIL import Image
 from scipy.spatial import cKDTree
 
 from photomodel.exchange.obj import encode_textured_obj, write_textured_obj
 from photomodel.exchange.uv import split_uv_seams
-
-
-@pytest.fixture(scope="module", name="sphere")
-def sphere_fixture():
-    return sphere()
-
-
-@pytest.fixture(scope="module", name="texture")
-def texture_fixture():
-    return texture()
 
 
 def content_lines(data: bytes) -> list[str]:

@@ -11,20 +11,9 @@ import struct
 import numpy as np
 import pytest
 import trimesh
-from exchange_data import POS_TOL_MM, sphere, texel_uv, texture
+from exchange_data import POS_TOL_MM, texel_uv
 
 from photomodel.exchange.ply import encode_colored_ply, write_colored_ply
-
-
-@pytest.fixture(scope="module", name="sphere")
-def sphere_fixture():
-    return sphere()
-
-
-@pytest.fixture(scope="module", name="texture")
-def texture_fixture():
-    return texture()
-
 
 # ----------------------------------------------------------------------------- known answers
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from exchange_data import seam_corners, sphere, texel_uv, texture
+from exchange_data import seam_corners, texel_uv
 
 from photomodel.exchange.uv import (
     check_mesh,
@@ -20,17 +20,6 @@ from photomodel.exchange.uv import (
     split_uv_seams,
     vertex_colors_from_texture,
 )
-
-
-@pytest.fixture(scope="module", name="sphere")
-def sphere_fixture():
-    return sphere()
-
-
-@pytest.fixture(scope="module", name="texture")
-def texture_fixture():
-    return texture()
-
 
 # ----------------------------------------------------------------------------- known answers
 

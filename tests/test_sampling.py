@@ -4,17 +4,11 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from exchange_data import texel_uv, texture
+from exchange_data import texel_uv
 
 from photomodel.camera import orbit_camera
 from photomodel.rendering.renderer import get_renderer
 from photomodel.rendering.sampling import sample_image, sample_texture
-
-
-@pytest.fixture(scope="module", name="texture")
-def texture_fixture():
-    return texture()
 
 
 def test_sample_image_is_bilinear_and_handles_long_point_lists():
