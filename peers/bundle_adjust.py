@@ -175,45 +175,16 @@ def bundle_adjust(
     """
     t0 = time.perf_counter()
     ba = _BA(observations, cameras, points)
-    if method == "trf":
-        res = least_squares(
-            ba.fun,
-            ba.x0,
-            jac=ba.jac_sparse,
-            method="trf",
-            tr_solver="lsmr",
-            x_scale="jac",
-            ftol=tol,
-            xtol=tol,
-            gtol=tol,
-            max_nfev=max_nfev,
-        )
-    elif method == "trf-dense":
-        res = least_squares(
-            ba.fun,
-            ba.x0,
-            jac=ba.jac_dense,
-            method="trf",
-            x_scale="jac",
-            ftol=tol,
-            xtol=tol,
-            gtol=tol,
-            max_nfev=max_nfev,
-        )
-    elif method == "lm":
-        res = least_squares(
-            ba.fun,
-            ba.x0,
-            jac=ba.jac_dense,
-            method="lm",
-            x_scale="jac",
-            ftol=tol,
-            xtol=tol,
-            gtol=tol,
-            max_nfev=max_nfev,
-        )
-    else:
+    options = {  # method → (Jacobian, least_squares options)
+        "trf": (ba.jac_sparse, {"method": "trf", "tr_solver": "lsmr"}),
+        "trf-dense": (ba.jac_dense, {"method": "trf"}),
+        "lm": (ba.jac_dense, {"method": "lm"}),
+    }
+    if method not in options:
         raise ValueError(f"method must be 'trf', 'lm' or 'trf-dense'; got {method!r}")
+    jac, kw = options[method]
+    res = least_squares(ba.fun, ba.x0, jac=jac, x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
+                        max_nfev=max_nfev, **kw)  # fmt: skip
     cams, pts = ba.to_cameras(res.x)
     ms = (time.perf_counter() - t0) * 1e3
     return (
