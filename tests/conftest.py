@@ -2,6 +2,7 @@
 
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import exchange_data
@@ -154,3 +155,28 @@ def sphere_fixture():
 def texture_fixture():
     """The every-texel-unique texture of :func:`exchange_data.texture`."""
     return exchange_data.texture()
+
+
+@pytest.fixture
+def studio_run_loop(monkeypatch, project_copy):
+    """For tests of ``facestudio studio``: run_studio's excepthook and settings kept to the test,
+    and its event loop replaced by a local one that calls ``inspect()`` after 200 ms and quits (after
+    the application's own loop has been quit, Qt refuses the nested loops pytest-qt's waits use).
+    Returns ``use(inspect)``, which installs that loop."""
+    from PySide6.QtCore import QEventLoop, QSettings, QTimer
+    from PySide6.QtWidgets import QApplication
+
+    monkeypatch.setattr(sys, "excepthook", sys.excepthook)  # run_studio installs the window's
+    monkeypatch.setattr("app.qt.main_window.QSettings", lambda *a: QSettings(str(project_copy.parent / "s.ini"),
+                                                                         QSettings.Format.IniFormat))
+
+    def use(inspect):
+        def exec_():
+            loop = QEventLoop()
+            QTimer.singleShot(200, lambda: (inspect(), loop.quit()))
+            loop.exec()
+            return 0
+
+        monkeypatch.setattr(QApplication, "exec", staticmethod(exec_))
+
+    return use

@@ -331,16 +331,11 @@ def test_3d_view_picks_a_feature(qtbot, studio_window, project_copy):
     assert studio_window.model.active_feature == "nose_tip"
 
 
-def test_studio_command_opens_the_project(qtbot, qapp, project_copy, monkeypatch, messages):
+def test_studio_command_opens_the_project(qtbot, qapp, project_copy, messages, studio_run_loop):
     """``facestudio studio PROJECT`` (also ``python -m app PROJECT``) opens a window on the project."""
 
-    from PySide6.QtCore import QEventLoop, QTimer
     from PySide6.QtWidgets import QApplication
 
-
-    monkeypatch.setattr(sys, "excepthook", sys.excepthook)  # run_studio installs its own
-    monkeypatch.setattr("app.qt.main_window.QSettings", lambda *a: QSettings(str(project_copy.parent / "s.ini"),
-                                                                         QSettings.Format.IniFormat))
     seen = {}
 
     def inspect_and_close():
@@ -350,15 +345,7 @@ def test_studio_command_opens_the_project(qtbot, qapp, project_copy, monkeypatch
                 seen["photos"] = [p.id for p in w.model.photos]
                 w.close()
 
-    # the event loop of run_studio: a local loop, not QApplication.exec(); after the application's
-    # own loop has been quit, Qt refuses to run nested loops, which pytest-qt's waits use
-    def exec_():
-        loop = QEventLoop()
-        QTimer.singleShot(200, lambda: (inspect_and_close(), loop.quit()))
-        loop.exec()
-        return 0
-
-    monkeypatch.setattr(QApplication, "exec", staticmethod(exec_))
+    studio_run_loop(inspect_and_close)
     assert main(["studio", str(project_copy)]) == 0
     assert seen["path"] == project_copy.absolute() and len(seen["photos"]) == 5
 

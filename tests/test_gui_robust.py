@@ -173,18 +173,15 @@ def test_a_fit_of_photos_removed_meanwhile_is_not_stored(qtbot, studio_window, p
     assert set(w.model.fit().cameras) == {p.id for p in w.model.photos}
 
 
-def test_studio_command_on_a_bad_project_does_not_block_headless(qtbot, qapp, project_copy, monkeypatch, capsys):
+def test_studio_command_on_a_bad_project_does_not_block_headless(qtbot, qapp, project_copy, monkeypatch, capsys,
+                                                                  studio_run_loop):
     """``QT_QPA_PLATFORM=offscreen facestudio studio deep.json``: the error is a non-modal box and a
     line on stderr (no modal box nobody could close); the window opens on an empty project."""
-    from PySide6.QtCore import QEventLoop, QSettings, QTimer
     from PySide6.QtWidgets import QApplication, QMessageBox
 
     from app.cli import main
     from app.qt.main_window import MainWindow
 
-    monkeypatch.setattr(sys, "excepthook", sys.excepthook)  # run_studio installs the window's
-    monkeypatch.setattr("app.qt.main_window.QSettings", lambda *a: QSettings(str(project_copy.parent / "s.ini"),
-                                                                         QSettings.Format.IniFormat))
     monkeypatch.setattr(QMessageBox, "critical", lambda *a, **k: pytest.fail("a modal box in a headless run"))
     deep = project_copy.parent / "deep.facestudio.json"
     deep.write_text("[" * 100_000 + "]" * 100_000)
@@ -200,13 +197,7 @@ def test_studio_command_on_a_bad_project_does_not_block_headless(qtbot, qapp, pr
                     b.close()
                 w.close()
 
-    def exec_():
-        loop = QEventLoop()
-        QTimer.singleShot(200, lambda: (inspect_and_close(), loop.quit()))
-        loop.exec()
-        return 0
-
-    monkeypatch.setattr(QApplication, "exec", staticmethod(exec_))
+    studio_run_loop(inspect_and_close)
     assert main(["studio", str(deep)]) == 0
     assert seen["photos"] == 0 and len(seen["boxes"]) == 1
     title, text, modal = seen["boxes"][0]
