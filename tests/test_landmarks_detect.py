@@ -80,3 +80,16 @@ def test_no_face_is_an_error_naming_the_photo():
 def test_the_image_must_be_rgb_uint8():
     with pytest.raises(ValueError, match="uint8"):
         detect_468(np.zeros((10, 10, 3), float))
+
+
+def test_a_mirrored_photo_gives_the_mirrored_points():
+    """Flip-averaging makes the face mesh treat a photo and its mirror image alike."""
+    from photomodel.landmarks.mirror import MIRROR_468
+
+    image = _photo("front")
+    face = detect_468(image, name="front")
+    flipped = detect_468(np.ascontiguousarray(image[:, ::-1]), name="front mirrored")
+    back = flipped.points[MIRROR_468, :2] * np.array([-1.0, 1.0]) + np.array([image.shape[1] - 1.0, 0.0])
+    eye = np.linalg.norm(face.points[33, :2] - face.points[263, :2])
+    # not exact: the detector's box and the crops' pixel grid are not mirror-symmetric
+    assert np.median(np.linalg.norm(back - face.points[:, :2], axis=1)) < 0.01 * eye
