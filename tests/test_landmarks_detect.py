@@ -82,10 +82,12 @@ def test_the_image_must_be_rgb_uint8():
         detect_468(np.zeros((10, 10, 3), float))
 
 
-def test_a_mirrored_photo_gives_the_mirrored_points():
+def test_a_mirrored_photo_gives_the_mirrored_points(monkeypatch):
     """Flip-averaging makes the face mesh treat a photo and its mirror image alike."""
+    from photomodel.landmarks import detect
     from photomodel.landmarks.mirror import MIRROR_468
 
+    monkeypatch.setattr(detect, "FLIP_AVERAGE", True)
     image = _photo("front")
     face = detect_468(image, name="front")
     flipped = detect_468(np.ascontiguousarray(image[:, ::-1]), name="front mirrored")

