@@ -158,3 +158,59 @@ def test_first_pose_from_clicks(setup):
     assert np.linalg.norm(st.t - true.t) < 15.0
     with pytest.raises(Exception, match="at least 6"):
         pose_from_clicks(model, ids[:4], clicks[:4], truth.focal_px, truth.width, truth.height)
+
+
+@pytest.fixture(scope="module")
+def frown_model():
+    from tracking.samples.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS
+
+    return sample_face_model(EXPRESSION_NAMES + EXTRA_EXPRESSIONS)
+
+
+def test_home_regions_are_where_the_expressions_were_made(frown_model):
+    from tracking.facemodel import CONTROL_REGIONS
+    from tracking.frame_fit import home_regions
+
+    # the sample's fields (tracking.samples.expressions): smile and open mouth move the mouth and
+    # jaw, brows raised and frown move the brows
+    home = [CONTROL_REGIONS[r] if k else "neutral" for k, r in enumerate(home_regions(frown_model))]
+    assert dict(zip(frown_model.names, home, strict=True)) == {
+        "neutral": "neutral", "smile": "mouth", "open_mouth": "mouth", "brows_raised": "forehead", "frown": "forehead",
+    }  # fmt: skip
+
+
+def test_coherence_prior_costs_what_a_region_shows_beyond_the_home_region(frown_model, setup):
+    from tracking.facemodel import CONTROL_REGIONS
+
+    truth = setup[1]
+    model = frown_model
+    eyes, fore = CONTROL_REGIONS.index("eyes"), CONTROL_REGIONS.index("forehead")
+    frown = model.names.index("frown")
+    W = np.zeros((len(CONTROL_REGIONS), model.m))
+    W[:, 0] = 1.0
+    W[eyes, [0, frown]] = [0.7, 0.3]  # the eyes frown 0.3, their home region (forehead) only 0.1
+    W[fore, [0, frown]] = [0.9, 0.1]
+    alpha = model.alpha_of_weights(W)
+    blank = np.zeros((truth.height, truth.width, 3), np.float32)
+    on = FrameFitter(model, truth.focal_px, truth.width, truth.height)
+    off = FrameFitter(model, truth.focal_px, truth.width, truth.height, TrackOptions(coherence=0.0))
+    st = FrameState(truth.R[0], truth.t[0] + truth.R[0] @ model.centre, alpha)
+    render = on._evaluate(blank, st, False).render
+    weights = model.region_weights(alpha)
+    D_on, D_off = on._penalty(weights, render)[0], off._penalty(weights, render)[0]
+    assert D_off == pytest.approx(0.0, abs=1e-9)  # every weight within [0, 1]
+    c = on.options.penalty * len(render.pixels)
+    assert D_on == pytest.approx(c * 0.2**2, rel=1e-6)  # κ = 1: c (0.3 − 0.1)²
+    # the gradient and Hessian of the active pieces agree with differences of D
+    h = 1e-5
+    num = np.array([(on._penalty(model.region_weights(alpha + h * e), render)[0]
+                     - on._penalty(model.region_weights(alpha - h * e), render)[0]) / (2 * h)
+                    for e in np.eye(len(alpha))])  # fmt: skip
+    _, g, H = on._penalty(weights, render)
+    # atol: weights exactly at a bound of [0, 1] (the other regions' neutral) make the central
+    # difference of D's one-sided piece c·h²/(2h) there
+    np.testing.assert_allclose(g, num, rtol=1e-5, atol=2 * c * h)
+    step = 1e-3 * np.random.default_rng(0).normal(size=len(alpha))
+    # on the same quadratic pieces, the gradient changes by H·step
+    g2 = on._penalty(model.region_weights(alpha + step), render, on._sides(weights))[1]
+    np.testing.assert_allclose(g2 - g, H @ step, rtol=1e-6, atol=1e-9 * np.abs(g).max())

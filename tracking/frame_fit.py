@@ -91,6 +91,7 @@ __all__ = [
     "track_frames",
     "pose_from_clicks",
     "bandpass",
+    "home_regions",
 ]
 
 #: Jacobian used per phase by default; chosen from ``benchmarks/bench_track.py --jacobians``
@@ -160,6 +161,14 @@ class TrackOptions:
     #: :meth:`FrameFitter._robust`); None: the paper's ε. A hand over the mouth then weighs like a
     #: few pixels, not like the strongest edges of the image.
     robust_scale: float | None = 3.0
+    #: strength of the coherence prior (beyond the paper; ``0`` turns it off), in units of
+    #: :attr:`penalty`: a control region may show an expression no more than the expression's
+    #: *home* region does (the region where the model's expression moves the face most), and the
+    #: excess costs ``coherence · c · excess²``. A region that sees something no expression of
+    #: the model makes (raised cheeks and lower lids of a real smile, in the eye region) then stays
+    #: near neutral instead of borrowing an unrelated expression (the eyes' part of ``frown``)
+    #: that the home region (the brows) does not show. See :meth:`FrameFitter._penalty`.
+    coherence: float = 1.0
 
     def __post_init__(self):
         for name in ("pose_jacobian", "expression_jacobian"):
@@ -282,6 +291,18 @@ def pose_from_clicks(
     return FrameState(R, tvec.ravel().astype(float), model.alpha_of_weights(np.eye(model.m)[0]))
 
 
+def home_regions(model: FaceModel) -> np.ndarray:
+    """(m,) int: each expression's *home* control region (index into ``model``'s regions, ≥ 1; 0
+    for neutral) — where it moves the face most: the largest ``Σ_i μ_ir ‖E_k,i − E_0,i‖²`` over the
+    control regions (membership-weighted squared displacement from neutral). Used by the
+    coherence prior (:attr:`TrackOptions.coherence`)."""
+    disp = ((model.geometry - model.geometry[:1]) ** 2).sum(axis=2)  # (m, n)
+    energy = disp @ model.membership[:, 1:]  # (m, R − 1)
+    home = 1 + np.argmax(energy, axis=1)
+    home[0] = 0
+    return home
+
+
 @dataclass
 class _Eval:
     state: FrameState
@@ -331,6 +352,13 @@ class FrameFitter:
         self._alpha_region = np.array(region_of, int)
         self.n_alpha = len(cols)
         self._dX_dalpha32 = self._dX_dalpha.astype(np.float32)
+        # D's weights are linear in α: w_r = Q_r α_r + w* (regions 1.., rows (region, expression))
+        m = model.m
+        self._dw_dalpha = np.zeros(((len(model.bases) - 1) * m, self.n_alpha))
+        for r, (Q, sl) in enumerate(zip(model.bases, model.alpha_slices, strict=True)):
+            if r:
+                self._dw_dalpha[(r - 1) * m : r * m, sl] = Q
+        self._home = home_regions(model)
         self._membership32 = model.membership.astype(np.float32)
         # per-vertex weight of the pixels in ε (TrackOptions.outside_weight): 1 on the face,
         # ``outside_weight`` elsewhere, across a transition as wide as the regions' (smoothed)
@@ -415,32 +443,53 @@ class FrameFitter:
         m = 2 + (int(np.ceil(3 * self.options.bandpass[1])) if filtered and self.options.bandpass else 0)
         return (max(y0 - m, 0), min(y1 + m, self.H), max(x0 - m, 0), min(x1 + m, self.W))
 
-    @staticmethod
-    def _sides(weights: np.ndarray) -> np.ndarray:
-        """(R − 1, m) int: −1 where a control region's weight is below 0, +1 above 1, else 0."""
-        return (weights[1:] > 1.0).astype(int) - (weights[1:] < 0.0).astype(int)
+    def _sides(self, weights: np.ndarray) -> np.ndarray:
+        """(2, R − 1, m) int, the quadratic pieces of D that the weights are on: row 0, −1 where a
+        control region's weight is below 0, +1 above 1, else 0; row 1, 1 where a region shows an
+        expression more than the expression's home region (:func:`home_regions`), else 0."""
+        w = weights[1:]
+        bounds = (w > 1.0).astype(int) - (w < 0.0).astype(int)
+        return np.stack([bounds, (self._excess(weights) > 0.0).astype(int)])
+
+    def _excess(self, weights: np.ndarray) -> np.ndarray:
+        """(R − 1, m): each region's weight of each expression minus its home region's (0 for
+        neutral, for the home region itself, and with the coherence prior off)."""
+        w = weights[1:]
+        out = np.zeros_like(w)
+        if self.options.coherence > 0 and w.shape[1] > 1:
+            out[:, 1:] = w[:, 1:] - w[self._home[1:] - 1, np.arange(1, w.shape[1])]
+        return out
 
     def _penalty(self, weights: np.ndarray, render: ModelRender, sides: np.ndarray | None = None):
         """D, its gradient and Hessian with respect to the concatenated α.
 
-        ``sides`` (:meth:`_sides`) chooses the quadratic piece of D each weight is on (default:
-        where it is). D itself is always evaluated where the weights are; the gradient and Hessian
-        are those of the chosen pieces, ``c (w − bound)²`` — :meth:`_lm_step` uses pieces a step
-        would enter."""
+        D = c Σ_r Σ_k [min(0, w_rk)² + max(0, w_rk − 1)²] + coherence · c Σ_{k>0} Σ_{r≠h(k)}
+        max(0, w_rk − w_h(k)k)², ``h(k)`` the home region of expression ``k``
+        (:attr:`TrackOptions.coherence`). ``sides`` (:meth:`_sides`) chooses the quadratic piece
+        each term is on (default: where it is). D itself is always evaluated where the weights
+        are; the gradient and Hessian are those of the chosen pieces — :meth:`_lm_step` uses
+        pieces a step would enter. Weights are linear in α, so the derivatives are those with
+        respect to the weights mapped through ``∂w/∂α``."""
         c = self.options.penalty * max(len(render.pixels), 1)
-        lo, hi = np.minimum(weights[1:], 0.0), np.maximum(weights[1:] - 1.0, 0.0)
-        D = c * float((lo**2).sum() + (hi**2).sum())
+        kappa = c * self.options.coherence
+        w = weights[1:]
+        R1, m = w.shape
+        excess = self._excess(weights)
+        lo, hi = np.minimum(w, 0.0), np.maximum(w - 1.0, 0.0)
+        D = c * float((lo**2).sum() + (hi**2).sum()) + kappa * float((np.maximum(excess, 0.0) ** 2).sum())
         if sides is None:
             sides = self._sides(weights)
-        resid = np.where(sides < 0, weights[1:], np.where(sides > 0, weights[1:] - 1.0, 0.0))
-        grad = np.zeros(self.n_alpha)
-        hess = np.zeros((self.n_alpha, self.n_alpha))
-        for r, (Q, s) in enumerate(zip(self.model.bases, self.model.alpha_slices, strict=True)):
-            if r == 0 or Q.shape[1] == 0:
-                continue
-            grad[s] = Q.T @ (2 * c * resid[r - 1])
-            hess[s, s] = 2 * c * (Q.T * (sides[r - 1] != 0)) @ Q
-        return D, grad, hess
+        bounds, above = sides
+        resid = np.where(bounds < 0, w, np.where(bounds > 0, w - 1.0, 0.0))
+        g_w = (2 * c * resid).ravel()
+        H_w = np.diag(2 * c * (bounds != 0).ravel().astype(float))
+        for r, k in np.argwhere(above):  # the pair (w_rk, w_hk): κ (w_rk − w_hk)²
+            i, j = r * m + k, (self._home[k] - 1) * m + k
+            g_w[i] += 2 * kappa * excess[r, k]
+            g_w[j] -= 2 * kappa * excess[r, k]
+            H_w[np.ix_([i, j], [i, j])] += 2 * kappa * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        B = self._dw_dalpha
+        return D, B.T @ g_w, B.T @ H_w @ B
 
     # -- Jacobians --------------------------------------------------------------------
     def jacobian(self, frame: np.ndarray, ev: _Eval, params: np.ndarray, method: str, filtered: bool):

@@ -34,6 +34,7 @@ from photomodel.samples.synthetic import true_correspondence
 __all__ = [
     "EXPRESSION_NAMES",
     "EXTRA_EXPRESSIONS",
+    "OUTSIDE_EXPRESSIONS",
     "JAW_ANGLE_DEG",
     "expression_displacement",
     "expression_displacements",
@@ -45,6 +46,8 @@ __all__ = [
 EXPRESSION_NAMES = ("neutral", "smile", "open_mouth", "brows_raised")
 #: Further expressions available to models but not used by the sample video.
 EXTRA_EXPRESSIONS = ("frown",)
+#: Expressions outside every model's set (truth of the tracking benchmark's sequence ``g`` only).
+OUTSIDE_EXPRESSIONS = ("cheek_smile", "surprise")
 #: Brow motion of ``frown`` (mm): down, and towards the midline.
 FROWN_DOWN_MM, FROWN_IN_MM = 3.5, 3.0
 
@@ -65,6 +68,23 @@ BROW_LIFT_MM = 6.0
 BROW_SIGMA_MM = 11.0
 #: The lift fades to zero over this height (mm) going down from the brow line to the eyelids.
 BROW_EYELID_RAMP_MM = 8.0
+#: ``cheek_smile``: mouth-corner motion (mm: out, up, back) and its Gaussian falloff (σ, mm); the
+#: cheek lift (mm, up and forward) about a point :data:`CHEEK_BELOW_EYE_MM` below each lower lid,
+#: falloff σ :data:`CHEEK_SIGMA_MM`; the lower lid's lift (mm) within :data:`LID_SIGMA_MM` of it.
+CHEEK_SMILE_MOVE_MM = (3.0, 5.5, 2.5)
+CHEEK_SMILE_SIGMA_MM = 8.0
+CHEEK_LIFT_MM = (3.5, 1.0)
+CHEEK_BELOW_EYE_MM = 16.0
+CHEEK_SIGMA_MM = 10.0
+LOWER_LID_LIFT_MM = 1.8
+LID_SIGMA_MM = 6.0
+#: ``surprise``: brow lift (mm) and falloff (σ, mm), jaw opening (deg), lower-lip drop (mm, down)
+#: within :data:`LIP_SIGMA_MM` of the lower lip's middle.
+SURPRISE_BROW_MM = 8.0
+SURPRISE_BROW_SIGMA_MM = 14.0
+SURPRISE_JAW_DEG = 3.0
+LOWER_LIP_DROP_MM = 3.5
+LIP_SIGMA_MM = 9.0
 
 
 def _smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -83,7 +103,7 @@ def _polyline_distance(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points[:, None, :] - closest, axis=2).min(axis=1)
 
 
-def _open_mouth(points: np.ndarray, L: np.ndarray) -> np.ndarray:
+def _open_mouth(points: np.ndarray, L: np.ndarray, angle_deg: float = JAW_ANGLE_DEG) -> np.ndarray:
     # jaw joints: a little below and in front of the ear-level jaw landmarks iBUG 0 and 16
     joint = np.array([0.0, 0.5 * (L[0, 1] + L[16, 1]) - 5.0, 0.5 * (L[0, 2] + L[16, 2]) + 5.0])
     pivot = joint - np.array([0.0, 0.0, JAW_PIVOT_BEHIND_MM])
@@ -98,17 +118,49 @@ def _open_mouth(points: np.ndarray, L: np.ndarray) -> np.ndarray:
     weight = _smoothstep(below, -0.5 * JAW_RAMP_MM, 0.5 * JAW_RAMP_MM)
     chin_y = L[8, 1]
     weight = weight * _smoothstep(points[:, 1], chin_y - NECK_FADE_MM, chin_y)
-    R = rodrigues(np.array([np.radians(JAW_ANGLE_DEG), 0.0, 0.0]))
+    R = rodrigues(np.array([np.radians(angle_deg), 0.0, 0.0]))
     rotated = (points - pivot) @ R.T + pivot
     return weight[:, None] * (rotated - points)
 
 
-def _smile(points: np.ndarray, L: np.ndarray) -> np.ndarray:
+def _corners(points: np.ndarray, L: np.ndarray, out_up_back: tuple, sigma: float) -> np.ndarray:
     out = np.zeros_like(points)
+    o, u, b = out_up_back
     for corner, side in ((48, -1.0), (54, 1.0)):  # iBUG 48: subject's right corner (−x)
-        move = np.array([side * SMILE_OUT_MM, SMILE_UP_MM, -SMILE_BACK_MM])
         r2 = ((points - L[corner]) ** 2).sum(1)
-        out += np.exp(-r2 / (2.0 * SMILE_SIGMA_MM**2))[:, None] * move
+        out += np.exp(-r2 / (2.0 * sigma**2))[:, None] * np.array([side * o, u, -b])
+    return out
+
+
+def _smile(points: np.ndarray, L: np.ndarray) -> np.ndarray:
+    return _corners(points, L, (SMILE_OUT_MM, SMILE_UP_MM, SMILE_BACK_MM), SMILE_SIGMA_MM)
+
+
+def _gaussian(points: np.ndarray, centre: np.ndarray, sigma: float) -> np.ndarray:
+    return np.exp(-((points - centre) ** 2).sum(1) / (2.0 * sigma**2))
+
+
+def _cheek_smile(points: np.ndarray, L: np.ndarray) -> np.ndarray:
+    out = _corners(points, L, CHEEK_SMILE_MOVE_MM, CHEEK_SMILE_SIGMA_MM)
+    up, fwd = CHEEK_LIFT_MM
+    for lid in (L[[40, 41]].mean(0), L[[46, 47]].mean(0)):  # lower lids: right eye, left eye
+        cheek = lid + np.array([0.0, -CHEEK_BELOW_EYE_MM, -2.0])
+        out += _gaussian(points, cheek, CHEEK_SIGMA_MM)[:, None] * np.array([0.0, up, fwd])
+        below = _smoothstep(lid[1] - points[:, 1], -1.0, 1.5)  # under the lid line only
+        out[:, 1] += LOWER_LID_LIFT_MM * _gaussian(points, lid, LID_SIGMA_MM) * below
+    return out
+
+
+def _surprise(points: np.ndarray, L: np.ndarray) -> np.ndarray:
+    d = np.minimum(_polyline_distance(points, L[17:22]), _polyline_distance(points, L[22:27]))
+    lid_top = L[[37, 38, 43, 44], 1].max()
+    brow = np.exp(-(d**2) / (2.0 * SURPRISE_BROW_SIGMA_MM**2))
+    brow *= _smoothstep(points[:, 1], lid_top, lid_top + BROW_EYELID_RAMP_MM) * _smoothstep(points[:, 2], 40.0, 70.0)
+    out = _open_mouth(points, L, SURPRISE_JAW_DEG)
+    out[:, 1] += SURPRISE_BROW_MM * brow
+    lip = L[[57, 66]].mean(0)
+    below = _smoothstep(L[66, 1] - points[:, 1], -0.5, 2.0)  # under the lips' meeting line
+    out[:, 1] -= LOWER_LIP_DROP_MM * _gaussian(points, lip, LIP_SIGMA_MM) * below
     return out
 
 
@@ -131,7 +183,8 @@ def _frown(points: np.ndarray, L: np.ndarray) -> np.ndarray:
     return _brow_weight(points, L)[:, None] * move
 
 
-_FIELDS = {"smile": _smile, "open_mouth": _open_mouth, "brows_raised": _brows_raised, "frown": _frown}
+_FIELDS = {"smile": _smile, "open_mouth": _open_mouth, "brows_raised": _brows_raised, "frown": _frown,
+           "cheek_smile": _cheek_smile, "surprise": _surprise}
 
 
 def expression_displacement(name: str, points: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
@@ -140,7 +193,8 @@ def expression_displacement(name: str, points: np.ndarray, landmarks: np.ndarray
     Parameters
     ----------
     name : str
-        one of :data:`EXPRESSION_NAMES` or :data:`EXTRA_EXPRESSIONS` (``"neutral"`` gives zeros).
+        one of :data:`EXPRESSION_NAMES`, :data:`EXTRA_EXPRESSIONS` or :data:`OUTSIDE_EXPRESSIONS`
+        (``"neutral"`` gives zeros).
     points : (n, 3) float
         neutral positions in mm, head frame.
     landmarks : (68, 3) float
@@ -151,8 +205,9 @@ def expression_displacement(name: str, points: np.ndarray, landmarks: np.ndarray
     (n, 3) float
         displacement in mm; the expression's position is ``points + displacement``.
     """
-    if name not in EXPRESSION_NAMES + EXTRA_EXPRESSIONS:
-        raise ValueError(f"unknown expression {name!r}; choose one of {EXPRESSION_NAMES + EXTRA_EXPRESSIONS}")
+    known = EXPRESSION_NAMES + EXTRA_EXPRESSIONS + OUTSIDE_EXPRESSIONS
+    if name not in known:
+        raise ValueError(f"unknown expression {name!r}; choose one of {known}")
     P = np.asarray(points, float)
     if P.ndim != 2 or P.shape[1] != 3:
         raise ValueError(f"points must be (n, 3) mm, got shape {P.shape}")

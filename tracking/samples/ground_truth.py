@@ -42,7 +42,7 @@ from photomodel.samples.synthetic import HEAD_CENTRE_MM, barycentric_coordinates
 from photomodel.texturing.job import encode_texture_outputs, texture_expression
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions
 from tracking.project_model import face_model_from_project
-from tracking.samples.expressions import EXPRESSION_NAMES, expression_displacements
+from tracking.samples.expressions import EXPRESSION_NAMES, OUTSIDE_EXPRESSIONS, expression_displacements
 
 __all__ = [
     "FITTED_SAMPLE_VERSION",
@@ -56,6 +56,7 @@ __all__ = [
     "model_gauge",
     "scan_uv_of_points",
     "video_truth",
+    "outside_truth",
     "video_camera",
     "render_video_frame",
     "true_vertices",
@@ -184,10 +185,11 @@ def video_camera(focal_px: float = VIDEO_FOCAL_PX, size: int = VIDEO_SIZE) -> Ca
     return Camera(np.eye(3), np.zeros(3), focal_px, size, size)
 
 
-def video_truth(frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NAMES) -> VideoTruth:
+def video_truth(frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NAMES,
+                yaw_deg: float = 14.0) -> VideoTruth:  # fmt: skip
     """Smooth head motion and region weights for a ``frames``-long synthetic video.
 
-    Head: yaw ±14°, pitch ±7°, roll ±4°, translation ±12 mm sideways, ±15 mm in depth, as sums
+    Head: yaw ±``yaw_deg`` (14°), pitch ±7°, roll ±4°, translation ±12 mm sideways, ±15 mm in depth, as sums
     of slow sinusoids (random phases from ``seed``). Weights: in the mouth, smile and open mouth
     rise and fall in turn (each up to 0.8); on the forehead, brows raised up to 0.9; in the eyes,
     the forehead's weights (the expressions barely move the eyes).
@@ -196,7 +198,7 @@ def video_truth(frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NA
     T = int(frames)
     s = np.arange(T) / max(T - 1, 1)  # 0..1 over the clip
     ph = rng.uniform(0, 2 * np.pi, 6)
-    yaw = np.radians(14.0) * np.sin(2 * np.pi * 0.9 * s + ph[0])
+    yaw = np.radians(yaw_deg) * np.sin(2 * np.pi * 0.9 * s + ph[0])
     pitch = np.radians(7.0) * np.sin(2 * np.pi * 1.3 * s + ph[1])
     roll = np.radians(4.0) * np.sin(2 * np.pi * 0.7 * s + ph[2])
     # facing the camera: the subject's left (+x) is on the image's right, up (+y) is image up
@@ -227,6 +229,22 @@ def video_truth(frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NA
     for r in range(1, len(CONTROL_REGIONS)):
         W[:, r, 0] = 1.0 - W[:, r, 1:].sum(1)
     return VideoTruth(R, t, W, tuple(names), VIDEO_FOCAL_PX, VIDEO_SIZE, VIDEO_SIZE)
+
+
+def outside_truth(frames: int = 40, *, seed: int = 6, yaw_deg: float = 14.0) -> VideoTruth:
+    """:func:`video_truth`'s head motion with expressions outside every model's set
+    (:data:`tracking.samples.expressions.OUTSIDE_EXPRESSIONS`), each over the whole face (mouth,
+    eyes and forehead alike): ``cheek_smile`` rises and falls early in the clip (up to 0.9),
+    ``surprise`` late (up to 0.9), with a short overlap."""
+    base = video_truth(frames, seed=seed, yaw_deg=yaw_deg)
+    names = ("neutral",) + OUTSIDE_EXPRESSIONS
+    s = np.arange(base.frames) / max(base.frames - 1, 1)
+    W = np.zeros((base.frames, len(CONTROL_REGIONS), len(names)))
+    W[:, :, 0] = 1.0
+    for k, centre in ((1, 0.3), (2, 0.68)):
+        W[:, 1:, k] = (0.9 * np.exp(-0.5 * ((s - centre) / 0.13) ** 2))[:, None]
+    W[:, 1:, 0] = 1.0 - W[:, 1:, 1:].sum(2)
+    return VideoTruth(base.R, base.t, W, names, base.focal_px, base.width, base.height)
 
 
 def true_vertices(truth: VideoTruth, i: int) -> np.ndarray:
