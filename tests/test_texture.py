@@ -292,6 +292,23 @@ def test_view_dependent_selects_the_two_nearest_photos(scene, vdt):
     assert set(vdt.render(side).views) == {0, 1}
 
 
+def test_view_dependent_same_view_keeps_its_flow_and_image(vdt):
+    """A repaint of the same view reuses the last view's flow: the image is the one computed
+    afresh, and moving away and back computes it again (never a stale flow)."""
+    a = orbit_camera(20.0, 200, 200, distance_mm=900.0, target=(0.0, 12.0, 55.0))
+    b = orbit_camera(-25.0, 200, 200, distance_mm=900.0, target=(0.0, 12.0, 55.0))
+    gl = vdt.gl_state()
+    gl.forget_flow()
+    fresh = vdt.render(a).color
+    assert np.array_equal(vdt.render(a).color, fresh)  # kept flow: the same image
+    vdt.render(b)
+    assert np.array_equal(vdt.render(a).color, fresh)  # recomputed after b: still the same
+    a.t = a.t + np.array([2.0, 0.0, 0.0])  # a camera moved in place: its key changes
+    moved = vdt.render(a).color
+    gl.forget_flow()
+    assert np.array_equal(vdt.render(a).color, moved)
+
+
 def test_view_dependent_held_out_view_with_true_geometry(scene):
     """Leave-one-out: textured from four photos, rendered from the fifth's camera."""
     keep = [0, 1, 3, 4]

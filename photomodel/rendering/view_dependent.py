@@ -418,6 +418,12 @@ class ViewDependentGL:
         """Whether the GL objects are alive (neither this nor its renderer released)."""
         return not self.released and not self.renderer.released
 
+    def forget_flow(self) -> None:
+        """Drop the flow kept for the last view: the next frame computes it again, even for the
+        same view (what a frame of a moving view costs; ``benchmarks/bench_texture.py``)."""
+        for t in self._targets.values():
+            t["flow_key"] = None
+
     def release(self) -> None:
         """Free the GL objects now (idempotent)."""
         self._finalizer.detach()
@@ -546,9 +552,19 @@ class ViewDependentGL:
             t["out_color"].clear(*bg, 0.0, viewport=inner)
             t["out_depth"].use()
             t["out_depth"].clear(float("inf"), viewport=inner)
-            self._gbuffer_pass(ctx, t, camera, Xc, auto, box)
+            # the flow pass reads the G-buffer around the box too (its margin): cleared there,
+            # else it would see a previous frame's surface
+            m = (_FLOW_MARGIN + 1) * reduce if align else 0
+            clear = (max(x0 - m, 0), max(y0 - m, 0), min(x1 + m, W), min(y1 + m, H))
+            self._gbuffer_pass(ctx, t, camera, Xc, auto, clear)
             if align:
-                self._flow_pass(ctx, t, sel, vw, reduce, box, flow, (W, H))
+                # the same view and photographs as this target's last flow: the same flow and
+                # weights (DIS is deterministic), still in its texture
+                key = (_camera_key(camera), tuple(sel), tuple(vw), flow)
+                if t.get("flow_key") != key:
+                    t["flow_key"] = None
+                    self._flow_pass(ctx, t, sel, vw, reduce, box, flow, (W, H))
+                    t["flow_key"] = key
             self._blend_pass(ctx, t, sel, vw, align, reduce, auto, float(Xc[:, 2].max()), box)
             box_color = np.empty((y1 - y0, x1 - x0, 3), np.float32)
             box_depth = np.empty((y1 - y0, x1 - x0), np.float32)
@@ -582,8 +598,9 @@ class ViewDependentGL:
         return sel, vw, two
 
     def _gbuffer_pass(self, ctx, t: dict, camera: Camera, Xc: np.ndarray, planes, box) -> None:
-        """Pass 1: the G-buffer (triangle and barycentrics) inside the model's bounding box; then
-        the G-buffer and the depth/feather maps bound for the passes that read them."""
+        """Pass 1: the G-buffer (depth, normal, single-view weight), cleared over ``box`` (the
+        model's bounding box and what the flow pass reads around it); then the G-buffer and the
+        depth/feather maps bound for the passes that read them."""
         mgl = self._mgl
         W, H = camera.width, camera.height
         x0, y0, x1, y1 = box
@@ -658,6 +675,12 @@ class ViewDependentGL:
         ctx.depth_func = "<"
         ctx.disable(mgl.DEPTH_TEST)
         fbo.depth_mask = True
+
+
+def _camera_key(camera: Camera) -> tuple:
+    """What a frame's flow depends on of its camera."""
+    return (camera.width, camera.height, float(camera.f), *map(float, camera.principal_point),
+            camera.R.tobytes(), np.asarray(camera.t, float).tobytes())
 
 
 def _frame(color: np.ndarray, depth: np.ndarray) -> GLFrame:
