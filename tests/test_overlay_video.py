@@ -30,3 +30,29 @@ def test_plots_and_overlay_are_written(straight, tmp_path):
     # the silhouette is outlined in green: many pixels green-dominant
     g = last.astype(int)
     assert ((g[..., 1] > 150) & (g[..., 0] < 120) & (g[..., 2] < 120)).sum() > 200
+
+
+def test_overlay_tints_an_occluder_and_little_else():
+    import numpy as np
+
+    from tracking.frame_fit import FrameFitter
+    from tracking.overlay_video import overlay_frame
+    from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth
+
+    model, truth, i = sample_face_model(), video_truth(8), 3
+    frame = render_video_frame(truth, i).astype(np.float32)
+    R = truth.R[i]
+    rec = {"frame": i, "rms": 0.0, "diverged": False, "R": R.tolist(),
+           "centre_mm": (truth.t[i] + R @ model.centre).tolist(),
+           "alpha": model.alpha_of_weights(truth.weights[i]).tolist()}  # fmt: skip
+    # a blue-grey card over the middle of the face (the truth: where the model is not the face)
+    card = np.zeros(frame.shape[:2], bool)
+    card[150:190, 120:180] = True
+    frame[card] = (0.35, 0.45, 0.75)
+    fitter = FrameFitter(model, truth.focal_px, truth.width, truth.height)
+    tinted = overlay_frame(fitter, frame, rec)
+    magenta = (tinted[..., 0] > tinted[..., 1] + 0.2) & (tinted[..., 2] > tinted[..., 1] + 0.2)
+    # most of the card is drawn occluded (its pixels the model covers and that differ from the
+    # skin by more than 3x the median residual); almost nothing outside it
+    assert magenta[card].mean() > 0.8
+    assert magenta[~card].sum() < 0.1 * card.sum()

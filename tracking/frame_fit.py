@@ -92,6 +92,8 @@ __all__ = [
     "pose_from_clicks",
     "bandpass",
     "home_regions",
+    "outlier_pixels",
+    "OUTLIER_FACTOR",
 ]
 
 #: Jacobian used per phase by default; chosen from ``benchmarks/bench_track.py --jacobians``
@@ -289,6 +291,21 @@ def pose_from_clicks(
     found, rvec, tvec = cv2.solvePnP(X, uv[ok], cam.K, None, rvec, tvec, True, cv2.SOLVEPNP_ITERATIVE)
     R = rodrigues(rvec.ravel())
     return FrameState(R, tvec.ravel().astype(float), model.alpha_of_weights(np.eye(model.m)[0]))
+
+
+#: A covered pixel whose unfiltered residual (RMS over RGB) exceeds this many times the frame's
+#: median is an outlier: left out of the divergence test and drawn as occluded in the overlay.
+OUTLIER_FACTOR = 3.0
+
+
+def outlier_pixels(pixel_rms: np.ndarray) -> np.ndarray:
+    """(N,) bool: the covered pixels whose residual ``pixel_rms`` (N,) is over
+    :data:`OUTLIER_FACTOR` × the median — what the robust error treats as not the face (a hand,
+    hair, a reflection)."""
+    r = np.asarray(pixel_rms)
+    if not len(r):
+        return np.zeros(0, bool)
+    return r > OUTLIER_FACTOR * float(np.median(r))
 
 
 def home_regions(model: FaceModel) -> np.ndarray:
@@ -827,7 +844,7 @@ class FrameFitter:
         r = ev.pixel_rms
         if self.options.robust_scale is None or r is None or not len(r):
             return ev.rms
-        keep = r <= 3.0 * float(np.median(r))
+        keep = ~outlier_pixels(r)
         return float(np.sqrt(np.mean(r[keep] ** 2)))
 
 

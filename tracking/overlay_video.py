@@ -1,6 +1,7 @@
 """The overlay: the face model rendered over the footage at its tracked parameters.
 
-:func:`overlay_frame` draws one frame (alpha blend, silhouette outlined, frame index and RMS); the
+:func:`overlay_frame` draws one frame (alpha blend, occluded pixels tinted, silhouette outlined,
+frame index and RMS); the
 studio's tracking view shows it while scrubbing. :func:`write_overlay_video` writes every tracked
 frame's as ``overlay.mp4``, atomically.
 """
@@ -15,19 +16,26 @@ import cv2
 import numpy as np
 
 from tracking.facemodel import render_model
-from tracking.frame_fit import FrameFitter
+from tracking.frame_fit import FrameFitter, outlier_pixels
 from tracking.results import state_of
 from tracking.video import VideoError, VideoFrames
 
-__all__ = ["OVERLAY_ALPHA", "overlay_frame", "write_overlay_video"]
+__all__ = ["OVERLAY_ALPHA", "OCCLUDED_RGB", "overlay_frame", "write_overlay_video"]
 
 OVERLAY_ALPHA = 0.5
+#: Tint of the occluded pixels (magenta: unlike skin, hair or the usual backgrounds), blended at
+#: :data:`OVERLAY_ALPHA`.
+OCCLUDED_RGB = (1.0, 0.0, 1.0)
 
 
 def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=None) -> np.ndarray:
     """(H, W, 3) float32: the model at ``rec``'s parameters rendered over ``frame`` (alpha
-    :data:`OVERLAY_ALPHA`), its silhouette outlined in green (red when the frame diverged), and
-    the frame index with its RMS written in the corner."""
+    :data:`OVERLAY_ALPHA`), the pixels the robust error takes for occluded tinted
+    :data:`OCCLUDED_RGB` (the model's pixels whose residual is an outlier,
+    :func:`tracking.frame_fit.outlier_pixels`, opened by a 3×3 square so that single pixels of
+    texture detail are not drawn; only when the fitter's error is robust), its
+    silhouette outlined in green (red when the frame diverged), and the frame index with its RMS
+    written in the corner."""
     model = fitter.model
     st = state_of(rec)
     Wv = model.vertex_weights(model.region_weights(st.alpha))
@@ -36,6 +44,13 @@ def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=No
     out = frame.copy()
     m = r.mask
     out[m] = (1 - OVERLAY_ALPHA) * frame[m] + OVERLAY_ALPHA * r.image[m]
+    if fitter.options.robust_scale is not None and len(r.pixels):
+        flat = frame.reshape(-1, 3)[r.pixels] - r.image.reshape(-1, 3)[r.pixels]
+        occluded = np.zeros(m.size, np.uint8)
+        occluded[r.pixels[outlier_pixels(np.sqrt((np.clip(flat, -1, 1) ** 2).mean(axis=1)))]] = 1
+        # opened: single outlier pixels are the texture's fine detail, not an occluder
+        occluded = cv2.morphologyEx(occluded.reshape(m.shape), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) > 0
+        out[occluded] = (1 - OVERLAY_ALPHA) * frame[occluded] + OVERLAY_ALPHA * np.float32(OCCLUDED_RGB)
     img = np.round(np.clip(out, 0, 1) * 255).astype(np.uint8)
     # closed first: the model's cracks (triangles dropped at texture-atlas seams) are not silhouette
     closed = cv2.morphologyEx(m.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
