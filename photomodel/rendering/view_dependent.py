@@ -71,10 +71,14 @@ numpy path's 29.79; the half-pixel offset between pass 2's pixels and pass 3's l
 was corrected at the same time), and the frame's time by ~25 % (measured back to back with
 the previous code on the loaded machine: median 180–190 against 235–239 ms at load 3.4–4.5).
 
-Cost on llvmpipe (2 shared cores), one 1000×1000 frame of the fitted sample head: the G-buffer
-~10 ms, the reduced pass ~3 ms, the flow ~7 ms (CPU), the blend ~25 ms, clears, read-back and
-the CPU fallback ~10 ms: ``vd_frame_ms`` of ``benchmarks/bench_texture.py`` is 72 ms with the
-machine's load at ~1.2 and 91 ms at ~2 (single frames 57–125 ms).
+Cost on llvmpipe (2 shared cores), one 1000×1000 frame of the fitted sample head, before the
+weights were taken from pass 2: the G-buffer ~10–14 ms, the reduced pass ~4 ms, the flow
+~7–9 ms (CPU), the blend ~25–34 ms, clears, read-back and the CPU fallback ~8 ms; ``vd_frame_ms``
+of ``benchmarks/bench_texture.py`` was 62 ms on the quiet machine. Benchmark run back to back
+with the previous code on the loaded machine (2026-12, load 1.9–2.9): ``vd_frame_ms`` 63 and
+65 ms against 145 and 105 ms (and 96 against 127 ms in an earlier pair at load 3–4); the same
+view redrawn with its flow kept 49–55 ms; PSNR 29.78 dB against the numpy path's 29.79 (was
+29.76). The bar of 40 ms is not met yet on this machine.
 """
 
 from __future__ import annotations
@@ -383,7 +387,8 @@ class ViewDependentGL:
         ns = np.column_stack([np.asarray(normals, np.float32).reshape(n, 3), s]).astype(np.float32)
         self._gbuffer = renderer.program(_GBUFFER_VS, _GBUFFER_FS)
         self._blend = renderer.program(_FULLSCREEN_VS, _BLEND_FS)
-        self._blend_aligned = renderer.program(_FULLSCREEN_VS, _BLEND_FS.replace("#version 330\n", "#version 330\n#define ALIGN\n", 1))
+        aligned_fs = _BLEND_FS.replace("#version 330\n", "#version 330\n#define ALIGN\n", 1)
+        self._blend_aligned = renderer.program(_FULLSCREEN_VS, aligned_fs)
         self._flow = renderer.program(_FULLSCREEN_VS, _FLOW_FS)
         with ctx:
             self._photos = ctx.texture_array((Wm, Hm, k), 3, stack.tobytes(), alignment=1, dtype="f1")
@@ -407,7 +412,8 @@ class ViewDependentGL:
             self._flow_vao = ctx.vertex_array(self._flow, [])
         # every GL object held; dropped unreleased, the renderer frees them at its next use
         self._owned = [self._photo_sampler, self._mip_sampler, self._geo_sampler, self._photos, self._geo,
-                       self._vao, self._blend_vao, self._blend_aligned_vao, self._flow_vao, self._pos, self._ns, self._idx]
+                       self._vao, self._blend_vao, self._blend_aligned_vao, self._flow_vao, self._pos, self._ns,
+                       self._idx]
         self._finalizer = weakref.finalize(self, renderer.defer_release, self._owned)
         self._targets: dict[tuple[int, int, int], dict] = {}
         self.released = False

@@ -34,7 +34,7 @@ them with the plain blend; 38 dB with the registration below (its flow is estima
 differently, its weights interpolated, thin slivers that neither photograph sees can be
 missed) — and the same held-out PSNR within a few hundredths of a dB;
 ``benchmarks/bench_texture.py`` measures them side by side (docs/texturing.md). The shader path
-is 5–7× faster (70–90 ms against 370–520 ms for a 1000×1000 registered frame on llvmpipe,
+is 5–8× faster (63–65 ms against 354–512 ms for a 1000×1000 registered frame on llvmpipe, loaded machine,
 ~25 ms for the studio's 400×780 3D view), fast enough for the 3D view to show the registered
 view-dependent rendering while orbiting.
 
@@ -370,7 +370,8 @@ class ViewDependentTexture:
         have = g.sum(axis=0) > 0
         out = np.zeros((len(pts), 3), np.float32)
         if have.any():
-            out[have] = blend(np.array(colors)[:, have], apply_single_view(g[:, have], None if s is None else s[have]))[0]
+            shares = apply_single_view(g[:, have], None if s is None else s[have])
+            out[have] = blend(np.array(colors)[:, have], shares)[0]
         return out, have
 
     def _render_per_vertex(self, camera, views, V, background) -> ViewDependentRender:
