@@ -339,3 +339,26 @@ def test_depth_the_views_cannot_measure_comes_from_the_generic_head():
         else:
             np.testing.assert_allclose(ours.points, free.points, atol=1e-9)
     assert taken >= 1  # 2 of these 30 draws land at 1.30 and 1.31 without it (1.02 with it)
+
+
+def test_click_weights_all_one_are_no_weights_and_a_low_weight_barely_pulls():
+    rig = make_rig(TRUTH, AZ5, seed=4)
+    plain = solve(rig)
+    ones = solve(rig, weights=np.ones(rig.observations.shape[:2]))
+    np.testing.assert_allclose(ones.points, plain.points, rtol=0, atol=1e-9)
+    # 12 clicks of one photo 15 px off in one direction (a detector's bias), weighed down by 1/400
+    # (σ 20× the others'), in plain least squares: the cameras come within 1/4 of the way the
+    # unweighted clicks bend them from the solution without those clicks (measured 0.007° vs 1.26°)
+    j, bent = 1, np.flatnonzero(np.isfinite(rig.observations[1, :, 0]))[:12]
+    moved = rig.observations.copy()
+    moved[j, bent] += 15.0
+    without = rig.observations.copy()
+    without[j, bent] = np.nan
+    ref = solve_cameras(without, rig.init_cameras, GENERIC, robust=False)
+    w = np.ones(moved.shape[:2])
+    w[j, bent] = 1.0 / 400.0
+    weighted = solve_cameras(moved, rig.init_cameras, GENERIC, weights=w, robust=False)
+    unweighted = solve_cameras(moved, rig.init_cameras, GENERIC, robust=False)
+    d_w = rotation_between_deg(weighted, ref)
+    d_u = rotation_between_deg(unweighted, ref)
+    assert d_w < 0.25 * d_u, (d_w, d_u)

@@ -14,7 +14,7 @@ import pytest
 
 from photomodel.alignment import align_to_truth, camera_errors, similarity_transform
 from photomodel.errors import FitError
-from photomodel.modeling.fit import Cancelled, FitOptions, fit_expression
+from photomodel.modeling.fit import Cancelled, FitOptions, click_weights, fit_expression
 from photomodel.project import load_project
 from photomodel.samples.synthetic import surface_distance, true_correspondence
 
@@ -166,3 +166,15 @@ def test_unsure_automatic_clicks_place_the_cameras_but_not_the_shape(mesh):
     assert "jaw_03" not in result.feature_names and "nose_tip" in result.feature_names
     assert result.report["auto_clicks_left_out"] == sum(
         "jaw_03" in p.points for p in project.expression("neutral").photos)
+
+
+def test_click_weights_are_one_for_the_artist_and_confidence_squared_for_the_detector():
+    project = load_project(PROJECT)
+    photos = project.expression("neutral").photos
+    names = ["nose_tip", "jaw_03"]
+    assert click_weights(photos, names) is None  # hand clicks only: the camera solve is unweighted
+    photos[0].set_click("jaw_03", photos[0].points["jaw_03"], source="auto", confidence=0.2)
+    w = click_weights(photos, names)
+    assert w.shape == (len(photos), 2)
+    np.testing.assert_allclose(w[0], [1.0, 0.04])
+    np.testing.assert_array_equal(w[1:], 1.0)

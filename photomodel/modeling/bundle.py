@@ -67,12 +67,20 @@ class BundleProblem:
     focal_free : bool, whether the group focal lengths are unknowns.
     prior_points : (n, 3) float mm or None, the generic head's feature positions.
     prior_weight : float, ``β`` in px² per mm² (0: no prior).
+    weights : (k, n) float or None, each click's weight ``w > 0`` (its inverse variance relative to
+        a click of weight 1; None: all 1). Residuals are taken as ``√w (P − O)``: a click of weight
+        ``w`` pulls like a click of weight 1 that is ``√w`` times as far off, and the Huber loss,
+        the noise scale and the suspect test see these scaled residuals (the lengths ``e`` of
+        :meth:`evaluate` are scaled).
     """
 
-    def __init__(self, obs, valid, principal_points, groups, focal_free=True, prior_points=None, prior_weight=0.0):
+    def __init__(self, obs, valid, principal_points, groups, focal_free=True, prior_points=None, prior_weight=0.0,
+                 weights=None):
         k, n = valid.shape
         self.k, self.n = k, n
         self.valid = np.asarray(valid, bool)
+        #: √ of each click's weight (None: every weight 1, and no multiplication at all)
+        self.sqrt_w = None if weights is None else np.sqrt(np.where(self.valid, np.asarray(weights, float), 0.0))
         self.O = np.where(self.valid[..., None], obs - principal_points[:, None, :], 0.0)
         self.groups = np.asarray(groups, int)
         self.G = int(self.groups.max()) + 1
@@ -112,7 +120,7 @@ class BundleProblem:
     # -- residuals --------------------------------------------------------------------------
     def evaluate(self, st: BundleState, valid=None):
         """``(q, D, P, r, e)``: camera-frame points, depth factors ``1 + η q_z``, predictions,
-        residuals (0 where not valid) and their lengths (k, n) px."""
+        residuals (0 where not valid; times √w with weights) and their lengths (k, n) px."""
         valid = self.valid if valid is None else valid
         eta = st.s / np.exp(st.logf[self.groups])
         q = st.m @ st.R.transpose(0, 2, 1)
@@ -120,6 +128,8 @@ class BundleProblem:
         with np.errstate(divide="ignore", invalid="ignore"):
             P = (st.s[:, None] / D)[..., None] * (q[..., :2] + st.t2[:, None, :])
         r = np.where(valid[..., None], P - self.O, 0.0)
+        if self.sqrt_w is not None:
+            r = r * self.sqrt_w[..., None]
         e = np.sqrt((r * r).sum(2))
         return q, D, P, r, e
 
@@ -195,6 +205,8 @@ class BundleProblem:
         with np.errstate(divide="ignore", invalid="ignore"):
             w = np.minimum(c / e, 1.0) if np.isfinite(c) else np.ones_like(e)
         sw = np.where(self.valid, np.sqrt(w), 0.0)
+        if self.sqrt_w is not None:
+            sw = sw * self.sqrt_w
         U, gc, W2, Vp, gp = assemble(
             st.m, st.R, st.t2, st.s, np.exp(st.logf[self.groups]), self.O, sw, self.cols, self.C
         )
