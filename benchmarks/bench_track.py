@@ -377,7 +377,9 @@ def run_real(frames: int | None = None, overlays: Path | None = None) -> dict:
         "recovered": recovered, "redetected": int(sum(r["start"] == "detected" for r in recs)),
         "landmark_px_mean": float(np.nanmean(err[kept & ~occl])),
         "landmark_px_p95": float(np.nanpercentile(err[kept & ~occl], 95)),
-        "landmark_px_mean_occluded": float(np.nanmean(err[kept & occl])) if (kept & occl).any() else float("nan"),
+        # 0 when the tracked frames hold no occluded one (a number: the JSON has no null)
+        "landmark_px_mean_occluded": float(np.nanmean(err[kept & occl])) if (kept & occl).any() else 0.0,
+        "occluded_frames": int((kept & occl).sum()),
         "jitter_deg": float(np.linalg.norm(np.diff(rot, 2, axis=0), axis=1).mean()) if len(recs) > 2 else 0.0,
         "jitter_mm": float(np.linalg.norm(np.diff(t, 2, axis=0), axis=1).mean()) if len(recs) > 2 else 0.0,
         "diverged_frames": int(sum(r["diverged"] for r in recs)), "focal_px": doc["camera"]["focal_px"],
