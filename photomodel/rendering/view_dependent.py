@@ -27,18 +27,15 @@ A frame (:meth:`ViewDependentGL.render`) is deferred shading in three passes:
    bounding box: the two selected photographs' grey levels as the new view shows them (each
    where the other does not see the point: no motion there), looked up in the mipmapped
    photographs at this pass's pixel size. Read back (a few kB), the caller's optical flow runs
-   on them on the CPU (``flow``: OpenCV's DIS in the texturing module). The same pass writes
-   the two photographs' weights ``g_k`` (below) at its pixels; flow and weights go back as one
-   small ``RGBA32F`` texture, sampled bilinearly by pass 3.
+   on them on the CPU (``flow``: OpenCV's DIS in the texturing module); the flow goes back as a
+   small float texture, sampled bilinearly.
 3. **blend** — a full-screen pass over the bounding box; the depth test against pass 1's depth
-   buffer drops the pixels off the model. Per pixel, the numpy path's weights: the
+   buffer drops the pixels off the model. Per pixel, exactly the numpy path's weights: the
    surface point rebuilt from ``Z_cam`` (as the numpy path rebuilds it from the depth buffer),
    projected into the two selected photographs; visibility by the depth comparison
    ``z ≤ depth(x_k, y_k) + tol`` inside the image and ``P_k = n · d_k > 0``;
    ``g_k = F_k P_k V_k``, the §5.2.4 single-view mix
-   (:func:`~photomodel.texturing.weights.apply_single_view`) and the blend. With the flow the
-   weights ``g_k`` are pass 2's, interpolated (see *Weights at the flow's resolution* below);
-   without it they are computed here per pixel. With the flow
+   (:func:`~photomodel.texturing.weights.apply_single_view`) and the blend. With the flow
    (*floating textures*, Eisemann et al. 2008) photograph A is sampled where the point seen at
    ``x − w_B f_AB(x)`` projects into it and B where the point seen at ``x + w_A f_AB(x)`` does
    (``f_BA ≈ −f_AB``), those points taken on the surface's tangent plane at ``x``; the numpy path
@@ -50,35 +47,10 @@ rare — a few hundred in a 1000×1000 frame of the sample — and handed back
 (:attr:`GLFrame.fallback`) to the caller's CPU code: a loop over all photographs in the shader
 would cost every pixel, as a software rasteriser runs both sides of a branch.
 
-Weights at the flow's resolution
---------------------------------
-``g_k`` cost most of pass 3: two bilinear lookups of a 40 MB ``RG32F`` depth/feather array per
-pixel and the arithmetic around them (~27 of its ~34 ms, one thread). They vary slowly on the
-surface — ``F_k`` ramps to 0 over 6 mm on both sides of every occluding contour of photograph
-``k`` (:func:`~photomodel.texturing.weights.image_feather_map`), so ``g_k`` has no step where the
-visibility test flips, and ``P_k`` is smooth — so with the flow they are taken from pass 2,
-which computes them anyway, at ``flow_reduce``× less resolution, and interpolated bilinearly
-(the shares are ratios: where the interpolation mixes in the background's 0 at the frame's
-silhouette, both shrink alike). Pass 3 then reads flow and weights with one lookup, and the
-colours with two. Where pass 2 finds a covered pixel that neither photograph sees it stores a
-far negative weight, so every pixel of pass 3 whose lookup touches it is handed to the caller
-(:attr:`GLFrame.fallback`), which computes its weights exactly on the CPU. Slivers thinner
-than pass 2's pixels that neither photograph sees can still be missed (they take the
-interpolated weights): in the 1000×1000 20° view of the benchmark 164 pixels fall back
-instead of 421, and the frame is 38 dB from the numpy path's (47 dB before); the differences
-lie on the silhouette and around the ear. On the sample's held-out views the mean PSNR went from 29.76 to 29.79 dB (the
-numpy path's 29.79; the half-pixel offset between pass 2's pixels and pass 3's lookup of them
-was corrected at the same time), and the frame's time by ~25 % (measured back to back with
-the previous code on the loaded machine: median 180–190 against 235–239 ms at load 3.4–4.5).
-
-Cost on llvmpipe (2 shared cores), one 1000×1000 frame of the fitted sample head, before the
-weights were taken from pass 2: the G-buffer ~10–14 ms, the reduced pass ~4 ms, the flow
-~7–9 ms (CPU), the blend ~25–34 ms, clears, read-back and the CPU fallback ~8 ms; ``vd_frame_ms``
-of ``benchmarks/bench_texture.py`` was 62 ms on the quiet machine. Benchmark run back to back
-with the previous code on the loaded machine (2026-12, load 1.9–2.9): ``vd_frame_ms`` 63 and
-65 ms against 145 and 105 ms (and 96 against 127 ms in an earlier pair at load 3–4); the same
-view redrawn with its flow kept 49–55 ms; PSNR 29.78 dB against the numpy path's 29.79 (was
-29.76). The bar of 40 ms is not met yet on this machine.
+Cost on llvmpipe (2 shared cores), one 1000×1000 frame of the fitted sample head: the G-buffer
+~10 ms, the reduced pass ~3 ms, the flow ~7 ms (CPU), the blend ~25 ms, clears, read-back and
+the CPU fallback ~10 ms: ``vd_frame_ms`` of ``benchmarks/bench_texture.py`` is 72 ms with the
+machine's load at ~1.2 and 91 ms at ~2 (single frames 57–125 ms).
 """
 
 from __future__ import annotations
@@ -216,8 +188,9 @@ vec2 shares(float ga, float gb, float s) {
 
 _BLEND_FS = _COMMON + """
 uniform sampler2DArray photos;  // RGB8, one layer per photograph, row 0 = top
-uniform sampler2D flow;         // f_AB in pixels of this frame (f_BA = -f_AB); g_A, g_B of the flow pass
+uniform sampler2D flow;         // f_AB in pixels of this frame (f_BA = -f_AB)
 uniform vec2 flow_scale;        // 1 / the (padded) extent in pixels that the flow texture covers
+uniform float align;            // 1: register A and B by the flow
 layout(location = 0) out vec3 o_color;   // colour; where neither sees: normal (1 + s)
 layout(location = 1) out float o_depth;  // Z_cam; -Z_cam where neither sees
 
@@ -231,23 +204,16 @@ vec3 on_plane(vec3 X, vec3 n, vec2 y) {
 void main() {
     Surface S = surface(ivec2(gl_FragCoord.xy));
     vec2 ua, ub;
-    vec2 x = gl_FragCoord.xy - 0.5;  // this pixel in image coordinates
-#ifdef ALIGN
-    // the flow pass's pixels are sampled at their centres' frame pixels: texel i at pixel i r + r/2
-    vec4 fg = textureLod(flow, x * flow_scale, 0.0);
-    vec2 f = fg.xy;
-    // negative next to a flow pixel that neither photograph sees: left to the caller
-    float ga = fg.z, gb = fg.w;
-    if (ga < 0.0 || gb < 0.0) ga = gb = 0.0;
-    vec2 w = shares(ga, gb, S.s);
-    // floating textures: A(x) ~ B(x + f_AB(x)); A moves by B's share of the disagreement, B by A's
-    ua = project(a_R, a_t, a_k, on_plane(S.X, S.n, x - w.y * f.xy));
-    ub = project(b_R, b_t, b_k, on_plane(S.X, S.n, x + w.x * f));
-#else
     float ga = weight(a_R, a_t, a_c, a_k, a_max, S.X, S.n, ua) * sel_v.x;
     float gb = weight(b_R, b_t, b_c, b_k, b_max, S.X, S.n, ub) * sel_v.y;
     vec2 w = shares(ga, gb, S.s);
-#endif
+    // floating textures: A(x) ~ B(x + f_AB(x)); A moves by B's share of the disagreement, B by A's
+    vec2 x = gl_FragCoord.xy - 0.5;  // this pixel in image coordinates
+    vec2 f = textureLod(flow, gl_FragCoord.xy * flow_scale, 0.0).rg;
+    if (align > 0.0) {
+        ua = project(a_R, a_t, a_k, on_plane(S.X, S.n, x - w.y * f.xy));
+        ub = project(b_R, b_t, b_k, on_plane(S.X, S.n, x + w.x * f));
+    }
     vec3 col = w.x * textureLod(photos, layer(ua, a_max.z), 0.0).rgb
              + w.y * textureLod(photos, layer(ub, b_max.z), 0.0).rgb;
     // (only covered pixels get here: the depth test against the G-buffer's rejects the rest)
@@ -262,7 +228,6 @@ uniform sampler2DArray photos_mip;  // the photographs, mipmapped
 uniform int reduce;                 // this pass's pixel = reduce × reduce pixels of the frame
 uniform ivec2 last;                 // the frame's last pixel (W - 1, H - 1)
 layout(location = 0) out vec2 o_gray;  // grey levels of A and B (each where the other does not see)
-layout(location = 1) out vec2 o_weight;  // g_A, g_B
 void main() {
     ivec2 p = min(ivec2(gl_FragCoord.xy) * reduce + reduce / 2, last);
     Surface S = surface(p);
@@ -277,9 +242,6 @@ void main() {
     vec3 B = (w.y > 0.0) ? cb : ca;
     const vec3 luma = vec3(0.299, 0.587, 0.114);
     o_gray = S.covered ? vec2(dot(A, luma), dot(B, luma)) : vec2(0.0);
-    // a far negative where neither sees a covered point: any pixel of pass 3 whose lookup
-    // touches it reads a negative weight (see the module notes)
-    o_weight = S.covered ? (ga + gb > 0.0 ? vec2(ga, gb) : vec2(-1e6)) : vec2(0.0);
 }
 """
 
@@ -306,10 +268,8 @@ class GLFrame:
     depth : (H, W) float32
         ``Z_cam`` (mm) of the new view, ``inf`` off the model.
     fallback : (n,) int
-        flat indices of the covered pixels that neither selected photograph sees — with the
-        flow, also those next to such a pixel of the flow pass, whose weights are not known
-        here: the caller colours them (the two photographs' blend where they see the point,
-        else the blend of every photograph, §5.2.3's fallback).
+        flat indices of the covered pixels that neither selected photograph sees: the caller
+        colours them (the blend of every photograph, §5.2.3's fallback).
     fallback_normals : (n, 3) float32
         the interpolated unit normal there.
     fallback_single : (n,) float32
@@ -387,8 +347,6 @@ class ViewDependentGL:
         ns = np.column_stack([np.asarray(normals, np.float32).reshape(n, 3), s]).astype(np.float32)
         self._gbuffer = renderer.program(_GBUFFER_VS, _GBUFFER_FS)
         self._blend = renderer.program(_FULLSCREEN_VS, _BLEND_FS)
-        aligned_fs = _BLEND_FS.replace("#version 330\n", "#version 330\n#define ALIGN\n", 1)
-        self._blend_aligned = renderer.program(_FULLSCREEN_VS, aligned_fs)
         self._flow = renderer.program(_FULLSCREEN_VS, _FLOW_FS)
         with ctx:
             self._photos = ctx.texture_array((Wm, Hm, k), 3, stack.tobytes(), alignment=1, dtype="f1")
@@ -408,12 +366,10 @@ class ViewDependentGL:
             attrs = [(self._pos, "3f", "in_pos"), (self._ns, "4f", "in_ns")]
             self._vao = ctx.vertex_array(self._gbuffer, attrs, index_buffer=self._idx, index_element_size=4)
             self._blend_vao = ctx.vertex_array(self._blend, [])
-            self._blend_aligned_vao = ctx.vertex_array(self._blend_aligned, [])
             self._flow_vao = ctx.vertex_array(self._flow, [])
         # every GL object held; dropped unreleased, the renderer frees them at its next use
         self._owned = [self._photo_sampler, self._mip_sampler, self._geo_sampler, self._photos, self._geo,
-                       self._vao, self._blend_vao, self._blend_aligned_vao, self._flow_vao, self._pos, self._ns,
-                       self._idx]
+                       self._vao, self._blend_vao, self._flow_vao, self._pos, self._ns, self._idx]
         self._finalizer = weakref.finalize(self, renderer.defer_release, self._owned)
         self._targets: dict[tuple[int, int, int], dict] = {}
         self.released = False
@@ -459,8 +415,7 @@ class ViewDependentGL:
         depth = ctx.renderbuffer((W, H), components=1, dtype="f4")
         wf, hf = -(-W // reduce), -(-H // reduce)
         gray = ctx.renderbuffer((wf, hf), components=2, dtype="f1")
-        gweight = ctx.renderbuffer((wf, hf), components=2, dtype="f4")
-        flow = ctx.texture((wf, hf), 4, np.zeros((hf, wf, 4), np.float32).tobytes(), dtype="f4")
+        flow = ctx.texture((wf, hf), 2, np.zeros((hf, wf, 2), np.float32).tobytes(), dtype="f4")
         flow.filter = (mgl.LINEAR, mgl.LINEAR)
         flow.repeat_x = flow.repeat_y = False
         t = {
@@ -470,13 +425,13 @@ class ViewDependentGL:
             # the output's attachments alone, to clear each to its own value
             "out_color": ctx.framebuffer([color]),
             "out_depth": ctx.framebuffer([depth]),
-            "gray": ctx.framebuffer([gray, gweight]),
+            "gray": ctx.framebuffer([gray]),
             "gbuf": gbuf,
             "flow": flow,
             "flow_size": (wf, hf),
         }
         t["objects"] = [t["gbuffer"], t["out"], t["out_color"], t["out_depth"], t["gray"], gbuf, zbuf,
-                        color, depth, gray, gweight, flow]
+                        color, depth, gray, flow]
         self._owned.extend(t["objects"])
         self._targets[key] = t
         return t
@@ -646,13 +601,9 @@ class ViewDependentGL:
         ctx.scissor = None
         gray = np.empty((fh, fw, 2), np.uint8)
         fbo.read_into(gray, viewport=(fx0, fy0, fw, fh), components=2, attachment=0, dtype="f1", alignment=1)
-        g = np.empty((fh, fw, 2), np.float32)
-        fbo.read_into(g, viewport=(fx0, fy0, fw, fh), components=2, attachment=1, dtype="f4", alignment=1)
-        fg = np.empty((fh, fw, 4), np.float32)
-        fg[..., 2:] = g
-        fg[..., :2] = flow(np.ascontiguousarray(gray[..., 0]), np.ascontiguousarray(gray[..., 1]))
-        fg[..., :2] *= np.float32(reduce)  # in pixels of the frame
-        t["flow"].write(fg.tobytes(), viewport=(fx0, fy0, fw, fh))
+        f_ab = flow(np.ascontiguousarray(gray[..., 0]), np.ascontiguousarray(gray[..., 1]))
+        f_ab = np.ascontiguousarray(f_ab, np.float32) * np.float32(reduce)  # in pixels of the frame
+        t["flow"].write(f_ab.tobytes(), viewport=(fx0, fy0, fw, fh))
 
     def _blend_pass(self, ctx, t: dict, sel, vw, align: bool, reduce: int, planes, z_max: float, box) -> None:
         """Pass 3: weights, registration and blend, per pixel of the bounding box that the
@@ -662,8 +613,9 @@ class ViewDependentGL:
         wf, hf = t["flow_size"]
         self._photo_sampler.use(location=3)
         t["flow"].use(location=4)
-        p = self._blend_aligned if align else self._blend
+        p = self._blend
         self._set_photos(p, sel, vw)
+        _set(p, "align", 1.0 if align else 0.0)
         _set(p, "flow_scale", (1.0 / (wf * reduce), 1.0 / (hf * reduce)))
         # its NDC depth: behind every surface (the farthest vertex), in front of the clear (1)
         near, far = planes
@@ -676,7 +628,7 @@ class ViewDependentGL:
         ctx.enable(mgl.DEPTH_TEST)
         ctx.depth_func = ">"  # passes where the G-buffer holds a surface, fails on its clear value
         ctx.scissor = (x0, y0, x1 - x0, y1 - y0)
-        (self._blend_aligned_vao if align else self._blend_vao).render(mgl.TRIANGLES, vertices=3)
+        self._blend_vao.render(mgl.TRIANGLES, vertices=3)
         ctx.scissor = None
         ctx.depth_func = "<"
         ctx.disable(mgl.DEPTH_TEST)

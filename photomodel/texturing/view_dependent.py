@@ -20,23 +20,23 @@ with bilinear colour lookups, depth-map visibility (§5.2.1), the image-space fe
   (:mod:`photomodel.rendering.view_dependent`, on the one renderer's GL context): the photographs, their depth
   maps and feather maps are textures uploaded once; a frame is a G-buffer pass of the mesh and
   full-screen passes that compute the weights, visibility and blend per pixel, exactly as the
-  numpy path does — except that with the registration below the weights come from the
-  flow's reduced pass, interpolated (the rendering module's notes). Pixels that neither
-  selected photograph sees (a few hundred in a 1000×1000 frame), and with the registration
-  those next to such a pixel of the reduced pass, come back to the CPU: the two photographs'
-  plain blend where they see the point, else the numpy path's fallback below.
+  numpy path does. Pixels that neither selected photograph sees (a few hundred in a
+  1000×1000 frame) come back to the CPU for the numpy path's fallback below.
 * ``method="numpy"`` (older name ``"position_buffer"``): one geometry pass of the renderer with
   the normals (and the §5.2.4 single-view weight) as float attributes; each pixel's point is
   rebuilt from the depth buffer and everything else happens in numpy/OpenCV (``cv2.remap``).
 
 Both per-pixel methods give the same image — same coverage and fallback pixels, 60 dB between
-them with the plain blend; 38 dB with the registration below (its flow is estimated
-differently, its weights interpolated, thin slivers that neither photograph sees can be
-missed) — and the same held-out PSNR within a few hundredths of a dB;
+them with the plain blend, 41–47 dB with the registration below (its flow is estimated
+differently) — and the same held-out PSNR within a few hundredths of a dB;
 ``benchmarks/bench_texture.py`` measures them side by side (docs/texturing.md). The shader path
-is 5–8× faster (63–65 ms against 354–512 ms for a 1000×1000 registered frame on llvmpipe, loaded machine,
-~25 ms for the studio's 400×780 3D view), fast enough for the 3D view to show the registered
-view-dependent rendering while orbiting.
+is 5–7× faster (81 ms against 528 ms for a 1000×1000 registered frame on llvmpipe at load ~1.2,
+2026-12-01; ~25 ms for the studio's 400×780 3D view), fast enough for the 3D view to show the
+registered view-dependent rendering while orbiting. (Taking the photographs' weights from the
+flow's quarter-resolution pass instead of per pixel made the frame ~17 % faster, 67 against
+81 ms back to back, but it missed visibility slivers and took the shader frame from 47 to 38 dB
+of the numpy path's at 1000×1000 and to 32 dB at 400×780, where the quarter-resolution pass is
+coarse for the face: reverted.)
 
 Floating textures
 -----------------
@@ -344,35 +344,14 @@ class ViewDependentTexture:
         )
         color, idx = frame.color, frame.fallback
         filled = np.zeros(frame.mask.shape, bool)
-        if idx.size:  # neither selected photograph sees these, or may not: on the CPU
+        if idx.size:  # neither selected photograph sees these: every photograph, on the CPU
+            filled.reshape(-1)[idx] = True
             pts = _pixel_points(camera, idx, frame.depth)
-            nrm = frame.fallback_normals
             s = frame.fallback_single if self.single_view is not None else None
-            out, have = self._selected_blend(pts, nrm, s, selected, V)
-            both = ~have  # §5.2.3 keeps two photographs; where both are occluded, use them all
-            unseen = np.zeros(len(idx), bool)
-            if both.any():
-                out[both], unseen[both] = self._fallback(pts[both], nrm[both], None if s is None else s[both])
-            filled.reshape(-1)[idx[both]] = True
+            out, unseen = self._fallback(pts, frame.fallback_normals, s)
             color.reshape(-1, 3)[idx] = out * np.float32(1.0 / 255.0)
             _fill_unseen(color, frame.mask, idx[unseen])
         return ViewDependentRender(color, frame.mask, views, V, filled, frame.depth)
-
-    def _selected_blend(self, pts, nrm, s, selected, V):
-        """The plain blend of the selected photographs at points (as the numpy path without the
-        registration): colours (n, 3) in 0..255 and whether any of them sees each point."""
-        colors, weights = [], []
-        for k in selected:
-            c, g = self._photo_weights(k, pts, nrm)
-            colors.append(c)
-            weights.append(g * np.float32(V[k]))
-        g = np.array(weights)
-        have = g.sum(axis=0) > 0
-        out = np.zeros((len(pts), 3), np.float32)
-        if have.any():
-            shares = apply_single_view(g[:, have], None if s is None else s[have])
-            out[have] = blend(np.array(colors)[:, have], shares)[0]
-        return out, have
 
     def _render_per_vertex(self, camera, views, V, background) -> ViewDependentRender:
         """The paper's multi-pass rendering: one textured pass per selected photograph
