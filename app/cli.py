@@ -155,7 +155,7 @@ def cmd_fit(args) -> int:
     try:
         results = []
         for i, name in enumerate(names):
-            options = FitOptions(refine=not args.no_refine)
+            options = FitOptions(refine=not args.no_refine, weigh_auto_clicks=args.weigh_auto_clicks)
 
             def stage(label, frac, i=i, name=name):  # which expression, and the whole run's fraction
                 progress(f"{name} ({i + 1}/{len(names)}): {label}", (i + frac) / len(names))
@@ -446,6 +446,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--expression", help="fit only this expression (default: all; one that reuses another's "
                                         "cameras, cameras_from, is fitted after it)")
     f.add_argument("--no-refine", action="store_true", help="stop after pose recovery + RBF (no refinement)")
+    f.add_argument("--weigh-auto-clicks", action="store_true",
+                   help="weigh automatic clicks by the detector's confidence squared in the camera solve (helps "
+                        "photos of wide yaw, e.g. three-quarter views and profiles; near-frontal video frames do "
+                        "better without)")
     f.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     f.add_argument("--dry-run", action="store_true", help="report only; do not write into the project")
     f.set_defaults(func=cmd_fit)

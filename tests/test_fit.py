@@ -178,3 +178,25 @@ def test_click_weights_are_one_for_the_artist_and_confidence_squared_for_the_det
     assert w.shape == (len(photos), 2)
     np.testing.assert_allclose(w[0], [1.0, 0.04])
     np.testing.assert_array_equal(w[1:], 1.0)
+
+
+def test_weighing_automatic_clicks_keeps_biased_unsure_ones_from_pulling_the_cameras(mesh, sample_truth):
+    # the detector's outline points sit on the silhouette, not on the skin: here every jaw click
+    # is moved 12 px sideways (a bias, not noise) and marked automatic and unsure (0.2). Weighed by
+    # confidence² (FitOptions.weigh_auto_clicks) they barely move the cameras; counted like the
+    # rest they pull them. Measured: mean rotation error 0.26° unweighted, 0.19° weighted.
+    def biased():
+        project = load_project(PROJECT)
+        for p in project.expression("neutral").photos:
+            for name in [n for n in p.points if n.startswith("jaw_")]:
+                x, y = p.points[name]
+                p.set_click(name, (x + 12.0, y), source="auto", confidence=0.2)
+        return project
+
+    errors = {}
+    for weigh in (False, True):
+        result = fit_expression(biased(), "neutral", mesh, FitOptions(weigh_auto_clicks=weigh))
+        cams, _, _, _ = _aligned(result, sample_truth)
+        true = [sample_truth.cameras["neutral"][pid] for pid in result.photo_ids]
+        errors[weigh] = camera_errors(cams, true)["rot_err_deg"].mean()
+    assert errors[True] < errors[False], errors

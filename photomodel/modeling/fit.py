@@ -75,6 +75,18 @@ class FitOptions:
     cameras_from: str | None = None
     #: Recover this expression's own cameras even if the project gives it ``cameras_from``.
     independent_cameras: bool = False
+    #: Weigh each automatic click in the camera solve by the detector's confidence squared
+    #: (:func:`click_weights`; the artist's clicks 1). Off by default — measured both ways: on
+    #: the james sample's five photos (three-quarter views at ±35–40°, profiles) the outline
+    #: points, silhouette rather than skin points, pulled the three-quarter cameras 7–9° towards
+    #: the front and weighing them down took the auto fit's mesh from 2.32 to 2.07 mm mean over 8
+    #: jittered copies of the photos (every copy better); on the real-footage sample (frames of one
+    #: clip at ±13°) it made the face shallower (depth 1.08× → 0.90× of the generic head's, focal
+    #: 585 → 469 px) and tracking the clip with that model was worse on all three figures the
+    #: footage gives (projected features vs the detector 3.91 → 4.02 px, rotation jitter 0.39° →
+    #: 0.49°, image RMS 0.102 → 0.105). Photo sets of wide yaw gain; footage frames near the front
+    #: lose: ``facestudio fit --weigh-auto-clicks`` chooses.
+    weigh_auto_clicks: bool = False
 
 
 @dataclass
@@ -330,7 +342,7 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
         fixed_focal=opt.fixed_focal,
         names=all_names,
         view_names=[p.id for p in photos],
-        weights=click_weights(photos, all_names),
+        weights=click_weights(photos, all_names) if opt.weigh_auto_clicks else None,
     )
     solved = np.isfinite(sol.points[:, 0])
     col = {n: i for i, n in enumerate(all_names)}
@@ -527,9 +539,9 @@ def fit_expression(
 #: landmarks only, leaving them out took the refined mesh from 2.21 to 1.99 mm mean to the scan and
 #: the RMS from 4.7 to 2.4 px; the RBF places the jaw from the rest. Beyond the paper.
 MIN_AUTO_CONFIDENCE = 0.5
-#: (The cameras are placed with every automatic click, weighed by its confidence squared
-#: (:func:`click_weights`): on the sample's photos 2.34 → 2.06 mm, the real clip's depth 1.08× →
-#: 0.90× of the generic head's, taken from it. Leaving the outline points out of the camera solve
+#: (The cameras are placed with every automatic click; weighing them by their confidence squared is
+#: :attr:`FitOptions.weigh_auto_clicks`: on the sample's photos 2.34 → 2.06 mm, the real clip's
+#: depth 1.08× → 0.90× of the generic head's, taken from it. Leaving the outline points out of the camera solve
 #: altogether was measured before weights: the sample's mesh 2.34 → 1.89 mm, but the real clip's
 #: face came out 57 % as deep as the generic head: with frames of changing expression at ±13°, the
 #: outline is what holds the depth there.)
