@@ -13,6 +13,7 @@ import pytest
 
 from photomodel.camera import rotation_angle_deg
 from photomodel.project import load_project
+from tracking import detected_pose
 from tracking.detected_pose import DEFAULT_FOCAL_WIDTHS, Redetector, landmark_error_px, video_focal_px
 from tracking.first_pose import pose_from_spec
 from tracking.frame_fit import FrameFitter, FrameResult, FrameState
@@ -75,7 +76,14 @@ def test_a_lost_track_is_fitted_again_from_the_detector(fitted_sample, video, tr
     R0, t0 = truth.R[0] @ Rg, (truth.t[0] + truth.R[0] @ (s * Rg @ model.centre + tg)) / s
     alpha = np.zeros(fitter.n_alpha)
     held = FrameResult(FrameState(R0, t0, alpha), model.region_weights(alpha), 0.05, 1000, 1, False)
-    assert watch.restart_spec(0, frame, fitter, held) is None  # the true pose: nothing lost
+    full = []
+    real_detected_spec = detected_pose.detected_spec
+    detected_pose.detected_spec = lambda *a, **k: full.append(1) or real_detected_spec(*a, **k)
+    try:
+        assert watch.restart_spec(0, frame, fitter, held) is None  # the true pose: nothing lost
+    finally:
+        detected_pose.detected_spec = real_detected_spec
+    assert not full  # one face-mesh pass where the model sees the face told; no full detection
     # 40 mm to the side at ~600 mm: ~37 px, beyond LOST_PX; the detector's pose is then the start
     lost = FrameResult(FrameState(R0, t0 + [40.0, 0.0, 0.0], alpha), held.weights, 0.05, 1000, 1, False)
     spec = watch.restart_spec(0, frame, fitter, lost)

@@ -12,7 +12,11 @@ The same detection watches the tracking (:class:`Redetector`): every :data:`REDE
 frames, and on every frame after a diverged one, the tracked model's projected pose features are
 compared with the detector's; a frame whose features are more than :data:`LOST_PX` from the
 detector's (mean) is fitted again from the detected pose, like the first frame — the track
-recovers from a lost face instead of staying lost.
+recovers from a lost face instead of staying lost. The check first runs the face mesh once on
+the crop where the tracked model sees the face (MediaPipe's own tracking mode,
+:func:`photomodel.landmarks.place_landmarks_near`, ~10 ms at 640×360 here); only when that finds
+no face there, or finds its features further than :data:`LOST_PX`, does the full detector run
+(face detector and three face-mesh passes, ~40 ms) — and its pose restarts the track.
 
 The video camera's focal length (:func:`video_focal_px`): the project's fitted cameras of the
 video's image size (a camera group made from frames of the same video, ``facestudio new
@@ -24,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from photomodel.errors import NoFaceFound
-from photomodel.landmarks import place_landmarks
+from photomodel.landmarks import place_landmarks, place_landmarks_near
 
 __all__ = ["DEFAULT_FOCAL_WIDTHS", "LOST_PX", "MIN_CONFIDENCE", "REDETECT_EVERY", "Redetector", "detected_spec",
            "detected_features", "landmark_error_px", "pose_features", "projected_features", "video_focal_px"]
@@ -126,6 +130,9 @@ class Redetector:
         self.names = pose_features(project)
         self.vertices = project.feature_vertices(self.names)
         self.last_diverged = False
+        # the eye line turns the tracking-mode crop (as the detector's keypoints turn its crop)
+        eyes = ["eye_r_outer", "eye_l_outer"]
+        self._eyes = project.feature_vertices(eyes) if set(eyes) <= set(project.feature_names()) else None
 
     def landmarks(self, fitter, state) -> dict[str, list[float]]:
         """The model's projected pose features at ``state``: ``{feature: [u, v]}`` px."""
@@ -139,7 +146,7 @@ class Redetector:
         check is not due, or no face is found."""
         due = self.every > 0 and (index % self.every == 0 or result.diverged or self.last_diverged)
         self.last_diverged = bool(result.diverged)
-        if not due:
+        if not due or self._holds_near(frame, fitter, result):
             return None
         spec = detected_spec(frame, self.project, self.focal_px, name=f"frame {index}")
         if spec is None:
@@ -149,3 +156,27 @@ class Redetector:
         if landmark_error_px(self.landmarks(fitter, result.state), spec["clicks"]) <= LOST_PX:
             return None
         return spec
+
+    def _holds_near(self, frame: np.ndarray, fitter, result) -> bool:
+        """True when one face-mesh pass on the crop where the tracked model sees the face (its
+        face region's box, turned by its eye line) finds the features within :data:`LOST_PX` of
+        the tracked ones; False when it cannot tell (no eye corners in the project, the model out
+        of view, no face in the crop, the features further): the full detector decides then."""
+        if self._eyes is None or result.diverged:
+            return False
+        model, state = fitter.model, result.state
+        X = model.geometry_at(state.alpha)
+        cam = fitter.camera(state)
+        uv = cam.project(X[model.face_mask])
+        eyes = cam.project(X[self._eyes])
+        if not (np.all(np.isfinite(uv)) and np.all(np.isfinite(eyes))):
+            return False
+        img = np.asarray(frame)
+        if img.dtype != np.uint8:
+            img = np.round(np.clip(img, 0.0, 1.0) * 255.0).astype(np.uint8)
+        d = eyes[1] - eyes[0]
+        placed = place_landmarks_near(img, self.names, (*uv.min(0), *uv.max(0)), float(np.arctan2(d[1], d[0])))
+        if placed is None:
+            return False
+        seen = {n: p for n, p in placed.points.items() if placed.confidence.get(n, 0.0) >= MIN_CONFIDENCE}
+        return landmark_error_px(self.landmarks(fitter, state), seen) <= LOST_PX

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from photomodel.landmarks.detect import Face468
+from photomodel.landmarks.detect import Face468, detect_468_near
 from photomodel.landmarks.detect import detect_468 as _detect_468
 from photomodel.landmarks.mapping import estimate_yaw_deg, features_from_mesh, preset_for_yaw
 
-__all__ = ["Placement", "detect_468", "place_landmarks"]
+__all__ = ["Placement", "detect_468", "place_landmarks", "place_landmarks_near"]
 
 
 @dataclass
@@ -119,3 +119,11 @@ def place_landmarks(image: np.ndarray, feature_names: Sequence[str], *, name: st
         when no face is found: click the photo's landmarks by hand.
     """
     return placement_from_face(_detect_468(image, name=name), feature_names)
+
+
+def place_landmarks_near(image: np.ndarray, feature_names: Sequence[str], box: tuple, angle: float) -> Placement | None:
+    """:func:`place_landmarks` from one face-mesh pass on the crop around ``box`` turned by
+    ``angle`` (:func:`photomodel.landmarks.detect.detect_468_near`: where a tracked face is, no
+    face detector); None when the crop holds no face."""
+    face = detect_468_near(image, box, angle)
+    return None if face is None else placement_from_face(face, feature_names)

@@ -329,6 +329,26 @@ def _face_mesh(image: np.ndarray, box: np.ndarray, keypoints: np.ndarray) -> tup
     return points, score
 
 
+def detect_468_near(image: np.ndarray, box: tuple, angle: float) -> Face468 | None:
+    """The 468 face-mesh points from one face-mesh pass on the crop around ``box`` (``x0, y0, x1,
+    y1`` photo pixels of the face, e.g. where a tracked model sees it) turned by ``angle``
+    (radians, the eye line's slope), sized as :func:`detect_468` sizes a detector's box — no face
+    detector (MediaPipe's tracking mode: the crop from where the face was). None when the crop
+    holds no face (score below :data:`MIN_FACE_SCORE`). ~10 ms against ~40 ms for
+    :func:`detect_468` at 640×360 here."""
+    image = np.asarray(image)
+    if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+        raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {image.shape} {image.dtype}")
+    b = np.asarray(box, float)
+    centre, size = (b[:2] + b[2:]) / 2.0, float(np.max(b[2:] - b[:2]) * CROP_SCALE)
+    points, score = _mesh_pass(image, centre, size, float(angle))
+    if score < MIN_FACE_SCORE:
+        return None
+    lo, hi = points[:, :2].min(0), points[:, :2].max(0)
+    return Face468(points=points, score=score, box=(float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])),
+                   faces_found=1)  # fmt: skip
+
+
 def detect_468(image: np.ndarray, *, name: str = "the photo") -> Face468:
     """The 468 face-mesh points of the largest face in a photo.
 

@@ -9,11 +9,15 @@ rendering it as a float attribute would give, without one pass per four channels
 tracker's face model (Pighin et al. 2002, §6.1: Eq. 5 and the Jacobian of §6.1.3) is drawn
 this way.
 
-This module holds the pass itself (shaders, the GL buffers kept between calls) and its result;
-the renderer owns the context and calls it. Welded vertices (camera coordinates) and the
-triangle list stay in GL buffers; a geometry shader gives each triangle's corners the
-barycentric basis and its id, so the mesh need not be unwelded. The target is one RGBA32F image,
-``(b1, b2, id + 1, 0)``, cleared and read back over the mesh's bounding box only.
+This module holds the pass itself (shaders, the GL buffer kept between calls) and its result;
+the renderer owns the context and calls it. The mesh is drawn unwelded — each triangle's three
+corners in turn, ``3·m`` vertices in camera coordinates gathered per call — and the vertex shader
+gives corner ``gl_VertexID mod 3`` its barycentric basis and triangle ``gl_VertexID div 3`` its
+id. (It was a geometry shader on the welded mesh; llvmpipe runs geometry shaders slowly: the
+face model's 15 630 triangles at 300×300 took 11.8 ms a pass with it, 9.2 ms without, the
+coverage identical and one pixel of 24 437 taking the other triangle of a depth tie.) The target
+is one RGBA32F image, ``(b1, b2, id + 1, 0)``, cleared and read back over the mesh's bounding box
+only.
 """
 
 from __future__ import annotations
@@ -31,30 +35,21 @@ VERTEX_SHADER = """
 #version 330
 uniform mat4 proj;
 in vec3 in_pos;
-void main() { gl_Position = proj * vec4(in_pos, 1.0); }
-"""
-GEOMETRY_SHADER = """
-#version 330
-layout(triangles) in;
-layout(triangle_strip, max_vertices = 3) out;
-out vec2 g_bary;
-flat out float g_face;
+out vec2 v_bary;
+flat out float v_face;
 void main() {
-    for (int i = 0; i < 3; i++) {
-        gl_Position = gl_in[i].gl_Position;
-        g_bary = vec2(i == 1 ? 1.0 : 0.0, i == 2 ? 1.0 : 0.0);
-        g_face = float(gl_PrimitiveIDIn + 1);
-        EmitVertex();
-    }
-    EndPrimitive();
+    int corner = gl_VertexID % 3;
+    v_bary = vec2(corner == 1 ? 1.0 : 0.0, corner == 2 ? 1.0 : 0.0);
+    v_face = float(gl_VertexID / 3 + 1);
+    gl_Position = proj * vec4(in_pos, 1.0);
 }
 """
 FRAGMENT_SHADER = """
 #version 330
-in vec2 g_bary;
-flat in float g_face;
+in vec2 v_bary;
+flat in float v_face;
 out vec4 out_bary;
-void main() { out_bary = vec4(g_bary, g_face, 0.0); }
+void main() { out_bary = vec4(v_bary, v_face, 0.0); }
 """
 
 @dataclass
@@ -158,30 +153,27 @@ def empty(shape: tuple[int, int], faces: np.ndarray) -> BarycentricRaster:
 
 
 class BarycentricPass:
-    """The GL side of barycentric rasterisation in one renderer's context, with buffers kept
-    between calls: the index buffer is uploaded when the triangle list changes, the vertex
-    buffer is rewritten per call (8k vertices, ~0.1 ms), and only the bounding box is cleared
-    and read. Made and called by the renderer inside its context, into a framebuffer of its
-    cache."""
+    """The GL side of barycentric rasterisation in one renderer's context, with its vertex buffer
+    kept between calls (re-made when the number of triangles changes): the triangles' corners
+    are gathered and written per call (15k triangles, ~0.5 ms), and only the bounding box is
+    cleared and read. Made and called by the renderer inside its context, into a framebuffer of
+    its cache."""
 
     def __init__(self, ctx, program):
         self.ctx = ctx
         self.prog = program
-        self._faces: np.ndarray | None = None
-        self._n = -1
-        self.vbo = self.ibo = self.vao = None
+        self._m = -1
+        self.vbo = self.vao = None
 
-    def _buffers(self, n: int, faces: np.ndarray) -> None:
-        if self._n == n and self._faces is not None and np.array_equal(self._faces, faces):
+    def _buffers(self, m: int) -> None:
+        if self._m == m:
             return
-        for obj in (self.vao, self.vbo, self.ibo):
+        for obj in (self.vao, self.vbo):
             if obj is not None:
                 obj.release()
-        self.vbo = self.ctx.buffer(reserve=n * 12)
-        self.ibo = self.ctx.buffer(np.ascontiguousarray(faces, np.int32).tobytes())
-        self.vao = self.ctx.vertex_array(self.prog, [(self.vbo, "3f", "in_pos")], index_buffer=self.ibo,
-                                         index_element_size=4)  # fmt: skip
-        self._faces, self._n = np.array(faces, copy=True), n
+        self.vbo = self.ctx.buffer(reserve=max(m, 1) * 36)
+        self.vao = self.ctx.vertex_array(self.prog, [(self.vbo, "3f", "in_pos")])
+        self._m = m
 
     def draw(self, fbo, proj: np.ndarray, Xc: np.ndarray, faces: np.ndarray, box: tuple):
         """Rasterise camera-space vertices ``Xc`` (n, 3) mm with the GL projection ``proj`` (4, 4)
@@ -190,7 +182,7 @@ class BarycentricPass:
 
         y0, y1, x0, x1 = box
         out = np.empty((y1 - y0, x1 - x0, 4), np.float32)
-        self._buffers(len(Xc), faces)
+        self._buffers(len(faces))
         fbo.use()
         fbo.viewport = (0, 0, *fbo.size)
         self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
@@ -198,15 +190,15 @@ class BarycentricPass:
         view = (x0, y0, x1 - x0, y1 - y0)  # framebuffer row i is image row i (gl_projection)
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=view)
         self.prog["proj"].write(proj.T.astype(np.float32).tobytes())
-        self.vbo.write(np.ascontiguousarray(Xc, np.float32).tobytes())
-        self.vao.render(moderngl.TRIANGLES)
+        self.vbo.write(np.asarray(Xc, np.float32)[np.asarray(faces).reshape(-1)].tobytes())
+        self.vao.render(moderngl.TRIANGLES, vertices=3 * len(faces))
         fbo.read_into(out, viewport=view, components=4, attachment=0, dtype="f4", alignment=1)
         return out
 
     def release(self) -> None:
         """Free the buffers (the program and the framebuffers belong to the renderer's caches)."""
-        for obj in (self.vao, self.vbo, self.ibo):
+        for obj in (self.vao, self.vbo):
             if obj is not None:
                 obj.release()
-        self.vbo = self.ibo = self.vao = None
-        self._faces, self._n = None, -1
+        self.vbo = self.vao = None
+        self._m = -1

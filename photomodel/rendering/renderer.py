@@ -534,8 +534,7 @@ class Renderer:
 
         The same rasterisation as :meth:`render` (z-buffer, fill rule, no culling, clipping planes
         of :func:`auto_near_far`), drawn and read back over the mesh's bounding box only. The
-        index buffer is kept while the same triangle list comes again; the vertices are uploaded
-        per call.
+        triangles' corners are uploaded per call (unwelded: no geometry shader).
 
         Parameters
         ----------
@@ -559,7 +558,7 @@ class Renderer:
         if box is None:
             return barycentric.empty(shape, F)
         if self._barycentric is None:
-            prog = self.program(barycentric.VERTEX_SHADER, barycentric.FRAGMENT_SHADER, barycentric.GEOMETRY_SHADER)
+            prog = self.program(barycentric.VERTEX_SHADER, barycentric.FRAGMENT_SHADER)
             self._barycentric = barycentric.BarycentricPass(self.ctx, prog)
         proj = gl_projection(camera, *planes)
         with self.ctx:
