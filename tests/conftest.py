@@ -1,5 +1,6 @@
 """Shared test set-up: Qt runs offscreen, rendering is headless EGL."""
 
+import json
 import os
 import shutil
 import sys
@@ -90,6 +91,25 @@ def sample_truth():
     read it, do not change it."""
 
     return load_ground_truth(SAMPLE_PROJECT / "ground_truth.json")
+
+
+@pytest.fixture(scope="session")
+def sample_video_truth():
+    """The sample video's ``video_truth.json`` (head pose and region weights per frame) as a
+    :class:`tracking.samples.ground_truth.VideoTruth`; read it, do not change it."""
+    from tracking.samples.ground_truth import VideoTruth
+
+    return VideoTruth.from_dict(json.loads((SAMPLE_PROJECT / "video_truth.json").read_text()))
+
+
+@pytest.fixture
+def errors(monkeypatch):
+    """The studio's error dialogs, recorded instead of shown: a list of (title, text)."""
+    from PySide6.QtWidgets import QMessageBox
+
+    shown = []
+    monkeypatch.setattr(QMessageBox, "critical", lambda parent, title, text, *a, **k: shown.append((title, text)))
+    return shown
 
 
 # ----------------------------------------------------------------------------- studio (Qt)

@@ -4,7 +4,6 @@ sample video against its truth (sample_projects/james/video_truth.json)."""
 
 from __future__ import annotations
 
-import json
 import shutil
 from pathlib import Path
 
@@ -19,7 +18,7 @@ from tracking.first_pose import pose_from_spec
 from tracking.frame_fit import FrameFitter, FrameResult, FrameState
 from tracking.results import load_track_results
 from tracking.run import _work_fitter, _work_frame, track_video
-from tracking.samples.ground_truth import VideoTruth, fitted_sample_model, model_gauge
+from tracking.samples.ground_truth import fitted_sample_model, model_gauge
 from tracking.video import VideoFrames
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -27,8 +26,8 @@ FRAMES = 3
 
 
 @pytest.fixture(scope="module")
-def truth():
-    return VideoTruth.from_dict(json.loads((SAMPLE / "video_truth.json").read_text()))
+def truth(sample_video_truth):
+    return sample_video_truth
 
 
 @pytest.fixture(scope="module")

@@ -12,15 +12,15 @@ import pytest
 from photomodel.errors import FitError
 from photomodel.project import load_project
 from tracking.first_pose import load_first_pose
-from tracking.samples.ground_truth import VideoTruth, sample_face_model
+from tracking.samples.ground_truth import sample_face_model
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 VIDEO = SAMPLE / "video" / "james_track.mp4"
 
 
 @pytest.fixture(scope="module")
-def truth():
-    return VideoTruth.from_dict(json.loads((SAMPLE / "video_truth.json").read_text()))
+def truth(sample_video_truth):
+    return sample_video_truth
 
 
 def test_first_pose_files(truth, tmp_path, fitted_sample):

@@ -16,7 +16,6 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
-from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from app.model import StudioModel  # noqa: E402
 from app.qt.tracking_view import TrackingView  # noqa: E402
@@ -24,13 +23,6 @@ from tracking.edit import load_edits  # noqa: E402
 from tracking.results import load_track_results, state_of  # noqa: E402
 
 SHOT = Path(__file__).resolve().parents[1] / "docs" / "img" / "edit_view.png"
-
-
-@pytest.fixture
-def errors(monkeypatch):
-    shown = []
-    monkeypatch.setattr(QMessageBox, "critical", lambda parent, title, text, *a, **k: shown.append((title, text)))
-    return shown
 
 
 @pytest.fixture

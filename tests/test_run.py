@@ -23,7 +23,7 @@ from photomodel.errors import FaceStudioError, FitError
 from photomodel.project import load_project
 from tracking.results import load_track_results
 from tracking.run import track_video
-from tracking.samples.ground_truth import VideoTruth, fitted_sample_model, model_gauge, sample_face_model
+from tracking.samples.ground_truth import fitted_sample_model, model_gauge, sample_face_model
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 PROJECT = SAMPLE / "james.facestudio.json"
@@ -34,8 +34,8 @@ CORRECT = 3
 
 
 @pytest.fixture(scope="module")
-def truth():
-    return VideoTruth.from_dict(json.loads((SAMPLE / "video_truth.json").read_text()))
+def truth(sample_video_truth):
+    return sample_video_truth
 
 
 @pytest.fixture(scope="module")

@@ -18,23 +18,16 @@ pytest.importorskip("pytestqt")
 import json
 
 from PySide6.QtCore import QSettings, Qt  # noqa: E402
-from PySide6.QtWidgets import QFileDialog, QMessageBox  # noqa: E402
+from PySide6.QtWidgets import QFileDialog  # noqa: E402
 
 from app.qt.main_window import MainWindow  # noqa: E402
 from app.qt.tracking_view import MARKER_COLOR, plot_with_marker  # noqa: E402
 from photomodel.camera import rotation_angle_deg
 from tracking.results import default_out_dir, load_track_results  # noqa: E402
-from tracking.samples.ground_truth import VideoTruth, sample_face_model
+from tracking.samples.ground_truth import sample_face_model
 from tracking.video import VideoFrames
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
-
-
-@pytest.fixture
-def errors(monkeypatch):
-    shown = []
-    monkeypatch.setattr(QMessageBox, "critical", lambda parent, title, text, *a, **k: shown.append((title, text)))
-    return shown
 
 
 @pytest.fixture
@@ -190,7 +183,8 @@ def test_first_pose_dialog_click_solve_save(qtbot, window, errors, fitted_projec
     assert not dlg.save(tmp_path / "other.json") and not (tmp_path / "other.json").exists()
 
 
-def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, fitted_project_copy):
+def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, fitted_project_copy,
+                                                          sample_video_truth):
 
 
     view = window.tracking_view
@@ -217,7 +211,7 @@ def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, 
     project = window.model.project
     names = project.feature_names(pose_only=True)
     assert set(dlg.clicks) == set(names)
-    truth = VideoTruth.from_dict(json.loads((SAMPLE / "video_truth.json").read_text()))
+    truth = sample_video_truth
     true_model = sample_face_model(truth.names)
     X = true_model.blend_geometry(true_model.vertex_weights(truth.weights[2]))[project.feature_vertices(names)]
     true_uv = truth.camera(2).project(X)
