@@ -464,9 +464,13 @@ class FrameFitter:
         """(2, R − 1, m) int, the quadratic pieces of D that the weights are on: row 0, −1 where a
         control region's weight is below 0, +1 above 1, else 0; row 1, 1 where a region shows an
         expression more than the expression's home region (:func:`home_regions`), else 0."""
-        w = weights[1:]
+        return self._pieces(weights[1:], self._excess(weights))
+
+    @staticmethod
+    def _pieces(w: np.ndarray, excess: np.ndarray) -> np.ndarray:
+        """:meth:`_sides` from the control regions' weights ``w`` and their :meth:`_excess`."""
         bounds = (w > 1.0).astype(int) - (w < 0.0).astype(int)
-        return np.stack([bounds, (self._excess(weights) > 0.0).astype(int)])
+        return np.stack([bounds, (excess > 0.0).astype(int)])
 
     def _excess(self, weights: np.ndarray) -> np.ndarray:
         """(R − 1, m): each region's weight of each expression minus its home region's (0 for
@@ -495,7 +499,7 @@ class FrameFitter:
         lo, hi = np.minimum(w, 0.0), np.maximum(w - 1.0, 0.0)
         D = c * float((lo**2).sum() + (hi**2).sum()) + kappa * float((np.maximum(excess, 0.0) ** 2).sum())
         if sides is None:
-            sides = self._sides(weights)
+            sides = self._pieces(w, excess)
         bounds, above = sides
         resid = np.where(bounds < 0, w, np.where(bounds > 0, w - 1.0, 0.0))
         g_w = (2 * c * resid).ravel()
