@@ -163,6 +163,9 @@ class TrackingView(QWidget):
         self.index_label.setMinimumWidth(150)
         self.overlay_box = QCheckBox("model overlay")
         self.overlay_box.setChecked(True)
+        self.overlay_box.setToolTip("the face model drawn over the frame at its tracked pose and expression; outline "
+                                    "green (red: the frame diverged); magenta: pixels the tracker takes for not the "
+                                    "face (a hand, hair, a reflection) and leaves out of the fit")
         self.overlay_box.toggled.connect(lambda *_: self._show_frame(self.slider.value()))
         self.limit_box = QSpinBox()
         self.limit_box.setRange(0, 1_000_000)
