@@ -106,42 +106,38 @@ void main() {  // one triangle over the whole viewport
 }
 """
 
-# what passes 2 and 3 share: the G-buffer, the selected photographs A and B, g_k = F_k P_k
+# what passes 2 and 3 share: the G-buffer, the selected photographs A and B, g_k = F_k P_k.
+# Everything is written in the new view's homogeneous pixel q = (x, y, 1): its viewing ray is
+# r = M q (world directions, Z_cam = 1), the point X = c + Z_cam r, and a photograph's
+# homogeneous pixel K_k (R_k X + t_k) = Z_cam H_k q + h_k, with M, H_k and h_k composed per
+# frame in float64 on the CPU (ViewDependentGL._set_photos): 12 multiply-adds and a division
+# per projection instead of a rotation, a translation and the intrinsics.
 _COMMON = """
 #version 330
 uniform usampler2D gbuf;
 uniform sampler2DArray geo;     // R: depth map Z_cam (far sentinel off the model), G: feather F_k
-uniform mat3 a_R;               // world (minus the centre) -> camera of A: X_a = R X + t
-uniform vec3 a_t;
-uniform vec3 a_c;               // camera centre minus the head centre
-uniform vec3 a_k;               // f, cx, cy (px)
+uniform mat3 a_H;               // K_a R_a M: the new view's homogeneous pixel -> A's, per unit Z_cam
+uniform vec3 a_h;               // K_a (R_a c + t_a): the new view's centre in A's homogeneous pixels
+uniform vec3 a_d;               // A's centre minus the new view's
 uniform vec3 a_max;             // W - 1, H - 1 (the last pixel centres), texture layer
-uniform mat3 b_R;
-uniform vec3 b_t;
-uniform vec3 b_c;
-uniform vec3 b_k;
+uniform mat3 b_H;
+uniform vec3 b_h;
+uniform vec3 b_d;
 uniform vec3 b_max;
 uniform vec2 tex_scale;         // 1 / (array width, height)
 uniform float tol;              // depth tolerance, mm
 uniform vec2 sel_v;             // V_k(d) of A and B (B's 0 when one photograph is selected)
 uniform float use_single;       // 1: mix in the single-view weight s, 0: plain blend
-
-uniform mat3 view_Rt;           // the new view: camera -> world directions
-uniform vec3 view_c;            // its centre minus the head centre
-uniform vec3 view_k;            // f, cx, cy
+uniform mat3 view_M;            // the new view: homogeneous pixel -> viewing ray (world, Z_cam = 1)
 
 struct Surface {
-    vec3 X;        // point minus the head centre
+    vec3 q;        // homogeneous pixel of the new view
+    vec3 r;        // its viewing ray, world directions, Z_cam = 1 (the point: c + z r)
     vec3 n;        // unit normal
     float s;       // single-view weight
     float z;       // Z_cam in the new view
     bool covered;
 };
-
-// the viewing ray of pixel y (image coordinates) of the new view, world directions, Z_cam = 1
-vec3 ray(vec2 y) {
-    return view_Rt * vec3((y - view_k.yz) / view_k.x, 1.0);
-}
 
 Surface surface(ivec2 p) {
     uvec2 g = texelFetch(gbuf, p, 0).rg;
@@ -151,28 +147,30 @@ Surface surface(ivec2 p) {
     if (n.z < 0.0) n.xy = (1.0 - abs(n.yx)) * vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
     float s = float((g.y >> 24) & 0x7Fu) / 127.0 * use_single;
     // the point from the depth, as the numpy path rebuilds it
-    return Surface(view_c + z * ray(vec2(p)), normalize(n), s, z, (g.y & 0x80000000u) != 0u);
+    vec3 q = vec3(vec2(p), 1.0);
+    return Surface(q, view_M * q, normalize(n), s, z, (g.y & 0x80000000u) != 0u);
 }
 
-vec2 project(mat3 R, vec3 t, vec3 k, vec3 X) {
-    vec3 Xc = R * X + t;
-    return k.x * Xc.xy / Xc.z + k.yz;
+// the pixel of a photograph (H, h) where the point seen at homogeneous pixel q with depth z lies
+vec2 project(mat3 H, vec3 h, vec3 q, float z) {
+    vec3 x = z * (H * q) + h;
+    return x.xy / x.z;
 }
 
 vec3 layer(vec2 uv, float k) {
     return vec3((uv + 0.5) * tex_scale, k);
 }
 
-// F_k P_k of a photograph at the surface point X (normal n), 0 where it does not see X;
-// uv: X's position in the photograph (pixels)
-float weight(mat3 R, vec3 t, vec3 c, vec3 k, vec3 mx, vec3 X, vec3 n, out vec2 uv) {
-    vec3 Xc = R * X + t;
-    uv = k.x * Xc.xy / Xc.z + k.yz;
+// F_k P_k of a photograph (H, h; d: its centre minus the new view's) at the surface point S,
+// 0 where it does not see it; uv: the point's position in the photograph (pixels)
+float weight(mat3 H, vec3 h, vec3 dc, vec3 mx, Surface S, out vec2 uv) {
+    vec3 x = S.z * (H * S.q) + h;  // x.z: Z_cam in the photograph
+    uv = x.xy / x.z;
     vec2 dz = textureLod(geo, layer(uv, mx.z), 0.0).rg;
-    vec3 d = c - X;
-    float P = dot(n, d) / max(length(d), 1e-12);
-    bool vis = Xc.z > 0.0 && uv.x >= 0.0 && uv.y >= 0.0 && uv.x <= mx.x && uv.y <= mx.y
-               && Xc.z <= dz.r + tol && P > 0.0;
+    vec3 d = dc - S.z * S.r;
+    float P = dot(S.n, d) / max(length(d), 1e-12);
+    bool vis = x.z > 0.0 && uv.x >= 0.0 && uv.y >= 0.0 && uv.x <= mx.x && uv.y <= mx.y
+               && x.z <= dz.r + tol && P > 0.0;
     return vis ? dz.g * P : 0.0;
 }
 
@@ -194,25 +192,24 @@ uniform float align;            // 1: register A and B by the flow
 layout(location = 0) out vec3 o_color;   // colour; where neither sees: normal (1 + s)
 layout(location = 1) out float o_depth;  // Z_cam; -Z_cam where neither sees
 
-// the point of the tangent plane at X (normal n) that pixel y of the new view sees
-vec3 on_plane(vec3 X, vec3 n, vec2 y) {
-    vec3 r = ray(y);
-    float nr = dot(n, r);
-    return abs(nr) > 1e-6 ? view_c + r * (dot(n, X - view_c) / nr) : X;
-}
-
 void main() {
     Surface S = surface(ivec2(gl_FragCoord.xy));
     vec2 ua, ub;
-    float ga = weight(a_R, a_t, a_c, a_k, a_max, S.X, S.n, ua) * sel_v.x;
-    float gb = weight(b_R, b_t, b_c, b_k, b_max, S.X, S.n, ub) * sel_v.y;
+    float ga = weight(a_H, a_h, a_d, a_max, S, ua) * sel_v.x;
+    float gb = weight(b_H, b_h, b_d, b_max, S, ub) * sel_v.y;
     vec2 w = shares(ga, gb, S.s);
     // floating textures: A(x) ~ B(x + f_AB(x)); A moves by B's share of the disagreement, B by A's
-    vec2 x = gl_FragCoord.xy - 0.5;  // this pixel in image coordinates
     vec2 f = textureLod(flow, gl_FragCoord.xy * flow_scale, 0.0).rg;
     if (align > 0.0) {
-        ua = project(a_R, a_t, a_k, on_plane(S.X, S.n, x - w.y * f.xy));
-        ub = project(b_R, b_t, b_k, on_plane(S.X, S.n, x + w.x * f));
+        // the tangent plane at X seen at pixel q': depth z (m.q) / (m.q'), m = M^T n (n.r' = m.q')
+        vec3 m = transpose(view_M) * S.n;
+        float mq = S.z * dot(m, S.q);
+        vec3 qa = vec3(S.q.xy - w.y * f, 1.0);
+        vec3 qb = vec3(S.q.xy + w.x * f, 1.0);
+        float na = dot(m, qa), nb = dot(m, qb);
+        // (a ray along the plane: the point itself, as on the numpy path's tangent plane)
+        ua = abs(na) > 1e-6 ? project(a_H, a_h, qa, mq / na) : ua;
+        ub = abs(nb) > 1e-6 ? project(b_H, b_h, qb, mq / nb) : ub;
     }
     vec3 col = w.x * textureLod(photos, layer(ua, a_max.z), 0.0).rgb
              + w.y * textureLod(photos, layer(ub, b_max.z), 0.0).rgb;
@@ -232,8 +229,8 @@ void main() {
     ivec2 p = min(ivec2(gl_FragCoord.xy) * reduce + reduce / 2, last);
     Surface S = surface(p);
     vec2 ua, ub;
-    float ga = weight(a_R, a_t, a_c, a_k, a_max, S.X, S.n, ua) * sel_v.x;
-    float gb = weight(b_R, b_t, b_c, b_k, b_max, S.X, S.n, ub) * sel_v.y;
+    float ga = weight(a_H, a_h, a_d, a_max, S, ua) * sel_v.x;
+    float gb = weight(b_H, b_h, b_d, b_max, S, ub) * sel_v.y;
     vec2 w = shares(ga, gb, S.s);
     // implicit derivatives between this pass's pixels pick the mipmap level of its pixel size
     vec3 ca = texture(photos_mip, layer(ua, a_max.z)).rgb;
@@ -437,23 +434,27 @@ class ViewDependentGL:
         return t
 
     def _set_photos(self, prog, sel, vw) -> None:
+        """The uniforms of the selected photographs ``sel`` (weights ``vw``) seen from the frame's
+        view, composed in float64 (see ``_COMMON``)."""
+        view = self._view
+        view_c = view.center - self.centre
+        M = view.R.T @ _intrinsics(view, inverse=True)  # homogeneous pixel -> ray (world, Z_cam = 1)
+        if "view_M" in prog:
+            prog["view_M"].write(_gl_mat3(M))
         for prefix, k in (("a_", sel[0]), ("b_", sel[1])):
             u = self._cam_uniforms[k]
-            if prefix + "R" in prog:
-                prog[prefix + "R"].write(u["R"])
-            for name in ("t", "c", "k", "max"):
-                _set(prog, prefix + name, u[name])
+            KR = u["K"] @ u["R"]
+            if prefix + "H" in prog:
+                prog[prefix + "H"].write(_gl_mat3(KR @ M))
+            _set(prog, prefix + "h", tuple(float(x) for x in KR @ view_c + u["K"] @ u["t"]))
+            _set(prog, prefix + "d", tuple(float(x) for x in u["c"] - view_c))
+            _set(prog, prefix + "max", u["max"])
         for name, unit in (("gbuf", 0), ("geo", 2), ("photos", 3), ("photos_mip", 3), ("flow", 4)):
             _set(prog, name, unit)
         _set(prog, "tex_scale", (1.0 / self.array_size[0], 1.0 / self.array_size[1]))
         _set(prog, "tol", self.tol_mm)
         _set(prog, "sel_v", tuple(vw))
         _set(prog, "use_single", 1.0 if self.use_single else 0.0)
-        view = self._view
-        if "view_Rt" in prog:
-            prog["view_Rt"].write(np.ascontiguousarray(view.R, np.float32).tobytes())  # Rᵀ, column-major
-        _set(prog, "view_c", tuple(float(x) for x in view.center - self.centre))
-        _set(prog, "view_k", (view.f, *(float(x) for x in view.principal_point)))
 
     def render(
         self,
@@ -671,17 +672,31 @@ def _photo_layers(cameras, photos, depths, feather_maps, size: tuple[int, int], 
 
 
 def _camera_uniforms(cameras, centre: np.ndarray) -> list[dict]:
-    """Per-photograph uniforms: ``X_k = R (X - c) + (R c + t)``, composed in float64."""
+    """Per-photograph constants, float64: ``X_k = R (X - c) + (R c + t)`` (``t`` below), the
+    intrinsics ``K``, the centre minus ``c`` and the texture-array limits."""
     return [
         {
-            "R": np.ascontiguousarray(c.R.T, np.float32).tobytes(),  # GL matrices are column-major
-            "t": tuple(float(x) for x in c.R @ centre + c.t),
-            "c": tuple(float(x) for x in c.center - centre),
-            "k": (c.f, *(float(x) for x in c.principal_point)),
+            "R": np.asarray(c.R, float),
+            "t": c.R @ centre + c.t,
+            "c": c.center - centre,
+            "K": _intrinsics(c),
             "max": (c.width - 1.0, c.height - 1.0, float(i)),
         }
         for i, c in enumerate(cameras)
     ]
+
+
+def _intrinsics(camera: Camera, *, inverse: bool = False) -> np.ndarray:
+    """``K`` (3, 3) of a camera (square pixels, no skew), or its inverse."""
+    f, (cx, cy) = float(camera.f), (float(x) for x in camera.principal_point)
+    if inverse:
+        return np.array([[1.0 / f, 0.0, -cx / f], [0.0, 1.0 / f, -cy / f], [0.0, 0.0, 1.0]])
+    return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+
+def _gl_mat3(m: np.ndarray) -> bytes:
+    """A (3, 3) matrix as a GLSL ``mat3`` uniform's bytes (column-major float32)."""
+    return np.ascontiguousarray(np.asarray(m, float).T, np.float32).tobytes()
 
 
 def _set(prog, name, value) -> None:
