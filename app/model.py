@@ -434,6 +434,10 @@ class StudioModel:
         self.points_changed.emit(expression, photo_id, feature)
         return None if old is None else old.copy()
 
+    def curve_source(self, expression: str, photo_id: str, curve: str) -> str:
+        """``"auto"`` or ``"user"``: who drew a curve in a photo."""
+        return self.photo(photo_id, expression).curve_source(curve)
+
     def click_source(self, expression: str, photo_id: str, feature: str) -> tuple[str, float | None]:
         """Where a click came from: ``("user", None)`` or ``("auto", confidence or None)``."""
         photo = self.photo(photo_id, expression)
@@ -464,19 +468,19 @@ class StudioModel:
         self.features_changed.emit()
         return old
 
-    def set_curve(self, expression: str, photo_id: str, curve: str, polyline) -> np.ndarray | None:
-        """Draw (``polyline`` (m, 2) px, m >= 2) or delete (None) a curve in a photo; returns the old."""
+    def set_curve(self, expression: str, photo_id: str, curve: str, polyline,
+                  source: str = "user") -> np.ndarray | None:
+        """Draw (``polyline`` (m, 2) px, m >= 2) or delete (None) a curve in a photo; returns the old.
+        ``source``: who drew it — the artist (default; redrawing an automatic curve makes it
+        the artist's) or ``"auto"`` (undoing an edit of an automatic curve)."""
         photo = self.photo(photo_id, expression)
         if not self.has_curve(curve):
             raise ProjectError(f"no curve named {curve!r} is defined in the project")
         old = photo.curves.get(curve)
-        if polyline is None:
-            photo.curves.pop(curve, None)
-        else:
-            line = np.asarray(polyline, dtype=float).reshape(-1, 2)
-            if line.shape[0] < 2 or not np.all(np.isfinite(line)):
-                raise ProjectError(f"curve {curve!r} in photo {photo_id!r} needs at least 2 finite points")
-            photo.curves[curve] = line
+        try:
+            photo.set_curve(curve, polyline, source=source)
+        except ValueError as exc:
+            raise ProjectError(str(exc)) from None
         self._touch()
         self.curves_changed.emit(expression, photo_id, curve)
         return None if old is None else old.copy()

@@ -35,8 +35,11 @@ def fake_placer(image, names):
     points = {n: np.array([fx * w - 0.5, fy * h - 0.5]) for n, (fx, fy) in FAKE.items() if n in names}
     points["not_a_feature"] = np.array([1.0, 1.0])  # names the project does not define are ignored
     points["chin"] = np.array([w / 2, 3.0 * h])  # far below the photo: dropped, never stored
+    curves = {"lip_upper": np.array([[0.4 * w, 0.7 * h], [0.5 * w, 0.68 * h], [0.6 * w, 0.7 * h]]),
+              "not_a_curve": np.array([[1.0, 1.0], [2.0, 2.0]]),  # curves the project lacks are ignored
+              "lip_lower": np.array([[0.4 * w, 0.7 * h], [0.5 * w, 3.0 * h]])}  # off the photo: dropped
     return SimpleNamespace(points=points, confidence={"nose_tip": 0.8, "eye_r_outer": 1.3, "eye_l_outer": 0.6},
-                           preset="three_quarter_left", yaw_deg=30.0,
+                           preset="three_quarter_left", yaw_deg=30.0, curves=curves,
                            faces_found=3 if tuple(image[0, 0]) == (255, 0, 0) else 1)
 
 
@@ -90,7 +93,7 @@ def test_new_project_from_a_folder_with_automatic_clicks(tmp_path, folder, monke
 
     p = load_project(target)
     text = json.loads(target.read_text())
-    assert text["version"] == 4 and p.name == "me"
+    assert text["version"] == 5 and p.name == "me"
     e = p.expression("neutral")
     first, none = e.photo("IMG_0001"), e.photo("IMG_0003")
     assert first.path == "photos/IMG_0001.jpg" and (first.width, first.height) == (160, 120)
@@ -102,6 +105,9 @@ def test_new_project_from_a_folder_with_automatic_clicks(tmp_path, folder, monke
     assert first.confidence == {"nose_tip": 0.8, "eye_r_outer": 1.0, "eye_l_outer": 0.6}  # clipped to [0, 1]
     assert text["expressions"][0]["photos"][0]["click_sources"]["nose_tip"] == {"source": "auto", "confidence": 0.8}
     assert none.points == {} and none.preset == "front"
+    assert first.auto_curves() == ["lip_upper"] and text["expressions"][0]["photos"][0]["curve_sources"] == {
+        "lip_upper": "auto"}
+    np.testing.assert_allclose(first.curves["lip_upper"][1], [0.5 * 160, 0.68 * 120], atol=1e-3)
     # the features of the sample project: its 13 pose features and 68 landmarks, and its curves
     sample = load_project(SAMPLE)  # a version-1 file: still opens
     assert [(f.name, f.vertex, f.pose) for f in p.features] == [

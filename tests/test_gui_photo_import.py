@@ -16,6 +16,9 @@ pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
 
+from app.qt.commands import SetCurveCommand  # noqa: E402
+from app.qt.photo_view import AUTO_COLOR  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 PHOTOS = ROOT / "sample_projects" / "james" / "photos"
 SCREENSHOT = ROOT / "docs" / "img" / "auto_landmarks.png"
@@ -42,6 +45,18 @@ def test_new_from_photos_auto_landmarks_drag_fit(qtbot, studio_window, tmp_path,
     view = w.show_photo("neutral_front")
     qtbot.waitUntil(lambda: view.isVisible())
     assert all(item.is_auto for item in view._items.values())  # violet diamonds
+    # the eyelids and outer lips drawn as automatic curves, dashed in the same violet
+    assert set(front.auto_curves()) == {"eyelid_r_upper", "eyelid_r_lower", "eyelid_l_upper", "eyelid_l_lower",
+                                        "lip_upper", "lip_lower"}
+    pen = view._curve_items["lip_upper"].pen()
+    assert pen.color().rgb() == AUTO_COLOR.rgb() and pen.style() == Qt.PenStyle.DashLine
+    # redrawn by the artist it is theirs (solid); undone, the detector's again
+    line = front.curves["lip_upper"] + [0.0, 2.0]
+    w.undo_stack.push(SetCurveCommand(model, "neutral", "neutral_front", "lip_upper", line))
+    assert model.curve_source("neutral", "neutral_front", "lip_upper") == "user"
+    assert view._curve_items["lip_upper"].pen().style() == Qt.PenStyle.SolidLine
+    w.undo_stack.undo()
+    assert model.curve_source("neutral", "neutral_front", "lip_upper") == "auto"
 
     # -- Add photos with automatic landmarks…: one more view, one undoable edit
     assert w.importer.add_photos([PHOTOS / "neutral_left.png"])

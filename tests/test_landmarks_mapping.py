@@ -4,15 +4,18 @@ import numpy as np
 
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.landmarks.mapping import (
+    MESH_CURVES,
     MESH_OF_IBUG68,
     OUTLINE_CONFIDENCE,
+    PROFILE_FROM_DEG,
+    curves_from_mesh,
     features_from_mesh,
     ibug68_from_mesh,
     ibug_index,
     placed_ibug,
     preset_for_yaw,
 )
-from photomodel.modeling.generic_mesh import FEATURE_ALIASES, IBUG68_NAMES
+from photomodel.modeling.generic_mesh import CURVE_LANDMARKS, FEATURE_ALIASES, IBUG68_NAMES
 
 
 def test_every_ibug_point_has_its_own_mesh_point():
@@ -75,3 +78,22 @@ def test_features_carry_mesh_points_and_confidences():
     assert all(0.0 < c <= 1.0 for c in confidence.values())
     _, front = ibug68_from_mesh(mesh, 0.0)
     assert front[IBUG68_NAMES.index("jaw_05")] < 0.5 * front[FEATURE_ALIASES["eye_r_outer"]]  # the outline weighs less
+
+
+def test_curves_pass_through_the_clicks_on_them_end_to_end():
+    """An automatic curve starts and ends on the automatic clicks of its curve's first and last
+    landmarks and passes through those in between, in the curve's order (§5.1.3 binds a drawing
+    end to end to the mesh curve through those landmarks)."""
+    assert set(MESH_CURVES) <= set(CURVE_LANDMARKS)
+    for name, contour in MESH_CURVES.items():
+        waypoints = [int(MESH_OF_IBUG68[i]) for i in CURVE_LANDMARKS[name]]
+        assert contour[0] == waypoints[0] and contour[-1] == waypoints[-1], name
+        at = [contour.index(w) for w in waypoints]  # each landmark's face-mesh point is on the contour...
+        assert at == sorted(at), name  # ...in order
+        assert len(set(contour)) == len(contour), name
+    mesh = np.random.default_rng(1).uniform(0, 500, (468, 3))
+    curves = curves_from_mesh(mesh, 30.0)
+    assert set(curves) == set(MESH_CURVES)
+    np.testing.assert_array_equal(curves["lip_lower"], mesh[list(MESH_CURVES["lip_lower"]), :2])
+    assert curves_from_mesh(mesh, PROFILE_FROM_DEG + 1.0) == {}  # a profile hides half the lips
+

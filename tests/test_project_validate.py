@@ -101,9 +101,9 @@ CASES = [
      ['expressions[0].photos[0].points["left eye"]: no feature named']),
     ("wrong format", lambda d: d.__setitem__("format", "blender"),
      ["not a Face Studio project file", '"blender"']),
-    ("newer version", lambda d: d.__setitem__("version", 5),
-     ["james.facestudio.json: written by a newer Face Studio (project format version 5; "
-      "this version reads up to 4)"]),
+    ("newer version", lambda d: d.__setitem__("version", 6),
+     ["james.facestudio.json: written by a newer Face Studio (project format version 6; "
+      "this version reads up to 5)"]),
     ("version zero", lambda d: d.__setitem__("version", 0), ["unknown project format version 0"]),
     ("version string", lambda d: d.__setitem__("version", "1"), ['version: expected an integer', '"1"']),
 ]
@@ -278,7 +278,7 @@ def test_invalid_cameras_from_is_not_saved(tmp_path):
 # format version 2: version 1 read, photo camera_group
 # ---------------------------------------------------------------------------------------
 def test_version_1_file_loads_and_is_saved_as_the_current_version(tmp_path, saved):
-    """Version 1 needs no upgrade (it has no camera groups); saving writes version 4."""
+    """Version 1 needs no upgrade (it has no camera groups); saving writes version 5."""
     _, d = saved
     d["version"] = 1
     p = load_dict(tmp_path, d)
@@ -286,7 +286,7 @@ def test_version_1_file_loads_and_is_saved_as_the_current_version(tmp_path, save
     assert all(ph.camera_group is None for e in p.expressions for ph in e.photos)
     assert p.camera_groups("neutral") == [0, 1]  # each photo a camera of its own
     again = json.loads(save_project(p, tmp_path / "v3.facestudio.json").read_text())
-    assert again["version"] == 4 and again["expressions"] == d["expressions"]
+    assert again["version"] == 5 and again["expressions"] == d["expressions"]
     # the committed sample project is a version-1 file and still loads
     sample = load_project(Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json")
     assert sample.camera_groups("neutral") == [0, 1, 2, 3, 4]
@@ -327,7 +327,7 @@ def test_version_3_round_trip_of_automatic_clicks(tmp_path):
     path = save_project(p)
     d = json.loads(path.read_text())
     pd = photo_dict(d, 0, 0)
-    assert d["version"] == 4
+    assert d["version"] == 5
     # the clicks stay plain [u, v]; their origin sits beside them, in feature order
     assert pd["points"]["eye_l"] == [41.25, 12.5]
     assert list(pd["click_sources"]) == ["eye_l", "jaw_00"]
@@ -341,6 +341,49 @@ def test_version_3_round_trip_of_automatic_clicks(tmp_path):
     assert bf.confidence == {"eye_l": 0.875} and bf.auto_clicks() == ["eye_l", "jaw_00"]
 
 
+# ---------------------------------------------------------------------------------------
+# format version 5: curve_sources (curves drawn by the landmark detector)
+# ---------------------------------------------------------------------------------------
+def test_version_5_round_trip_of_automatic_curves(tmp_path):
+    p = sample_project(tmp_path)
+    front = p.expression("neutral").photo("front")
+    front.set_curve("lip_top", [[10.0, 40.0], [20.0, 36.5], [30.0, 40.0]], source="auto")
+    path = save_project(p)
+    d = json.loads(path.read_text())
+    pd = photo_dict(d, 0, 0)
+    assert d["version"] == 5
+    assert pd["curves"]["lip_top"] == [[10.0, 40.0], [20.0, 36.5], [30.0, 40.0]]  # still a plain polyline
+    assert pd["curve_sources"] == {"lip_top": "auto"}
+    assert "curve_sources" not in photo_dict(d, 0, 1)  # no automatic curve: no key
+    back = load_project(path)
+    assert back == p
+    bf = back.expression("neutral").photo("front")
+    assert bf.curve_source("lip_top") == "auto" and bf.auto_curves() == ["lip_top"]
+    # redrawn by the artist: theirs, and the key goes
+    bf.set_curve("lip_top", [[10.0, 41.0], [30.0, 41.0]])
+    assert bf.curve_source("lip_top") == "user" and bf.auto_curves() == []
+    assert "curve_sources" not in photo_dict(json.loads(save_project(back).read_text()), 0, 0)
+    with pytest.raises(ValueError, match="at least 2 finite points"):
+        bf.set_curve("lip_top", [[1.0, 2.0]], source="auto")
+
+
+def test_a_curve_source_without_its_curve_is_named(tmp_path, saved):
+    path, d = saved
+    photo_dict(d)["curve_sources"] = {"brow_l": "auto"}
+    path.write_text(json.dumps(d))
+    with pytest.raises(ProjectError, match=r"curve_sources.brow_l: .brow_l. is not drawn in this photo's curves"):
+        load_project(path)
+
+
+def test_version_4_file_loads_and_its_curves_are_the_users(tmp_path, saved):
+    path, d = saved
+    d["version"] = 4
+    path.write_text(json.dumps(d))
+    p = load_project(path)
+    assert all(not ph.auto_curves() for e in p.expressions for ph in e.photos)
+    assert json.loads(save_project(p).read_text())["version"] == 5
+
+
 def test_version_2_file_loads_unchanged_and_its_clicks_are_the_users(tmp_path, saved):
     _, d = saved
     d["version"] = 2
@@ -349,7 +392,7 @@ def test_version_2_file_loads_unchanged_and_its_clicks_are_the_users(tmp_path, s
     assert all(ph.sources == {} and ph.confidence == {} for e in p.expressions for ph in e.photos)
     assert p.expression("neutral").photo("front").click_source("nose_tip") == "user"
     again = json.loads(save_project(p, tmp_path / "v3.facestudio.json").read_text())
-    assert again["version"] == 4 and again["expressions"] == d["expressions"]
+    assert again["version"] == 5 and again["expressions"] == d["expressions"]
 
 
 @pytest.mark.parametrize("value, expected", [

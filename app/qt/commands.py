@@ -128,6 +128,7 @@ class SetCurveCommand(QUndoCommand):
         self.new = None if polyline is None else np.asarray(polyline, dtype=float).reshape(-1, 2).copy()
         old = model.photo(photo_id, expression).curves.get(curve)
         self.old = None if old is None else old.copy()
+        self.old_source = model.curve_source(expression, photo_id, curve)  # an automatic curve stays one on undo
         self.define = None
         if not model.has_curve(curve):
             self.define = CurveDef(curve, model.mesh.curves[curve])
@@ -140,7 +141,7 @@ class SetCurveCommand(QUndoCommand):
         self.model.set_curve(self.expression, self.photo_id, self.curve, self.new)
 
     def undo(self):
-        self.model.set_curve(self.expression, self.photo_id, self.curve, self.old)
+        self.model.set_curve(self.expression, self.photo_id, self.curve, self.old, source=self.old_source)
         if self.define is not None:
             self.model.remove_curve_def(self.define.name)
 

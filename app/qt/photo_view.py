@@ -478,11 +478,15 @@ class PhotoView(QGraphicsView):
             path.lineTo(QPointF(*p))
         item = QGraphicsPathItem(path)
         active = name == self.model.active_curve
-        pen = QPen(DRAWN_CURVE_COLOR if active else QColor(255, 120, 220, 170), 2.4 if active else 1.4)
+        auto = self.photo.curve_source(name) == "auto"
+        colour = AUTO_COLOR if auto else DRAWN_CURVE_COLOR
+        if not active:
+            colour = QColor(colour.red(), colour.green(), colour.blue(), 170)
+        pen = QPen(colour, 2.4 if active else 1.4, Qt.PenStyle.DashLine if auto else Qt.PenStyle.SolidLine)
         pen.setCosmetic(True)
         item.setPen(pen)
         item.setZValue(8)
-        item.setToolTip(f"curve {name}")
+        item.setToolTip(f"curve {name}" + (" (drawn automatically: redraw it to correct it)" if auto else ""))
         item.setVisible(self.show_curves)
         self.scene().addItem(item)
         self._curve_items[name] = item

@@ -11,13 +11,13 @@ Modules: :mod:`~photomodel.landmarks.models` (the model files, fetched by packag
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from photomodel.landmarks.detect import Face468, detect_468_near
 from photomodel.landmarks.detect import detect_468 as _detect_468
-from photomodel.landmarks.mapping import estimate_yaw_deg, features_from_mesh, preset_for_yaw
+from photomodel.landmarks.mapping import curves_from_mesh, estimate_yaw_deg, features_from_mesh, preset_for_yaw
 
 __all__ = ["Placement", "detect_468", "place_landmarks", "place_landmarks_near"]
 
@@ -48,6 +48,10 @@ class Placement:
         face-presence score of the face mesh, in [0, 1].
     box : tuple of 4 float
         ``x0, y0, x1, y1`` of the face (its 468 points' box) in photo pixels.
+    curves : dict[str, (m, 2) float]
+        curve name (:data:`photomodel.modeling.generic_mesh.CURVE_LANDMARKS`) → the face mesh's
+        contour drawn end to end, photo pixels: the eyelids and outer lips
+        (:func:`photomodel.landmarks.mapping.curves_from_mesh`); none in a profile.
     """
 
     points: dict[str, np.ndarray]
@@ -57,6 +61,7 @@ class Placement:
     faces_found: int
     face_score: float
     box: tuple[float, float, float, float]
+    curves: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def detect_468(image: np.ndarray, *, name: str = "the photo") -> tuple[np.ndarray, float, tuple]:
@@ -94,6 +99,7 @@ def placement_from_face(face: Face468, feature_names: Sequence[str]) -> Placemen
     return Placement(
         points=points, confidence=confidence, preset=preset_for_yaw(yaw), yaw_deg=yaw,
         faces_found=face.faces_found, face_score=face.score, box=face.box,
+        curves=curves_from_mesh(face.points, yaw),
     )  # fmt: skip
 
 

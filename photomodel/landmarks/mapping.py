@@ -88,6 +88,22 @@ MESH_OF_IBUG68 = np.array(
     dtype=np.int64,
 )
 
+#: The face mesh's contours drawn as the generic mesh's §5.1.3 curves
+#: (:data:`photomodel.modeling.generic_mesh.CURVE_LANDMARKS`), end to end in the curve's order:
+#: MediaPipe's eyelid and outer-lip contours, which pass through the points
+#: :data:`MESH_OF_IBUG68` takes for the curve's landmarks (36, 37, 38, 39 on the right upper lid
+#: are 33, 160, 158, 133 …), so an automatic curve agrees with the automatic clicks on it. The
+#: brows (five face-mesh points, the same as the clicks) and the jaw (the outline the camera
+#: sees, not a line on the skin: see "The jaw") are not drawn.
+MESH_CURVES = {
+    "eyelid_r_upper": (33, 246, 161, 160, 159, 158, 157, 173, 133),
+    "eyelid_r_lower": (33, 7, 163, 144, 145, 153, 154, 155, 133),
+    "eyelid_l_upper": (362, 398, 384, 385, 386, 387, 388, 466, 263),
+    "eyelid_l_lower": (362, 382, 381, 380, 374, 373, 390, 249, 263),
+    "lip_upper": (61, 185, 40, 39, 37, 0, 267, 269, 270, 409, 291),
+    "lip_lower": (61, 146, 91, 181, 84, 17, 314, 405, 321, 375, 291),
+}
+
 #: Confidence of each iBUG point in a frontal photo, by how well a face mesh pins it down:
 #: the outline (jaw) lowest, eye and mouth corners highest.
 JAW_CONFIDENCE = 0.2
@@ -305,3 +321,15 @@ def features_from_mesh(
         placed[name] = uv[i].copy()
         conf[name] = float(confidence[i])
     return placed, conf
+
+
+def curves_from_mesh(points: np.ndarray, yaw_deg: float) -> dict[str, np.ndarray]:
+    """The curves of :data:`MESH_CURVES` a face mesh draws: name → (m, 2) photo pixels.
+
+    A curve binds the whole feature, end to end (§5.1.3), so none is drawn in a profile
+    (|yaw| ≥ :data:`PROFILE_FROM_DEG`), where the far eye and half the lips are hidden.
+    """
+    if not abs(yaw_deg) < PROFILE_FROM_DEG:
+        return {}
+    p = np.asarray(points, float)[:, :2]
+    return {name: p[list(idx)].copy() for name, idx in MESH_CURVES.items() if np.isfinite(p[list(idx)]).all()}

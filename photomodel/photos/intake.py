@@ -11,7 +11,8 @@ do the same thing:
    or one name for all, e.g. the frames of one video);
 3. the landmarks placed by the detector (:func:`photomodel.landmarks.place_landmarks`, or any
    ``placer`` with its signature), each stored as an automatic click (``source "auto"`` with its
-   confidence, project format version 3) in the original photo's pixels; the view ``preset``
+   confidence, project format version 3) in the original photo's pixels, and the eyelids and
+   outer lips as automatic curves (``curve_sources``, version 5); the view ``preset``
    from the detector's yaw estimate;
 4. warnings, never errors, for what the artist fixes by hand: no face found (click by hand),
    several faces (the largest used), two photos of the same image.
@@ -157,12 +158,13 @@ def add_photos(
         raise ProjectError(f"a camera group is a non-empty name or none, got {camera_group!r}")
     expr = _expression(project, expression)
     names = project.feature_names()
+    curves = {c.name for c in project.curves}
     ids = {p.id for p in expr.photos}
     incoming = []
     for k, path in enumerate(paths):
         if progress is not None:
             progress(f"reading {Path(path).name}", k / max(len(paths), 1))
-        one = _intake_photo(Path(path).absolute(), ids, names, camera_group, placer)
+        one = _intake_photo(Path(path).absolute(), ids, names, curves, camera_group, placer)
         ids.add(one.photo.id)
         incoming.append(one)
     if progress is not None:
@@ -183,7 +185,7 @@ def _expression(project: Project, name: str) -> Expression:
     return project.expressions[-1]
 
 
-def _intake_photo(path: Path, ids: set[str], names: list[str], camera_group: str | None,
+def _intake_photo(path: Path, ids: set[str], names: list[str], curves: set[str], camera_group: str | None,
                   placer: Placer) -> _Incoming:
     """Read one photo, guess its camera, place its landmarks (see the module docstring)."""
     read = read_photo(path)
@@ -201,13 +203,14 @@ def _intake_photo(path: Path, ids: set[str], names: list[str], camera_group: str
         warnings.append(f"{path.name}: {faces} faces found; the largest used")
     preset = getattr(placement, "preset", "front")
     photo.preset = preset if preset in PRESET_AZIMUTH_DEG else "front"
-    _store_auto_clicks(photo, placement, read.scale, set(names))
+    _store_auto_clicks(photo, placement, read.scale, set(names), curves)
     return _Incoming(photo, fingerprint(read.image), warnings)
 
 
-def _store_auto_clicks(photo: Photo, placement, scale: float, names: set[str]) -> None:
+def _store_auto_clicks(photo: Photo, placement, scale: float, names: set[str], curve_names: set[str]) -> None:
     """The placement's points (working-image pixels) as automatic clicks in the original's
-    pixels; points that are not finite or lie beyond the margin a project accepts are dropped."""
+    pixels, and its curves (those the project defines) as automatic curves; points that are not
+    finite or lie beyond the margin a project accepts are dropped, and curves with such a point."""
     confidence = getattr(placement, "confidence", {}) or {}
     reach = OUT_OF_BOUNDS_MARGIN * 0.9  # inside what validation accepts, with room for rounding
     lo = -0.5 - reach * np.array([photo.width, photo.height])
@@ -221,6 +224,12 @@ def _store_auto_clicks(photo: Photo, placement, scale: float, names: set[str]) -
         c = confidence.get(name)
         c = None if c is None or not np.isfinite(c) else float(np.clip(c, 0.0, 1.0))
         photo.set_click(name, uv, source="auto", confidence=c)
+    for name, line in (getattr(placement, "curves", {}) or {}).items():
+        if name not in curve_names:
+            continue
+        line = to_original(np.asarray(line, float).reshape(-1, 2), scale)
+        if line.shape[0] >= 2 and np.all(np.isfinite(line)) and np.all(line >= lo) and np.all(line <= hi):
+            photo.set_curve(name, line, source="auto")
 
 
 def _unique_id(path: Path, ids: set[str]) -> str:

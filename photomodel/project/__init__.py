@@ -1,4 +1,4 @@
-"""The project file (format version 4, reads 1 to 3) in one place, for the CLI and the studio alike.
+"""The project file (format version 5, reads 1 to 4) in one place, for the CLI and the studio alike.
 
 * :mod:`~photomodel.project.model` — the dataclasses (``Project``, ``Expression``, ``Photo``,
   ``Feature``, ``CurveDef``, ``ExpressionResult``, ``TextureResult``), format constants, ``new_project``;

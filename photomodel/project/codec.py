@@ -5,8 +5,8 @@ and translations 1e-4 mm, rotations at full precision so they stay orthonormal),
 definition order (features, curves, photos) and stores paths relative to the folder of the file
 being written ("save as" re-expresses them so they still reach the same files). Reading
 (:func:`project_from_dict`) validates the dict (:func:`photomodel.project.validate.validate`) and
-builds the objects. Optional keys (``cameras_from``, ``camera_group``, ``click_sources``, ``result.texture``) are
-omitted when unset, so files without them stay byte-identical.
+builds the objects. Optional keys (``cameras_from``, ``camera_group``, ``click_sources``,
+``curve_sources``, ``result.texture``) are omitted when unset, so files without them stay byte-identical.
 """
 
 from __future__ import annotations
@@ -110,6 +110,9 @@ def _photo_dict(p: Photo, order: dict, stored) -> dict:
         pd["click_sources"] = {k: _click_source_dict(meta[k]) for k in _ordered(meta, features)}
     pd["hidden"] = sorted(p.hidden, key=lambda k: (features.get(k, len(features)), k))
     pd["curves"] = {k: _round_list(p.curves[k], _PIXEL_DECIMALS) for k in _ordered(p.curves, order["curve"])}
+    curve_meta = p.curve_meta()
+    if curve_meta:  # optional (version 5): photos whose curves are all the artist's omit the key
+        pd["curve_sources"] = {k: curve_meta[k] for k in _ordered(curve_meta, order["curve"])}
     return pd
 
 
@@ -248,6 +251,7 @@ def _photo_from_dict(p: dict) -> Photo:
         camera_group=p.get("camera_group"),
         sources={k: c["source"] for k, c in p.get("click_sources", {}).items()},
         confidence={k: c["confidence"] for k, c in p.get("click_sources", {}).items() if "confidence" in c},
+        curve_sources=p.get("curve_sources", {}),
     )
 
 

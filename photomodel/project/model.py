@@ -42,7 +42,10 @@ FORMAT_NAME = "facestudio-project"
 #: * 4 — a project may hold a ``rig``: ARKit-style blend shapes on the fitted neutral
 #:   (``facestudio rig``; the displacements in a file beside the project). Upgrading: nothing to
 #:   do (an older project has no rig).
-FORMAT_VERSION = 4
+#: * 5 — a photo may say which of its curves were drawn automatically (``curve_sources``:
+#:   curve → ``"auto"``). Upgrading: nothing to do (every curve of an older file was drawn by
+#:   hand).
+FORMAT_VERSION = 5
 #: Where a click came from: the artist (``"user"``, the default) or the landmark detector.
 CLICK_SOURCES = ("user", "auto")
 FILE_SUFFIX = ".facestudio.json"
@@ -115,6 +118,9 @@ class Photo:
         :attr:`points`.
     confidence : dict[str, float], feature → the detector's confidence in ``[0, 1]`` of an
         automatic click (absent for the artist's clicks). Format version 3.
+    curve_sources : dict[str, str], curve → ``"auto"`` for a curve drawn by the landmark
+        detector; a curve without an entry was drawn by the artist. Format version 5. Use
+        :meth:`set_curve` to keep it in step with :attr:`curves`.
     """
 
     id: str
@@ -129,6 +135,7 @@ class Photo:
     camera_group: str | None = None
     sources: dict[str, str] = field(default_factory=dict)
     confidence: dict[str, float] = field(default_factory=dict)
+    curve_sources: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
         self.path = Path(self.path).as_posix() if isinstance(self.path, Path) else str(self.path)
@@ -140,13 +147,15 @@ class Photo:
         self.curves = {k: np.asarray(v, dtype=float).reshape(-1, 2) for k, v in self.curves.items()}
         self.sources = {k: str(v) for k, v in self.sources.items() if v != "user"}
         self.confidence = {k: float(v) for k, v in self.confidence.items()}
+        self.curve_sources = {k: str(v) for k, v in self.curve_sources.items() if v != "user"}
 
     def __eq__(self, other):
         return (isinstance(other, Photo)
                 and (self.id, self.path, self.width, self.height, self.preset, self.focal_mm_guess,
-                     self.camera_group, self.hidden, self.click_meta())
+                     self.camera_group, self.hidden, self.click_meta(), self.curve_meta())
                 == (other.id, other.path, other.width, other.height, other.preset,
-                    other.focal_mm_guess, other.camera_group, other.hidden, other.click_meta())
+                    other.focal_mm_guess, other.camera_group, other.hidden, other.click_meta(),
+                    other.curve_meta())
                 and _array_dicts_equal(self.points, other.points)
                 and _array_dicts_equal(self.curves, other.curves))
 
@@ -201,6 +210,38 @@ class Photo:
     def auto_clicks(self) -> list[str]:
         """Features whose click was placed automatically, in the order of :attr:`points`."""
         return [n for n in self.points if self.sources.get(n) == "auto"]
+
+    # -- curves and where they came from (format version 5) ------------------------------
+    def set_curve(self, name: str, polyline, source: str = "user") -> None:
+        """Draw curve ``name`` as ``polyline`` (m, 2) px, m >= 2, drawn by ``source``
+        (``"user"``: the artist, the default, which makes an automatic curve the artist's; the
+        landmark detector passes ``"auto"``), or delete it (``polyline`` None). Raises
+        :class:`ValueError` on fewer than 2 or non-finite points or an unknown source."""
+        if source not in CLICK_SOURCES:
+            raise ValueError(f"a curve's source is one of {CLICK_SOURCES}, got {source!r}")
+        self.curve_sources.pop(name, None)
+        if polyline is None:
+            self.curves.pop(name, None)
+            return
+        line = np.asarray(polyline, dtype=float).reshape(-1, 2)
+        if line.shape[0] < 2 or not np.all(np.isfinite(line)):
+            raise ValueError(f"curve {name!r} in photo {self.id!r} needs at least 2 finite points")
+        self.curves[name] = line
+        if source != "user":
+            self.curve_sources[name] = source
+
+    def curve_source(self, name: str) -> str:
+        """``"auto"`` or ``"user"``: who drew curve ``name``."""
+        return self.curve_sources.get(name, "user")
+
+    def curve_meta(self) -> dict[str, str]:
+        """Curve → source of each drawn curve that is not the artist's: what the file's
+        ``curve_sources`` holds."""
+        return {n: self.curve_sources[n] for n in self.curves if n in self.curve_sources}
+
+    def auto_curves(self) -> list[str]:
+        """Curves drawn automatically, in the order of :attr:`curves`."""
+        return [n for n in self.curves if self.curve_sources.get(n) == "auto"]
 
 
 @dataclass

@@ -59,7 +59,8 @@ def validate(d: Any, source: str) -> None:
     _check_version(d, source)
     # Older versions need no upgrade: version 2 only added the optional photo camera_group,
     # version 3 the optional click_sources, which older files' photos do not have (their clicks
-    # are all the artist's), and version 4 the optional rig. (A future change that renames or restructures a field
+    # are all the artist's), version 4 the optional rig and version 5 the optional curve_sources
+    # (every older curve was drawn by hand). (A future change that renames or restructures a field
     # converts the older dict here, before the schema check.)
     _check_schema(d, source)
     problems = cross_reference_problems(d)
@@ -316,6 +317,10 @@ def _photo_problems(pp: str, p: dict, defined: _Defined) -> list[tuple[str, str]
         bad = np.flatnonzero(_far_outside(np.asarray(line, float), w, h))
         if bad.size:
             problems.append((f"{at}[{bad[0]}]", _outside_message(line[bad[0]], w, h)))
+    for name in p.get("curve_sources", {}):
+        if name not in p.get("curves", {}):
+            problems.append((f"{pp}.curve_sources{fmt_key(name)}",
+                             f"{name!r} is not drawn in this photo's curves; a curve's source needs the curve"))
     return problems
 
 
