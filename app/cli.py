@@ -446,10 +446,13 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--expression", help="fit only this expression (default: all; one that reuses another's "
                                         "cameras, cameras_from, is fitted after it)")
     f.add_argument("--no-refine", action="store_true", help="stop after pose recovery + RBF (no refinement)")
-    f.add_argument("--weigh-auto-clicks", action="store_true",
-                   help="weigh automatic clicks by the detector's confidence squared in the camera solve (helps "
-                        "photos of wide yaw, e.g. three-quarter views and profiles; near-frontal video frames do "
-                        "better without)")
+    weigh = f.add_mutually_exclusive_group()
+    weigh.add_argument("--weigh-auto-clicks", dest="weigh_auto_clicks", action="store_const", const=True,
+                       help="weigh automatic clicks by the detector's confidence squared in the camera solve "
+                            "(default: when the photos with automatic clicks are of views ≥ 40° apart, e.g. a "
+                            "front and a three-quarter view; near-frontal video frames do better without)")
+    weigh.add_argument("--no-weigh-auto-clicks", dest="weigh_auto_clicks", action="store_const", const=False,
+                       help="never weigh automatic clicks (every click counts alike)")
     f.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     f.add_argument("--dry-run", action="store_true", help="report only; do not write into the project")
     f.set_defaults(func=cmd_fit)

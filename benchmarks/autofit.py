@@ -7,9 +7,12 @@
   region to the scan surface after the similarity that maps the fit's 3-D features onto their true
   positions (as ``bench_pose.py``'s ``mesh``); ``clicks_auto``: automatic clicks placed;
   ``seconds``: wall time of new + fit; ``photos_used``: photos with a face found (the others are
-  left out of the fit). ``auto_fit_weighted``: the same project fitted again with
-  ``facestudio fit --weigh-auto-clicks`` (automatic clicks weighed by confidence² in the camera
-  solve, :attr:`photomodel.modeling.fit.FitOptions.weigh_auto_clicks`); its ``seconds`` is the fit's.
+  left out of the fit). The default fit weighs the automatic clicks by confidence² in the camera
+  solve when the photos are of views ≥ 40° apart, as these are
+  (:attr:`photomodel.modeling.fit.FitOptions.weigh_auto_clicks`); ``auto_fit_weighted``: the same
+  project fitted again with ``facestudio fit --weigh-auto-clicks`` (always weighed: here the same
+  as the default), ``auto_fit_unweighted`` with ``--no-weigh-auto-clicks`` (every click alike);
+  their ``seconds`` are the fit's.
 * ``real_sample`` — the real-footage sample (:mod:`photomodel.samples.real_clip`): frames of a
   real clip, ``facestudio new --camera-group clip`` + ``fit``. ``rms_px`` and ``depth_ratio``: the
   fitted face region's depth extent after the similarity onto the generic mesh, over the generic
@@ -69,7 +72,8 @@ def auto_fit_section(args, log) -> dict:
         t0 = time.perf_counter()
         made = run_cli("new", path, "--photos", str(photos))
         sections = {}
-        for key, flags in (("auto_fit", ()), ("auto_fit_weighted", ("--weigh-auto-clicks",))):
+        for key, flags in (("auto_fit", ()), ("auto_fit_weighted", ("--weigh-auto-clicks",)),
+                           ("auto_fit_unweighted", ("--no-weigh-auto-clicks",))):
             t1 = time.perf_counter()
             fit = run_cli("fit", path, *flags)["expressions"][0]
             seconds = (t1 - t0 if key == "auto_fit" else 0.0) + time.perf_counter() - t1  # new + fit

@@ -7,6 +7,7 @@ carry σ = 1 px of hand noise. The fit reads only the project; ground_truth.json
 from __future__ import annotations
 
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ import pytest
 
 from photomodel.alignment import align_to_truth, camera_errors, similarity_transform
 from photomodel.errors import FitError
-from photomodel.modeling.fit import Cancelled, FitOptions, click_weights, fit_expression
+from photomodel.modeling.fit import Cancelled, FitOptions, click_weights, fit_expression, weigh_auto_clicks
 from photomodel.project import load_project
 from photomodel.samples.synthetic import surface_distance, true_correspondence
 
@@ -178,6 +179,20 @@ def test_click_weights_are_one_for_the_artist_and_confidence_squared_for_the_det
     assert w.shape == (len(photos), 2)
     np.testing.assert_allclose(w[0], [1.0, 0.04])
     np.testing.assert_array_equal(w[1:], 1.0)
+
+
+def test_automatic_clicks_are_weighed_when_their_photos_are_views_apart(mesh):
+    project = load_project(PROJECT)
+    photos = project.expression("neutral").photos  # front, three-quarter and profile views
+    assert not weigh_auto_clicks(photos)  # the artist's clicks only: nothing to weigh
+    for p in photos:
+        p.set_click("nose_tip", p.points["nose_tip"], source="auto", confidence=0.8)
+    assert weigh_auto_clicks(photos)  # views 45° and more apart: the outline points disagree
+    front = [p for p in photos if p.preset == "front"]
+    assert not weigh_auto_clicks(front + [replace(front[0], id="again")])  # frames near the front
+    assert weigh_auto_clicks(front, True) and not weigh_auto_clicks(photos, False)  # the option overrules
+    fitted = fit_expression(project, "neutral", mesh, FitOptions(refine=False))
+    assert fitted.report["camera_solve"]["weighted_auto_clicks"] is True
 
 
 def test_weighing_automatic_clicks_keeps_biased_unsure_ones_from_pulling_the_cameras(mesh, sample_truth):

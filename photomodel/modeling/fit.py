@@ -40,7 +40,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from photomodel.alignment import similarity_transform, transform_cameras
-from photomodel.camera import Camera, focal_mm_to_px, preset_camera
+from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, preset_camera
 from photomodel.errors import FitError, ProjectError
 from photomodel.modeling.camera_solve import solve_cameras
 from photomodel.modeling.checklist import require_clicks
@@ -76,7 +76,9 @@ class FitOptions:
     #: Recover this expression's own cameras even if the project gives it ``cameras_from``.
     independent_cameras: bool = False
     #: Weigh each automatic click in the camera solve by the detector's confidence squared
-    #: (:func:`click_weights`; the artist's clicks 1). Off by default — measured both ways: on
+    #: (:func:`click_weights`; the artist's clicks 1): True, False, or None (the default) for
+    #: :func:`weigh_auto_clicks`'s rule — on when the photos with automatic clicks are of views
+    #: at least :data:`WEIGH_FROM_SPREAD_DEG` apart. Measured both ways: on
     #: the james sample's five photos (three-quarter views at ±35–40°, profiles) the outline
     #: points, silhouette rather than skin points, pulled the three-quarter cameras 7–9° towards
     #: the front and weighing them down took the auto fit's mesh from 2.32 to 2.07 mm mean over 8
@@ -85,8 +87,11 @@ class FitOptions:
     #: 585 → 469 px) and tracking the clip with that model was worse on all three figures the
     #: footage gives (projected features vs the detector 3.91 → 4.02 px, rotation jitter 0.39° →
     #: 0.49°, image RMS 0.102 → 0.105). Photo sets of wide yaw gain; footage frames near the front
-    #: lose: ``facestudio fit --weigh-auto-clicks`` chooses.
-    weigh_auto_clicks: bool = False
+    #: lose. With the automatic eyelid and lip curves (2026-12) the same: the sample 2.10 → 1.76 mm
+    #: (8 jittered draws 2.18 → 1.89 mean, every draw better), the real clip's tracking 3.98 →
+    #: 4.07 px, jitter 0.41° → 0.48°. ``facestudio fit --weigh-auto-clicks`` /
+    #: ``--no-weigh-auto-clicks`` overrule the rule.
+    weigh_auto_clicks: bool | None = None
 
 
 @dataclass
@@ -334,6 +339,7 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
     all_names = [f.name for f in project.features]
     pose_names = [f.name for f in project.features if f.pose]
     obs_all = project.observations(expression_name, all_names)
+    weighted = weigh_auto_clicks(photos, opt.weigh_auto_clicks)
     sol = solve_cameras(
         obs_all,
         initial_cameras(photos),
@@ -342,7 +348,7 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
         fixed_focal=opt.fixed_focal,
         names=all_names,
         view_names=[p.id for p in photos],
-        weights=click_weights(photos, all_names) if opt.weigh_auto_clicks else None,
+        weights=click_weights(photos, all_names) if weighted else None,
     )
     solved = np.isfinite(sol.points[:, 0])
     col = {n: i for i, n in enumerate(all_names)}
@@ -371,7 +377,8 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
         cameras, pose, pose_names, pose_idx, pose_points, dropped,
         suspects=sol.suspects,
         excluded=~sol.used & np.isfinite(obs_all[..., 0]),
-        camera_report={"start": sol.start, "sigma_px": sol.sigma_px, "rms_all_px": sol.rms_all_px},
+        camera_report={"start": sol.start, "sigma_px": sol.sigma_px, "rms_all_px": sol.rms_all_px,
+                       "weighted_auto_clicks": bool(weighted)},
         bundle_report={"rms_px": float(sol.rms_px), "points": int(solved.sum())},
     )
 
@@ -545,6 +552,25 @@ MIN_AUTO_CONFIDENCE = 0.5
 #: altogether was measured before weights: the sample's mesh 2.34 → 1.89 mm, but the real clip's
 #: face came out 57 % as deep as the generic head: with frames of changing expression at ±13°, the
 #: outline is what holds the depth there.)
+
+
+#: :attr:`FitOptions.weigh_auto_clicks`'s rule: weigh the automatic clicks when the photos that
+#: have them are of views this far apart in azimuth (their ``preset``, which the detector's yaw
+#: estimate sets: a front and a three-quarter view are 45° apart). A detector's outline points
+#: are silhouette points: seen from directions this far apart they are different points of the
+#: skin, and they pull the cameras towards each other (the sample's three-quarter views came out
+#: 7–9° too near the front); frames of footage near the front (presets all "front") see nearly
+#: the same silhouette, which there holds the depth.
+WEIGH_FROM_SPREAD_DEG = 40.0
+
+
+def weigh_auto_clicks(photos, option: bool | None = None) -> bool:
+    """Whether the camera solve weighs automatic clicks (:attr:`FitOptions.weigh_auto_clicks`):
+    ``option`` when given, else :data:`WEIGH_FROM_SPREAD_DEG`'s rule on the photos' presets."""
+    if option is not None:
+        return bool(option)
+    azimuths = [PRESET_AZIMUTH_DEG.get(p.preset, 0.0) for p in photos if p.auto_clicks()]
+    return len(azimuths) >= 2 and max(azimuths) - min(azimuths) >= WEIGH_FROM_SPREAD_DEG
 
 
 def click_weights(photos, names) -> np.ndarray | None:
