@@ -32,7 +32,8 @@ def test_sample_has_no_suspect_clicks(clean_fit):
     report = clean_fit.report
     assert report["suspect_clicks"] == []
     cs = report["camera_solve"]
-    assert set(cs) == {"start", "sigma_px", "rms_all_px"}
+    assert set(cs) == {"start", "sigma_px", "rms_all_px", "weighted_auto_clicks"}
+    assert cs["weighted_auto_clicks"] is False  # the artist's clicks only: nothing to weigh
     # the sample's clicks have σ = 1 px per axis: measured σ̂ = 1.07 px, RMS 1.03 px
     assert 0.8 < cs["sigma_px"] < 1.3
     assert cs["rms_all_px"] < 1.5
