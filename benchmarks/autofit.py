@@ -111,7 +111,7 @@ def depth_ratio(vertices: np.ndarray, mesh) -> float:
 
 
 def figure(project, vertices: np.ndarray, size: int = 360) -> np.ndarray:
-    """BGR picture of the real sample: a frame with its automatic clicks (violet), the fitted
+    """BGR picture of the real sample: a frame with its automatic clicks and curves (violet), the fitted
     model drawn view-dependently from the frames at −35°, 0° and 35°, and the texture."""
     expr = project.expression("neutral")
     result = expr.result
@@ -128,6 +128,8 @@ def figure(project, vertices: np.ndarray, size: int = 360) -> np.ndarray:
     views = [cv2.cvtColor((np.clip(v, 0, 1) * 255).astype(np.uint8), cv2.COLOR_RGB2BGR) for v in views]
     first = expr.photos[0]
     frame = cv2.imread(str(project.resolve(first.path)))
+    for line in first.curves.values():  # the automatic eyelid and lip curves
+        cv2.polylines(frame, [np.round(line).astype(np.int32)], False, (230, 60, 170), 1, cv2.LINE_AA)
     for uv in first.points.values():
         cv2.circle(frame, (int(round(uv[0])), int(round(uv[1]))), 2, (230, 60, 170), -1, cv2.LINE_AA)
     h, w = frame.shape[:2]
