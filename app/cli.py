@@ -111,10 +111,11 @@ def cmd_new(args) -> int:
     save_project(project, target)
     expr = project.expression(args.expression)
     views = [{"id": p.id, "file": Path(p.path).name, "width": p.width, "height": p.height,
-              "preset": p.preset, "clicks_auto": len(p.auto_clicks()), "focal_mm_guess": p.focal_mm_guess,
-              "camera_group": p.camera_group} for p in expr.photos]
+              "preset": p.preset, "clicks_auto": len(p.auto_clicks()), "curves_auto": p.auto_curves(),
+              "focal_mm_guess": p.focal_mm_guess, "camera_group": p.camera_group} for p in expr.photos]
     out = {"path": str(target), "expression": args.expression, "photos": len(views),
-           "clicks_auto": sum(v["clicks_auto"] for v in views), "warnings": warnings, "views": views}
+           "clicks_auto": sum(v["clicks_auto"] for v in views),
+           "curves_auto": sum(len(v["curves_auto"]) for v in views), "warnings": warnings, "views": views}
     for w in warnings:
         print(f"facestudio: warning: {w}", file=sys.stderr)
     if args.json:
@@ -126,7 +127,8 @@ def cmd_new(args) -> int:
 
 def _format_new(out: dict, n_features: int) -> str:
     lines = [f"created {out['path']}: expression {out['expression']!r}, {out['photos']} photos, "
-             f"{out['clicks_auto']} automatic clicks (source \"auto\"; check them in the studio)"]
+             f"{out['clicks_auto']} automatic clicks and {out['curves_auto']} automatic curves (source \"auto\"; "
+             "check them in the studio)"]
     wid = max([len("photo")] + [len(v["id"]) for v in out["views"]])
     lines.append(f"  {'photo':<{wid}} {'view':<19} {'auto clicks':>11} {'focal mm':>9}  camera group")
     for v in out["views"]:

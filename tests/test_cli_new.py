@@ -83,6 +83,7 @@ def test_new_project_from_a_folder_with_automatic_clicks(tmp_path, folder, monke
     report = json.loads(out)  # exactly one JSON object on stdout
     assert report["path"] == str(target) and report["photos"] == 4
     assert report["clicks_auto"] == 3 * 3  # three faces found, three points each inside the photo
+    assert report["curves_auto"] == 3 and report["views"][0]["curves_auto"] == ["lip_upper"]
     assert [v["id"] for v in report["views"]] == ["IMG_0001", "IMG_0002", "IMG_0003", "IMG_0004"]
     warnings = report["warnings"]
     assert any("no face found in IMG_0003.jpg: click its landmarks by hand" in w for w in warnings)
