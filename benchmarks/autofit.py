@@ -34,6 +34,7 @@ import shutil
 import sys
 import tempfile
 import time
+from functools import cache
 from pathlib import Path
 
 import cv2
@@ -82,11 +83,7 @@ def auto_fit_section(args, log) -> dict:
             t1 = time.perf_counter()
             fit = run_cli("fit", path, *flags)["expressions"][0]
             seconds = (t1 - t0 if key == "auto_fit" else 0.0) + time.perf_counter() - t1  # new + fit
-            fitted = load_project(path)
-            result = fitted.expression("neutral").result
-            vertices = read_mesh(fitted.resolve(result.mesh_obj))[0]
-            sections[key] = _scored(result, vertices, fit, made, seconds, len(expr.photos))
-            out = sections[key]
+            out = sections[key] = _scored(path, fit, made, seconds, len(expr.photos))
             log(f"{key.replace('_', ' ')} of the sample: {out['photos_used']}/{out['photos']} photos, "
                 f"{out['clicks_auto']} automatic clicks, RMS {out['rms_px']:.2f} px, mesh → scan "
                 f"{out['mesh_mean_mm']:.2f} mm mean (p95 {out['mesh_p95_mm']:.2f}), {seconds:.1f} s")
@@ -124,9 +121,7 @@ def auto_fit_draws_section(args, log) -> dict:
                 failures += 1
                 log(f"auto fit draw {draw}: failed ({exc})")
                 continue
-            fitted = load_project(path)
-            result = fitted.expression("neutral").result
-            out = _scored(result, read_mesh(fitted.resolve(result.mesh_obj))[0], fit, made, 0.0, len(expr.photos))
+            out = _scored(path, fit, made, 0.0, len(expr.photos))
             means.append(out["mesh_mean_mm"])
             log(f"auto fit draw {draw}: {out['photos_used']}/{out['photos']} photos, mesh → scan "
                 f"{out['mesh_mean_mm']:.2f} mm mean")
@@ -137,11 +132,19 @@ def auto_fit_draws_section(args, log) -> dict:
     }}
 
 
-def _scored(result, vertices, fit: dict, made: dict, seconds: float, photos: int) -> dict:
-    """The auto fit's figures (module docstring) against the sample's ground truth."""
-    mesh = load_generic_mesh()
-    scan = load_james_scan()
-    truth = synthetic.load_ground_truth(SAMPLE / "ground_truth.json")
+@cache
+def _truth():
+    """The generic mesh, the james scan and the sample's ground truth, read once."""
+    return load_generic_mesh(), load_james_scan(), synthetic.load_ground_truth(SAMPLE / "ground_truth.json")
+
+
+def _scored(path: str, fit: dict, made: dict, seconds: float, photos: int) -> dict:
+    """The auto fit's figures (module docstring) of the fitted project at ``path`` against the
+    sample's ground truth (``fit``, ``made``: the fit's and ``new``'s JSON)."""
+    fitted = load_project(path)
+    result = fitted.expression("neutral").result
+    vertices = read_mesh(fitted.resolve(result.mesh_obj))[0]
+    mesh, scan, truth = _truth()
     names = [n for n in result.points_3d if n in truth.features_3d]
     X = np.array([result.points_3d[n] for n in names])
     s, R, t = similarity_transform(X, truth.true_points(names))

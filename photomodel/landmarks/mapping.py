@@ -332,4 +332,5 @@ def curves_from_mesh(points: np.ndarray, yaw_deg: float) -> dict[str, np.ndarray
     if not abs(yaw_deg) < PROFILE_FROM_DEG:
         return {}
     p = np.asarray(points, float)[:, :2]
-    return {name: p[list(idx)].copy() for name, idx in MESH_CURVES.items() if np.isfinite(p[list(idx)]).all()}
+    lines = {name: p[list(idx)] for name, idx in MESH_CURVES.items()}  # fancy indexing: copies
+    return {name: line for name, line in lines.items() if np.isfinite(line).all()}

@@ -546,12 +546,10 @@ def fit_expression(
 #: landmarks only, leaving them out took the refined mesh from 2.21 to 1.99 mm mean to the scan and
 #: the RMS from 4.7 to 2.4 px; the RBF places the jaw from the rest. Beyond the paper.
 MIN_AUTO_CONFIDENCE = 0.5
-#: (The cameras are placed with every automatic click; weighing them by their confidence squared is
-#: :attr:`FitOptions.weigh_auto_clicks`: on the sample's photos 2.34 → 2.06 mm, the real clip's
-#: depth 1.08× → 0.90× of the generic head's, taken from it. Leaving the outline points out of the camera solve
-#: altogether was measured before weights: the sample's mesh 2.34 → 1.89 mm, but the real clip's
-#: face came out 57 % as deep as the generic head: with frames of changing expression at ±13°, the
-#: outline is what holds the depth there.)
+#: (The cameras are placed with every automatic click, weighed as :attr:`FitOptions.weigh_auto_clicks`
+#: says. Leaving the outline points out of the camera solve altogether was measured before weights:
+#: the sample's mesh 2.34 → 1.89 mm, but the real clip's face came out 57 % as deep as the generic
+#: head: with frames of changing expression at ±13°, the outline is what holds the depth there.)
 
 
 #: :attr:`FitOptions.weigh_auto_clicks`'s rule: weigh the automatic clicks when the photos that

@@ -215,20 +215,19 @@ def _store_auto_clicks(photo: Photo, placement, scale: float, names: set[str], c
     reach = OUT_OF_BOUNDS_MARGIN * 0.9  # inside what validation accepts, with room for rounding
     lo = -0.5 - reach * np.array([photo.width, photo.height])
     hi = np.array([photo.width, photo.height]) - 0.5 + reach * np.array([photo.width, photo.height])
+
+    def kept(uv) -> np.ndarray | None:  # (..., 2) working-image px → original px, None if not storable
+        uv = to_original(np.asarray(uv, float), scale)
+        return uv if np.all(np.isfinite(uv)) and np.all(uv >= lo) and np.all(uv <= hi) else None
+
     for name, uv in placement.points.items():
-        if name not in names:
-            continue
-        uv = to_original(np.asarray(uv, float).reshape(2), scale)
-        if not np.all(np.isfinite(uv)) or np.any(uv < lo) or np.any(uv > hi):
+        if name not in names or (uv := kept(np.reshape(uv, 2))) is None:
             continue
         c = confidence.get(name)
         c = None if c is None or not np.isfinite(c) else float(np.clip(c, 0.0, 1.0))
         photo.set_click(name, uv, source="auto", confidence=c)
     for name, line in (getattr(placement, "curves", {}) or {}).items():
-        if name not in curve_names:
-            continue
-        line = to_original(np.asarray(line, float).reshape(-1, 2), scale)
-        if line.shape[0] >= 2 and np.all(np.isfinite(line)) and np.all(line >= lo) and np.all(line <= hi):
+        if name in curve_names and (line := kept(np.reshape(line, (-1, 2)))) is not None and len(line) >= 2:
             photo.set_curve(name, line, source="auto")
 
 

@@ -438,7 +438,7 @@ class ViewDependentGL:
         view, composed in float64 (see ``_COMMON``)."""
         view = self._view
         view_c = view.center - self.centre
-        M = view.R.T @ _intrinsics(view, inverse=True)  # homogeneous pixel -> ray (world, Z_cam = 1)
+        M = view.R.T @ np.linalg.inv(view.K)  # homogeneous pixel -> ray (world, Z_cam = 1)
         if "view_M" in prog:
             prog["view_M"].write(_gl_mat3(M))
         for prefix, k in (("a_", sel[0]), ("b_", sel[1])):
@@ -679,19 +679,11 @@ def _camera_uniforms(cameras, centre: np.ndarray) -> list[dict]:
             "R": np.asarray(c.R, float),
             "t": c.R @ centre + c.t,
             "c": c.center - centre,
-            "K": _intrinsics(c),
+            "K": c.K,
             "max": (c.width - 1.0, c.height - 1.0, float(i)),
         }
         for i, c in enumerate(cameras)
     ]
-
-
-def _intrinsics(camera: Camera, *, inverse: bool = False) -> np.ndarray:
-    """``K`` (3, 3) of a camera (square pixels, no skew), or its inverse."""
-    f, (cx, cy) = float(camera.f), (float(x) for x in camera.principal_point)
-    if inverse:
-        return np.array([[1.0 / f, 0.0, -cx / f], [0.0, 1.0 / f, -cy / f], [0.0, 0.0, 1.0]])
-    return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
 
 
 def _gl_mat3(m: np.ndarray) -> bytes:

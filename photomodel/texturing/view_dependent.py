@@ -30,8 +30,8 @@ Both per-pixel methods give the same image — same coverage and fallback pixels
 them with the plain blend, 41–47 dB with the registration below (its flow is estimated
 differently) — and the same held-out PSNR within a few hundredths of a dB;
 ``benchmarks/bench_texture.py`` measures them side by side (docs/texturing.md). The shader path
-is 5–7× faster (81 ms against 528 ms for a 1000×1000 registered frame on llvmpipe at load ~1.2,
-2026-12-01; ~25 ms for the studio's 400×780 3D view), fast enough for the 3D view to show the
+is 5–7× faster (76 ms against 495 ms for a 1000×1000 registered frame on llvmpipe at load ~1.3,
+2026-12-02; ~25 ms for the studio's 400×780 3D view), fast enough for the 3D view to show the
 registered view-dependent rendering while orbiting. (Taking the photographs' weights from the
 flow's quarter-resolution pass instead of per pixel made the frame ~17 % faster, 67 against
 81 ms back to back, but it missed visibility slivers and took the shader frame from 47 to 38 dB
