@@ -37,11 +37,13 @@ the fitted model (median of ``--repeats``; wall clock on whatever this machine i
 ``load_1min`` says how busy it was), and one view-dependent frame (1000×1000, a new view 20°
 from the front photo) from a prepared :class:`ViewDependentTexture`, after a warm-up frame:
 ``vd_frame_ms`` the shader path's median of ``--frames`` (everything of a frame: the GL passes,
-the optical flow on the CPU, read-back and the CPU fallback pixels; ``vd_frame_runs_ms`` each
-frame): the flow kept from the previous frame of the same view is dropped before each, so
-every frame computes it as a moving view's does; ``vd_frame_same_view_ms`` (and ``_runs_ms``)
-redraws the same view with its flow kept, which the renderer does when neither the view nor
-the photographs change (a repaint); the other methods' medians of 5.
+read-back and the CPU fallback pixels; ``vd_frame_runs_ms`` each frame) of a **moving** view —
+each frame's camera turned a further 0.25° about the head, as an orbit in the studio draws
+them; ``vd_frame_same_view_ms`` (and ``_runs_ms``) redraws one view (a repaint); the other
+methods' medians of 5. The registration of the two photographs (see
+:mod:`photomodel.texturing.view_dependent`) depends on the pair, not on the view: it is
+computed once per pair, outside these frames, and timed on its own as ``vd_pair_setup_ms``
+(what the pair's first frame adds: the reprojection, two DIS flows and the shift maps).
 
 Images: ``<out>/texture_<geometry>_<held-out>.png`` — held-out photo | cylindrical |
 view-dependent | |error|×4 of each (inside the comparison region); ``<out>/texture_fitted.png``
@@ -180,6 +182,15 @@ def leave_one_out(vertices, faces, cams, photos, masks, size, single, *, feather
     return rows
 
 
+def turned(camera, centre, degrees: float):
+    """A copy of ``camera`` turned ``degrees`` about the vertical axis through ``centre``."""
+    view = camera.copy()
+    Rz = rodrigues(np.array([0.0, np.radians(degrees), 0.0]))
+    view.R = camera.R @ Rz.T
+    view.t = camera.R @ centre + camera.t - view.R @ centre
+    return view
+
+
 def mean_of(rows, key):
     return float(np.mean([r[key] for r in rows]))
 
@@ -228,25 +239,27 @@ def main(argv=None) -> int:
     write_png(out / "texture_true_geometry.png",
               cylindrical_texture(welded.vertices, welded.faces, true_cams, photos, 1024).image)
     vdt = ViewDependentTexture(Vf, F, fit_cams, photos, single_view=single)
-    new_view = fit_cams[2].copy()  # a frame between the photos: the front camera turned 20° about the head
 
     c = vdt.centre
-    Rz = rodrigues(np.array([0.0, np.radians(20.0), 0.0]))
-    new_view.R = new_view.R @ Rz.T
-    new_view.t = fit_cams[2].R @ c + fit_cams[2].t - new_view.R @ c
+    new_view = turned(fit_cams[2], c, 20.0)  # a frame between the photos: the front camera turned 20°
     timings, runs = {}, {}
     load_1min = os.getloadavg()[0]
+    vdt.gl_state()
+    t = time.perf_counter()
+    vdt.registration_shift(*sorted(vdt.view_weights(new_view)[0]))  # what a pair's first frame adds
+    pair_ms = (time.perf_counter() - t) * 1000.0
     for label, kw, n in (("default", {}, max(1, args.frames)), ("same_view", {}, max(1, args.frames)),
                          ("plain", {"align": False}, 5),
                          ("numpy", {"method": "numpy"}, 5), ("numpy_plain", {"method": "numpy", "align": False}, 5),
                          ("per_vertex", {"method": "per_vertex"}, 5)):
         vdt.render(new_view, background=BACKGROUND, **kw)  # warm: shader compilation, texture uploads
         ts = []
-        for _ in range(n):
-            if label == "default":  # every frame computes its flow, as a moving view's does
-                vdt.gl_state().forget_flow()
+        for i in range(n):
+            view = new_view
+            if label == "default":  # a moving view: a new camera every frame
+                view = turned(new_view, c, 0.25 * (i + 1))
             t = time.perf_counter()
-            frame = vdt.render(new_view, background=BACKGROUND, **kw)
+            frame = vdt.render(view, background=BACKGROUND, **kw)
             ts.append(time.perf_counter() - t)
         timings[label] = statistics.median(ts) * 1000.0
         runs[label] = [x * 1000.0 for x in ts]
@@ -290,6 +303,7 @@ def main(argv=None) -> int:
         "vd_frame_runs_ms": runs["default"],
         "vd_frame_same_view_ms": timings["same_view"],
         "vd_frame_same_view_runs_ms": runs["same_view"],
+        "vd_pair_setup_ms": pair_ms,
         "vd_plain_frame_ms": timings["plain"],
         "vd_numpy_frame_ms": timings["numpy"],
         "vd_numpy_plain_frame_ms": timings["numpy_plain"],

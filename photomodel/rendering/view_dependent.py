@@ -7,50 +7,51 @@ through its public :meth:`~photomodel.rendering.renderer.Renderer.context` and
 GPU — Mesa's llvmpipe on machines without one — uploaded once:
 
 * the photographs as one ``RGB8`` texture array (a layer per photograph, padded to the
-  largest; mipmapped for the reduced pass below), sampled bilinearly and black outside a
-  photograph, as ``cv2.remap`` samples them with its constant border;
+  largest), sampled bilinearly and black outside a photograph, as ``cv2.remap`` samples them
+  with its constant border;
 * per photograph a ``RG32F`` layer with its **depth map** (``Z_cam`` rendered from its camera,
   a far sentinel off the model) and its feathered visibility map ``F_k(x_k, y_k)``
   (:func:`~photomodel.texturing.weights.image_feather_map`), both sampled bilinearly;
 * the mesh: vertex normals and the §5.2.4 single-view weight as a static vertex buffer. Per
   frame only the new view's camera coordinates are uploaded, computed in float64 on the CPU as
-  :meth:`Renderer.render` does, so a pixel is covered exactly when the renderer covers it.
+  :meth:`Renderer.render` does, so a pixel is covered exactly when the renderer covers it;
+* per pair of photographs, on its first frame, the pair's **registration maps** (floating
+  textures: how far each photograph's texture must move to meet the other's), which the
+  caller computes over the first photograph's image (:data:`ShiftFunction`); a few pairs are
+  kept.
 
-A frame (:meth:`ViewDependentGL.render`) is deferred shading in three passes:
+A frame (:meth:`ViewDependentGL.render`) is deferred shading in two passes:
 
 1. **G-buffer** — the mesh from the new camera: per pixel ``Z_cam`` and, packed in one
    integer, the interpolated normal (octahedral, 2 × 12 bits), the single-view weight (7 bits)
    and a "covered" bit. The shader is trivial on purpose: a software rasteriser shades whole
    blocks of pixels wherever a small triangle touches them, so the expensive work is left to
-   pass 3, which shades each covered pixel once.
-2. **flow input** (with ``flow``) — a full-screen pass reduced ``flow_reduce``× over the model's
-   bounding box: the two selected photographs' grey levels as the new view shows them (each
-   where the other does not see the point: no motion there), looked up in the mipmapped
-   photographs at this pass's pixel size. Read back (a few kB), the caller's optical flow runs
-   on them on the CPU (``flow``: OpenCV's DIS in the texturing module); the flow goes back as a
-   small float texture, sampled bilinearly.
-3. **blend** — a full-screen pass over the bounding box; the depth test against pass 1's depth
-   buffer drops the pixels off the model. Per pixel, exactly the numpy path's weights: the
-   surface point rebuilt from ``Z_cam`` (as the numpy path rebuilds it from the depth buffer),
-   projected into the two selected photographs; visibility by the depth comparison
-   ``z ≤ depth(x_k, y_k) + tol`` inside the image and ``P_k = n · d_k > 0``;
+   pass 2, which shades each covered pixel once. (Measured: one forward pass doing pass 2's
+   work per fragment took 50 ms against 40 for both passes.)
+2. **blend** — a full-screen pass over the model's bounding box; the depth test against pass
+   1's depth buffer drops the pixels off the model. Per pixel, exactly the numpy path's
+   weights: the surface point rebuilt from ``Z_cam`` (as the numpy path rebuilds it from the
+   depth buffer), projected into the two selected photographs; visibility by the depth
+   comparison ``z ≤ depth(x_k, y_k) + tol`` inside the image and ``P_k = n · d_k > 0``;
    ``g_k = F_k P_k V_k``, the §5.2.4 single-view mix
-   (:func:`~photomodel.texturing.weights.apply_single_view`) and the blend. With the flow
-   (*floating textures*, Eisemann et al. 2008) photograph A is sampled where the point seen at
-   ``x − w_B f_AB(x)`` projects into it and B where the point seen at ``x + w_A f_AB(x)`` does
-   (``f_BA ≈ −f_AB``), those points taken on the surface's tangent plane at ``x``; the numpy path
-   warps the reprojected images instead, which differs where that neighbourhood is another
-   surface.
+   (:func:`~photomodel.texturing.weights.apply_single_view`) and the blend. With the
+   registration (*floating textures*, Eisemann et al. 2008) the registration maps, looked up
+   where the point projects into photograph A, give ``delta_A`` and ``delta_B``, and
+   photograph A is sampled at its projection minus ``w_B delta_A``, B at its own minus
+   ``w_A delta_B``: each moves by the other's share of their disagreement.
 
 Pixels neither selected photograph sees (the blend of every photograph, §5.2.3's fallback) are
 rare — a few hundred in a 1000×1000 frame of the sample — and handed back
 (:attr:`GLFrame.fallback`) to the caller's CPU code: a loop over all photographs in the shader
 would cost every pixel, as a software rasteriser runs both sides of a branch.
 
-Cost on llvmpipe (2 shared cores), one 1000×1000 frame of the fitted sample head: the G-buffer
-~10 ms, the reduced pass ~3 ms, the flow ~7 ms (CPU), the blend ~25 ms, clears, read-back and
-the CPU fallback ~10 ms: ``vd_frame_ms`` of ``benchmarks/bench_texture.py`` is 72 ms with the
-machine's load at ~1.2 and 91 ms at ~2 (single frames 57–125 ms).
+Cost on llvmpipe (2 cores), one 1000×1000 frame of the fitted sample head (2026-12-02, each
+pass followed by ``glFinish``): the G-buffer 11–17 ms (~7 ms of it llvmpipe's per-triangle
+set-up on the calling thread), the blend 25–36 ms, clears, read-back and the CPU's part
+~15 ms; ``vd_frame_ms`` of ``benchmarks/bench_texture.py`` and docs/texturing.md have the
+figures of the whole frame. Tried and not kept: culling back faces in pass 1 (1–2 ms, but a
+mesh wound the other way would lose its front), the weights ``F_k P_k`` precomputed in
+texture space (3–5 ms less in pass 2, but visibility at texel instead of pixel resolution).
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ import numpy as np
 from photomodel.camera import Camera
 from photomodel.rendering.renderer import Renderer, auto_near_far, gl_projection
 
-__all__ = ["GLFrame", "ViewDependentGL", "FlowFunction"]
+__all__ = ["GLFrame", "ViewDependentGL", "ShiftFunction"]
 
 _GBUFFER_VS = """
 #version 330
@@ -186,9 +187,8 @@ vec2 shares(float ga, float gb, float s) {
 
 _BLEND_FS = _COMMON + """
 uniform sampler2DArray photos;  // RGB8, one layer per photograph, row 0 = top
-uniform sampler2D flow;         // f_AB in pixels of this frame (f_BA = -f_AB)
-uniform vec2 flow_scale;        // 1 / the (padded) extent in pixels that the flow texture covers
-uniform float align;            // 1: register A and B by the flow
+uniform sampler2D shift;        // registration over A's image: delta_A (xy), delta_B (zw), pixels of A and B
+uniform float align;            // 1: register A and B by the shift maps
 layout(location = 0) out vec3 o_color;   // colour; where neither sees: normal (1 + s)
 layout(location = 1) out float o_depth;  // Z_cam; -Z_cam where neither sees
 
@@ -198,18 +198,12 @@ void main() {
     float ga = weight(a_H, a_h, a_d, a_max, S, ua) * sel_v.x;
     float gb = weight(b_H, b_h, b_d, b_max, S, ub) * sel_v.y;
     vec2 w = shares(ga, gb, S.s);
-    // floating textures: A(x) ~ B(x + f_AB(x)); A moves by B's share of the disagreement, B by A's
-    vec2 f = textureLod(flow, gl_FragCoord.xy * flow_scale, 0.0).rg;
     if (align > 0.0) {
-        // the tangent plane at X seen at pixel q': depth z (m.q) / (m.q'), m = M^T n (n.r' = m.q')
-        vec3 m = transpose(view_M) * S.n;
-        float mq = S.z * dot(m, S.q);
-        vec3 qa = vec3(S.q.xy - w.y * f, 1.0);
-        vec3 qb = vec3(S.q.xy + w.x * f, 1.0);
-        float na = dot(m, qa), nb = dot(m, qb);
-        // (a ray along the plane: the point itself, as on the numpy path's tangent plane)
-        ua = abs(na) > 1e-6 ? project(a_H, a_h, qa, mq / na) : ua;
-        ub = abs(nb) > 1e-6 ? project(b_H, b_h, qb, mq / nb) : ub;
+        // floating textures: A moves by B's share of their disagreement, B by A's
+        // (the maps are over photograph A's image: looked up where the point projects into A)
+        vec4 d = textureLod(shift, (ua + 0.5) / (a_max.xy + 1.0), 0.0);
+        ua -= w.y * d.xy;
+        ub -= w.x * d.zw;
     }
     vec3 col = w.x * textureLod(photos, layer(ua, a_max.z), 0.0).rgb
              + w.y * textureLod(photos, layer(ub, b_max.z), 0.0).rgb;
@@ -220,36 +214,16 @@ void main() {
 }
 """
 
-_FLOW_FS = _COMMON + """
-uniform sampler2DArray photos_mip;  // the photographs, mipmapped
-uniform int reduce;                 // this pass's pixel = reduce × reduce pixels of the frame
-uniform ivec2 last;                 // the frame's last pixel (W - 1, H - 1)
-layout(location = 0) out vec2 o_gray;  // grey levels of A and B (each where the other does not see)
-void main() {
-    ivec2 p = min(ivec2(gl_FragCoord.xy) * reduce + reduce / 2, last);
-    Surface S = surface(p);
-    vec2 ua, ub;
-    float ga = weight(a_H, a_h, a_d, a_max, S, ua) * sel_v.x;
-    float gb = weight(b_H, b_h, b_d, b_max, S, ub) * sel_v.y;
-    vec2 w = shares(ga, gb, S.s);
-    // implicit derivatives between this pass's pixels pick the mipmap level of its pixel size
-    vec3 ca = texture(photos_mip, layer(ua, a_max.z)).rgb;
-    vec3 cb = texture(photos_mip, layer(ub, b_max.z)).rgb;
-    vec3 A = (w.x > 0.0) ? ca : cb;
-    vec3 B = (w.y > 0.0) ? cb : ca;
-    const vec3 luma = vec3(0.299, 0.587, 0.114);
-    o_gray = S.covered ? vec2(dot(A, luma), dot(B, luma)) : vec2(0.0);
-}
-"""
+#: The registration of two photographs (floating textures), asked for once per pair ``a < b``:
+#: ``shift(a, b) -> (h, w, 4) float32`` over photograph ``a``'s image (any reduction of it: the
+#: map spans the whole image, row 0 = top), ``delta_A`` (channels 0, 1) and ``delta_B`` (2, 3)
+#: in pixels of ``a`` and ``b`` at the surface point seen at each pixel of ``a``: where both
+#: see a point, A is sampled at its projection minus ``w_B delta_A``, B at its own minus
+#: ``w_A delta_B``.
+ShiftFunction = Callable[[int, int], np.ndarray]
 
-#: Optical flow for the registration: ``flow(gray_a, gray_b) -> f_ab``, two (h, w) uint8 images
-#: in, an (h, w, 2) float32 flow in their pixels out, ``A(x) ≈ B(x + f_ab(x))``; the flow from B
-#: to A is taken as ``−f_ab`` (exact to first order in the flow's gradient).
-FlowFunction = Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-#: Pixels of the reduced flow images around the model's bounding box (the flow's patches
-#: need some background around the silhouette).
-_FLOW_MARGIN = 4
+#: Registration maps kept on the GPU (pairs of photographs; an orbit visits a few).
+_KEPT_PAIRS = 4
 
 
 @dataclass
@@ -327,8 +301,8 @@ class ViewDependentGL:
             raise ValueError("need one photo, depth map and feather map per camera (at least one)")
         self.k = k
         self.vertices = np.asarray(vertices, dtype=float)
-        self.faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 3)
         self.centre = np.asarray(centre, dtype=float).reshape(3)
+        self.faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 3)
         self.tol_mm = float(tol_mm)
         self.use_single = single_view is not None
         Wm = max(c.width for c in cameras)
@@ -338,22 +312,17 @@ class ViewDependentGL:
         self.array_size = (Wm, Hm)
 
         stack, geo = _photo_layers(cameras, photos, depths, feather_maps, (Wm, Hm), far_sentinel_mm)
-        self._cam_uniforms = _camera_uniforms(cameras, self.centre)
         n = len(self.vertices)
         s = np.zeros(n, np.float32) if single_view is None else np.asarray(single_view, np.float32).reshape(n)
         ns = np.column_stack([np.asarray(normals, np.float32).reshape(n, 3), s]).astype(np.float32)
+        self._cam_uniforms = _camera_uniforms(cameras, self.centre)
         self._gbuffer = renderer.program(_GBUFFER_VS, _GBUFFER_FS)
         self._blend = renderer.program(_FULLSCREEN_VS, _BLEND_FS)
-        self._flow = renderer.program(_FULLSCREEN_VS, _FLOW_FS)
         with ctx:
             self._photos = ctx.texture_array((Wm, Hm, k), 3, stack.tobytes(), alignment=1, dtype="f1")
-            self._photos.build_mipmaps()
             self._geo = ctx.texture_array((Wm, Hm, k), 2, geo.tobytes(), alignment=1, dtype="f4")
             black = (0.0, 0.0, 0.0, 0.0)  # outside a photograph, as cv2.remap's constant border
             self._photo_sampler = ctx.sampler(texture=self._photos, filter=(mgl.LINEAR, mgl.LINEAR), border_color=black)
-            self._mip_sampler = ctx.sampler(
-                texture=self._photos, filter=(mgl.LINEAR_MIPMAP_LINEAR, mgl.LINEAR), border_color=black
-            )
             self._geo_sampler = ctx.sampler(
                 texture=self._geo, filter=(mgl.LINEAR, mgl.LINEAR), repeat_x=False, repeat_y=False
             )
@@ -363,12 +332,13 @@ class ViewDependentGL:
             attrs = [(self._pos, "3f", "in_pos"), (self._ns, "4f", "in_ns")]
             self._vao = ctx.vertex_array(self._gbuffer, attrs, index_buffer=self._idx, index_element_size=4)
             self._blend_vao = ctx.vertex_array(self._blend, [])
-            self._flow_vao = ctx.vertex_array(self._flow, [])
+            self._no_shift = ctx.texture((1, 1), 4, bytes(16), dtype="f4")
         # every GL object held; dropped unreleased, the renderer frees them at its next use
-        self._owned = [self._photo_sampler, self._mip_sampler, self._geo_sampler, self._photos, self._geo,
-                       self._vao, self._blend_vao, self._flow_vao, self._pos, self._ns, self._idx]
+        self._owned = [self._photo_sampler, self._geo_sampler, self._photos, self._geo,
+                       self._vao, self._blend_vao, self._pos, self._ns, self._idx, self._no_shift]
         self._finalizer = weakref.finalize(self, renderer.defer_release, self._owned)
-        self._targets: dict[tuple[int, int, int], dict] = {}
+        self._targets: dict[tuple[int, int], dict] = {}
+        self._shifts: dict[tuple[int, int], object] = {}  # (a, b) -> texture, oldest first
         self.released = False
 
     # ------------------------------------------------------------------------------------
@@ -377,11 +347,13 @@ class ViewDependentGL:
         """Whether the GL objects are alive (neither this nor its renderer released)."""
         return not self.released and not self.renderer.released
 
-    def forget_flow(self) -> None:
-        """Drop the flow kept for the last view: the next frame computes it again, even for the
-        same view (what a frame of a moving view costs; ``benchmarks/bench_texture.py``)."""
-        for t in self._targets.values():
-            t["flow_key"] = None
+    def forget_registration(self) -> None:
+        """Drop the registration maps kept on the GPU: the next frame of each pair of photographs
+        asks its ``shift`` function again (what a pair's first frame costs)."""
+        for tex in self._shifts.values():
+            self._owned.remove(tex)
+            tex.release()
+        self._shifts.clear()
 
     def release(self) -> None:
         """Free the GL objects now (idempotent)."""
@@ -392,10 +364,11 @@ class ViewDependentGL:
                     obj.release()
         self._owned.clear()
         self._targets.clear()
+        self._shifts.clear()
         self.released = True
 
-    def _frame_targets(self, W: int, H: int, reduce: int) -> dict:
-        key = (W, H, reduce)
+    def _frame_targets(self, W: int, H: int) -> dict:
+        key = (W, H)
         if key in self._targets:
             return self._targets[key]
         while len(self._targets) >= 2:  # a view being resized: keep the two latest sizes
@@ -403,58 +376,73 @@ class ViewDependentGL:
             for obj in old["objects"]:
                 self._owned.remove(obj)
                 obj.release()
-        mgl = self._mgl
         ctx = self.renderer.context()
         gbuf = ctx.texture((W, H), 2, dtype="u4")
-        gbuf.filter = (mgl.NEAREST, mgl.NEAREST)
+        gbuf.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
         zbuf = ctx.depth_renderbuffer((W, H))
         color = ctx.renderbuffer((W, H), components=3, dtype="f4")
         depth = ctx.renderbuffer((W, H), components=1, dtype="f4")
-        wf, hf = -(-W // reduce), -(-H // reduce)
-        gray = ctx.renderbuffer((wf, hf), components=2, dtype="f1")
-        flow = ctx.texture((wf, hf), 2, np.zeros((hf, wf, 2), np.float32).tobytes(), dtype="f4")
-        flow.filter = (mgl.LINEAR, mgl.LINEAR)
-        flow.repeat_x = flow.repeat_y = False
         t = {
             "gbuffer": ctx.framebuffer([gbuf], zbuf),
-            # pass 3 tests against the G-buffer's depth: only covered pixels are shaded
+            # pass 2 tests against the G-buffer's depth: only covered pixels are shaded
             "out": ctx.framebuffer([color, depth], zbuf),
             # the output's attachments alone, to clear each to its own value
             "out_color": ctx.framebuffer([color]),
             "out_depth": ctx.framebuffer([depth]),
-            "gray": ctx.framebuffer([gray]),
             "gbuf": gbuf,
-            "flow": flow,
-            "flow_size": (wf, hf),
         }
-        t["objects"] = [t["gbuffer"], t["out"], t["out_color"], t["out_depth"], t["gray"], gbuf, zbuf,
-                        color, depth, gray, flow]
+        t["objects"] = [t["gbuffer"], t["out"], t["out_color"], t["out_depth"], gbuf, zbuf, color, depth]
         self._owned.extend(t["objects"])
         self._targets[key] = t
         return t
 
-    def _set_photos(self, prog, sel, vw) -> None:
+    def _shift_maps(self, sel, shift: ShiftFunction) -> np.ndarray | None:
+        """The registration maps of the pair ``sel`` from ``shift`` when they are not on the GPU
+        yet (asked before the frame's GL work: ``shift`` may draw with the renderer itself)."""
+        if (sel[0], sel[1]) in self._shifts:
+            return None
+        maps = np.ascontiguousarray(shift(sel[0], sel[1]), np.float32)
+        if maps.ndim != 3 or maps.shape[2] != 4:
+            raise ValueError(f"registration maps must be (h, w, 4), got shape {maps.shape}")
+        return maps
+
+    def _shift_texture(self, sel, maps: np.ndarray | None):
+        """The registration maps of the pair ``sel`` on the GPU (``maps``: new ones to upload)."""
+        key = (sel[0], sel[1])
+        tex = self._shifts.pop(key, None)
+        if tex is None:
+            while len(self._shifts) >= _KEPT_PAIRS:
+                old = self._shifts.pop(next(iter(self._shifts)))
+                self._owned.remove(old)
+                old.release()
+            ctx = self.renderer.context()
+            tex = ctx.texture((maps.shape[1], maps.shape[0]), 4, maps.tobytes(), dtype="f4")
+            tex.filter = (self._mgl.LINEAR, self._mgl.LINEAR)
+            tex.repeat_x = tex.repeat_y = False
+            self._owned.append(tex)
+        self._shifts[key] = tex  # the newest last
+        return tex
+
+    def _set_photos(self, prog, camera: Camera, sel, vw, align: bool) -> None:
         """The uniforms of the selected photographs ``sel`` (weights ``vw``) seen from the frame's
         view, composed in float64 (see ``_COMMON``)."""
-        view = self._view
-        view_c = view.center - self.centre
-        M = view.R.T @ np.linalg.inv(view.K)  # homogeneous pixel -> ray (world, Z_cam = 1)
-        if "view_M" in prog:
-            prog["view_M"].write(_gl_mat3(M))
+        view_c = camera.center - self.centre
+        M = camera.R.T @ np.linalg.inv(camera.K)  # homogeneous pixel -> ray (world, Z_cam = 1)
+        prog["view_M"].write(_gl_mat3(M))
         for prefix, k in (("a_", sel[0]), ("b_", sel[1])):
             u = self._cam_uniforms[k]
             KR = u["K"] @ u["R"]
-            if prefix + "H" in prog:
-                prog[prefix + "H"].write(_gl_mat3(KR @ M))
+            prog[prefix + "H"].write(_gl_mat3(KR @ M))
             _set(prog, prefix + "h", tuple(float(x) for x in KR @ view_c + u["K"] @ u["t"]))
             _set(prog, prefix + "d", tuple(float(x) for x in u["c"] - view_c))
             _set(prog, prefix + "max", u["max"])
-        for name, unit in (("gbuf", 0), ("geo", 2), ("photos", 3), ("photos_mip", 3), ("flow", 4)):
+        for name, unit in (("gbuf", 0), ("geo", 2), ("photos", 3), ("shift", 4)):
             _set(prog, name, unit)
         _set(prog, "tex_scale", (1.0 / self.array_size[0], 1.0 / self.array_size[1]))
         _set(prog, "tol", self.tol_mm)
         _set(prog, "sel_v", tuple(vw))
         _set(prog, "use_single", 1.0 if self.use_single else 0.0)
+        _set(prog, "align", 1.0 if align else 0.0)
 
     def render(
         self,
@@ -463,8 +451,7 @@ class ViewDependentGL:
         weights: Sequence[float],
         *,
         background=0.0,
-        flow: FlowFunction | None = None,
-        flow_reduce: int = 4,
+        shift: ShiftFunction | None = None,
     ) -> GLFrame:
         """Draw the model from ``camera``, blending the ``selected`` photographs (§5.2.3).
 
@@ -474,11 +461,9 @@ class ViewDependentGL:
             the new view.
         selected : one or two photograph indices; weights : their ``V_k(d)`` (> 0).
         background : float or (3,), colour off the model.
-        flow : FlowFunction or None
-            with two photographs, register them by this optical flow before blending
-            (floating textures); ``None`` blends them as they are.
-        flow_reduce : int
-            the flow is estimated on images reduced this many times.
+        shift : ShiftFunction or None
+            with two photographs, register them by these maps before blending (floating
+            textures), asked once per pair and kept; ``None`` blends them as they are.
 
         Returns
         -------
@@ -489,14 +474,12 @@ class ViewDependentGL:
         ctx = self.renderer.context()
         W, H = self._check_frame(camera)
         sel, vw, two = self._selection(selected, weights)
-        reduce = max(1, int(flow_reduce))
         bg = tuple(float(x) for x in np.broadcast_to(np.asarray(background, np.float32).reshape(-1), (3,)))
 
-        self._view = camera
         Xc = camera.to_camera(self.vertices)
-        auto = auto_near_far(Xc[:, 2]) if len(self.vertices) and len(self.faces) else None
-        box = _bounding_box(camera, Xc) if auto is not None else None
-        align = two and flow is not None and box is not None
+        planes = auto_near_far(Xc[:, 2]) if len(self.vertices) and len(self.faces) else None
+        box = _bounding_box(camera, Xc) if planes is not None else None
+        align = two and shift is not None and box is not None
         # off the model's bounding box nothing is drawn: the background is filled here, and the
         # GL clears and read-back cover the box alone (a third of a 1000×1000 frame of a face)
         color = np.empty((H, W, 3), np.float32)
@@ -508,26 +491,16 @@ class ViewDependentGL:
             return _frame(color, depth)
         x0, y0, x1, y1 = box
         inner = (x0, y0, x1 - x0, y1 - y0)
+        maps = self._shift_maps(sel, shift) if align else None
         with ctx:
-            t = self._frame_targets(W, H, reduce)
+            t = self._frame_targets(W, H)
+            (self._shift_texture(sel, maps) if align else self._no_shift).use(location=4)
             t["out_color"].use()
             t["out_color"].clear(*bg, 0.0, viewport=inner)
             t["out_depth"].use()
             t["out_depth"].clear(float("inf"), viewport=inner)
-            # the flow pass reads the G-buffer around the box too (its margin): cleared there,
-            # else it would see a previous frame's surface
-            m = (_FLOW_MARGIN + 1) * reduce if align else 0
-            clear = (max(x0 - m, 0), max(y0 - m, 0), min(x1 + m, W), min(y1 + m, H))
-            self._gbuffer_pass(ctx, t, camera, Xc, auto, clear)
-            if align:
-                # the same view and photographs as this target's last flow: the same flow and
-                # weights (DIS is deterministic), still in its texture
-                key = (_camera_key(camera), tuple(sel), tuple(vw), flow)
-                if t.get("flow_key") != key:
-                    t["flow_key"] = None
-                    self._flow_pass(ctx, t, sel, vw, reduce, box, flow, (W, H))
-                    t["flow_key"] = key
-            self._blend_pass(ctx, t, sel, vw, align, reduce, auto, float(Xc[:, 2].max()), box)
+            self._gbuffer_pass(ctx, t, camera, Xc, planes, inner)
+            self._blend_pass(ctx, t, camera, sel, vw, align, planes, float(Xc[:, 2].max()), inner)
             box_color = np.empty((y1 - y0, x1 - x0, 3), np.float32)
             box_depth = np.empty((y1 - y0, x1 - x0), np.float32)
             t["out"].read_into(box_color, viewport=inner, components=3, attachment=0, dtype="f4", alignment=1)
@@ -559,65 +532,30 @@ class ViewDependentGL:
             sel, vw = [sel[0], sel[0]], [vw[0], 0.0]
         return sel, vw, two
 
-    def _gbuffer_pass(self, ctx, t: dict, camera: Camera, Xc: np.ndarray, planes, box) -> None:
-        """Pass 1: the G-buffer (depth, normal, single-view weight), cleared over ``box`` (the
-        model's bounding box and what the flow pass reads around it); then the G-buffer and the
-        depth/feather maps bound for the passes that read them."""
+    def _gbuffer_pass(self, ctx, t: dict, camera: Camera, Xc: np.ndarray, planes, inner) -> None:
+        """Pass 1: the G-buffer (depth, normal, single-view weight, registration coordinates),
+        cleared over ``inner`` (the model's bounding box); then bound for the blend."""
         mgl = self._mgl
-        W, H = camera.width, camera.height
-        x0, y0, x1, y1 = box
         ctx.disable(mgl.BLEND | mgl.CULL_FACE)
         fbo = t["gbuffer"]
         fbo.use()
-        fbo.viewport = (0, 0, W, H)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=(x0, y0, x1 - x0, y1 - y0))  # uint: bits 0
+        fbo.viewport = (0, 0, camera.width, camera.height)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=inner)  # uint: bits 0
         ctx.enable(mgl.DEPTH_TEST)
-        self._pos.write(Xc.astype(np.float32).tobytes())
+        self._pos.write(np.ascontiguousarray(Xc, np.float32).tobytes())
         self._gbuffer["proj"].write(gl_projection(camera, *planes).T.astype(np.float32).tobytes())
         self._vao.render(mgl.TRIANGLES, vertices=3 * len(self.faces))
         ctx.disable(mgl.DEPTH_TEST)
         t["gbuf"].use(location=0)
         self._geo_sampler.use(location=2)
 
-    def _flow_pass(self, ctx, t: dict, sel, vw, reduce: int, box, flow: FlowFunction, size: tuple[int, int]) -> None:
-        """Pass 2: the two photographs' grey levels seen from the view, reduced, read back around
-        the bounding box; their optical flow (pixels of the frame) written to the flow texture."""
+    def _blend_pass(self, ctx, t: dict, camera: Camera, sel, vw, align: bool, planes, z_max: float, inner) -> None:
+        """Pass 2: weights, registration and blend, per pixel of the bounding box ``inner`` that
+        the G-buffer covers (``z_max``: the farthest vertex's ``Z_cam``)."""
         mgl = self._mgl
-        x0, y0, x1, y1 = box
-        wf, hf = t["flow_size"]
-        self._mip_sampler.use(location=3)
-        p = self._flow
-        self._set_photos(p, sel, vw)
-        _set(p, "reduce", reduce)
-        _set(p, "last", (size[0] - 1, size[1] - 1))
-        fx0, fy0 = max(x0 // reduce - _FLOW_MARGIN, 0), max(y0 // reduce - _FLOW_MARGIN, 0)
-        fx1 = min(-(-x1 // reduce) + _FLOW_MARGIN, wf)
-        fy1 = min(-(-y1 // reduce) + _FLOW_MARGIN, hf)
-        fw, fh = fx1 - fx0, fy1 - fy0
-        fbo = t["gray"]
-        fbo.use()
-        fbo.viewport = (0, 0, wf, hf)
-        ctx.scissor = (fx0, fy0, fw, fh)
-        self._flow_vao.render(mgl.TRIANGLES, vertices=3)
-        ctx.scissor = None
-        gray = np.empty((fh, fw, 2), np.uint8)
-        fbo.read_into(gray, viewport=(fx0, fy0, fw, fh), components=2, attachment=0, dtype="f1", alignment=1)
-        f_ab = flow(np.ascontiguousarray(gray[..., 0]), np.ascontiguousarray(gray[..., 1]))
-        f_ab = np.ascontiguousarray(f_ab, np.float32) * np.float32(reduce)  # in pixels of the frame
-        t["flow"].write(f_ab.tobytes(), viewport=(fx0, fy0, fw, fh))
-
-    def _blend_pass(self, ctx, t: dict, sel, vw, align: bool, reduce: int, planes, z_max: float, box) -> None:
-        """Pass 3: weights, registration and blend, per pixel of the bounding box that the
-        G-buffer covers (``z_max``: the farthest vertex's ``Z_cam``)."""
-        mgl = self._mgl
-        x0, y0, x1, y1 = box
-        wf, hf = t["flow_size"]
         self._photo_sampler.use(location=3)
-        t["flow"].use(location=4)
         p = self._blend
-        self._set_photos(p, sel, vw)
-        _set(p, "align", 1.0 if align else 0.0)
-        _set(p, "flow_scale", (1.0 / (wf * reduce), 1.0 / (hf * reduce)))
+        self._set_photos(p, camera, sel, vw, align)
         # its NDC depth: behind every surface (the farthest vertex), in front of the clear (1)
         near, far = planes
         ndc_far = (far + near) / (far - near) - 2.0 * far * near / ((far - near) * z_max)
@@ -628,18 +566,12 @@ class ViewDependentGL:
         fbo.depth_mask = False
         ctx.enable(mgl.DEPTH_TEST)
         ctx.depth_func = ">"  # passes where the G-buffer holds a surface, fails on its clear value
-        ctx.scissor = (x0, y0, x1 - x0, y1 - y0)
+        ctx.scissor = inner
         self._blend_vao.render(mgl.TRIANGLES, vertices=3)
         ctx.scissor = None
         ctx.depth_func = "<"
         ctx.disable(mgl.DEPTH_TEST)
         fbo.depth_mask = True
-
-
-def _camera_key(camera: Camera) -> tuple:
-    """What a frame's flow depends on of its camera."""
-    return (camera.width, camera.height, float(camera.f), *map(float, camera.principal_point),
-            camera.R.tobytes(), np.asarray(camera.t, float).tobytes())
 
 
 def _frame(color: np.ndarray, depth: np.ndarray) -> GLFrame:

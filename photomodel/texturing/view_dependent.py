@@ -19,7 +19,7 @@ with bilinear colour lookups, depth-map visibility (§5.2.1), the image-space fe
 * ``method="shader"`` (the default) does this in fragment shaders
   (:mod:`photomodel.rendering.view_dependent`, on the one renderer's GL context): the photographs, their depth
   maps and feather maps are textures uploaded once; a frame is a G-buffer pass of the mesh and
-  full-screen passes that compute the weights, visibility and blend per pixel, exactly as the
+  a full-screen pass that computes the weights, visibility and blend per pixel, exactly as the
   numpy path does. Pixels that neither selected photograph sees (a few hundred in a
   1000×1000 frame) come back to the CPU for the numpy path's fallback below.
 * ``method="numpy"`` (older name ``"position_buffer"``): one geometry pass of the renderer with
@@ -27,12 +27,13 @@ with bilinear colour lookups, depth-map visibility (§5.2.1), the image-space fe
   rebuilt from the depth buffer and everything else happens in numpy/OpenCV (``cv2.remap``).
 
 Both per-pixel methods give the same image — same coverage and fallback pixels, 60 dB between
-them with the plain blend, 41–47 dB with the registration below (its flow is estimated
+them with the plain blend, ~50 dB with the registration below (its flow is estimated
 differently) — and the same held-out PSNR within a few hundredths of a dB;
 ``benchmarks/bench_texture.py`` measures them side by side (docs/texturing.md). The shader path
-is 5–7× faster (76 ms against 495 ms for a 1000×1000 registered frame on llvmpipe at load ~1.3,
-2026-12-02; ~25 ms for the studio's 400×780 3D view), fast enough for the 3D view to show the
-registered view-dependent rendering while orbiting. (Taking the photographs' weights from the
+is ~7× faster (74 ms against 529 ms for a 1000×1000 registered frame of a moving view on
+llvmpipe, 2026-12-02, the machine slow that hour: the earlier screen-space registration
+measured 85–90 ms beside it), fast enough for the 3D view to show the registered
+view-dependent rendering while orbiting. (Taking the photographs' weights from the
 flow's quarter-resolution pass instead of per pixel made the frame ~17 % faster, 67 against
 81 ms back to back, but it missed visibility slivers and took the shader frame from 47 to 38 dB
 of the numpy path's at 1000×1000 and to 32 dB at 400×780, where the quarter-resolution pass is
@@ -52,14 +53,17 @@ plain blend.
 
 The numpy path computes both flows (A→B and B→A) on the full-resolution reprojections (DIS
 "fast", which estimates down to a quarter of the resolution) and warps the reprojected images.
-The shader path computes **one** flow per frame on the two reprojections rendered at a quarter
-of the resolution (:data:`FLOW_REDUCE`; DIS "ultrafast" with one refinement iteration, the
-reverse flow taken as its negative; :func:`_dis_flow`) and samples each photograph where the
-point seen at the displaced pixel — on the surface's tangent plane — projects into it. The
-flow is kept for the last view: a frame of the same view with the same photographs (a repaint)
-reuses it, which changes nothing in the image (DIS is deterministic) and saves the flow's
-pass, read-back and DIS. A moving view computes it every frame, and so does the benchmark's
-``vd_frame_ms`` (it drops the kept flow before each frame; ``vd_frame_same_view_ms`` keeps it).
+The shader path registers the two photographs **once per pair**, over the first one's image
+(:meth:`ViewDependentTexture.registration_shift`): B is reprojected into A's image through the
+model, DIS "fast" gives the two flows between A and that reprojection, and each becomes a shift
+in its photograph's pixels; per pixel the shader looks the shifts up where the point projects
+into A and samples each photograph at its projection minus the other's share of the shift. The
+disagreement between two photographs is a property of the model and the photographs, not of
+the new view, so a moving view reuses it: the pair's first frame pays for it (~0.2 s), the
+others nothing. On the sample's held-out views this gives the numpy path's PSNR within a few
+hundredths of a dB and frames ~50 dB from its frames, against 41–45 dB with the screen-space
+flow it replaced (a DIS flow on quarter-resolution reprojections in every frame, ~14 ms of
+each; docs/texturing.md). Beyond the paper.
 
 Holes
 -----
@@ -101,9 +105,10 @@ __all__ = ["ViewDependentRender", "ViewDependentTexture", "render_view_dependent
 METHODS = ("shader", "numpy", "per_vertex")
 #: Older name of ``method="numpy"``.
 _ALIASES = {"position_buffer": "numpy"}
-#: The floating-texture flow of the shader path is computed on the two reprojected photographs
-#: reduced this many times (see the module notes).
-FLOW_REDUCE = 4
+#: The shader path's registration maps go to the GPU reduced this many times (250² for a 1000²
+#: photograph, 1 MB): DIS's "fast" preset estimates the flow at a quarter of its images'
+#: resolution, so the finer maps hold nothing more, and the blend pass reads the small map faster.
+SHIFT_REDUCE = 4
 
 
 @dataclass
@@ -204,6 +209,8 @@ class ViewDependentTexture:
         self.directions = view_directions(self.cameras, self.centre)
         self._gl_textures = None
         self._gl = None  # photomodel.rendering.view_dependent.ViewDependentGL of this thread's renderer
+        self._surfaces: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # per photograph
+        self._shifts: dict[tuple[int, int], np.ndarray] = {}  # registration maps per pair
 
     # -------------------------------------------------------------------------------------
     def view_weights(self, camera: Camera) -> tuple[tuple[int, int], np.ndarray]:
@@ -330,8 +337,8 @@ class ViewDependentTexture:
         if gl is None or gl.renderer is not renderer or not gl.usable:
             gl = self._gl = ViewDependentGL(
                 renderer, self.vertices, self.faces, self.normals, self.cameras, self.photos, self._depths_far,
-                self.feather_maps, centre=self.centre, single_view=self.single_view, tol_mm=self.tol_mm,
-                far_sentinel_mm=FAR_SENTINEL_MM,
+                self.feather_maps, centre=self.centre, single_view=self.single_view,
+                tol_mm=self.tol_mm, far_sentinel_mm=FAR_SENTINEL_MM,
             )
         return gl
 
@@ -340,7 +347,7 @@ class ViewDependentTexture:
         selected = [k for k in range(len(V)) if V[k] > 0]  # the two of §5.2.3 (or one)
         frame = self.gl_state().render(
             camera, selected, [V[k] for k in selected], background=background,
-            flow=_dis_flow if align else None, flow_reduce=FLOW_REDUCE,
+            shift=self.registration_shift if align else None,
         )
         color, idx = frame.color, frame.fallback
         filled = np.zeros(frame.mask.shape, bool)
@@ -352,6 +359,87 @@ class ViewDependentTexture:
             color.reshape(-1, 3)[idx] = out * np.float32(1.0 / 255.0)
             _fill_unseen(color, frame.mask, idx[unseen])
         return ViewDependentRender(color, frame.mask, views, V, filled, frame.depth)
+
+    def _photo_surface(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The model as photograph ``k`` sees it: its covered pixels (flat indices), their world
+        points (n, 3) float32 and unit normals (n, 3); made once per photograph."""
+        if k not in self._surfaces:
+            cam = self.cameras[k]
+            res = get_renderer().render(cam, self.vertices, self.faces, colors=self.normals)
+            idx = np.flatnonzero(res.mask)
+            nrm = res.color.reshape(-1, 3)[idx]
+            nrm /= np.maximum(np.sqrt(np.einsum("ij,ij->i", nrm, nrm)), np.float32(1e-12))[:, None]
+            self._surfaces[k] = (idx, _pixel_points(cam, idx, res.depth), nrm)
+        return self._surfaces[k]
+
+    def registration_shift(self, a: int, b: int) -> np.ndarray:
+        """The floating-texture registration of photographs ``a`` and ``b`` over ``a``'s image
+        (:data:`photomodel.rendering.view_dependent.ShiftFunction`), computed once per pair.
+
+        Photograph B is reprojected into A's image through the model (B's colour at the
+        surface point each pixel of A sees; A's own where B does not see it, so that nothing
+        moves there), OpenCV's DIS ("fast" preset, as the numpy path) gives the flows ``f_ab``
+        and ``f_ba`` between A and that reprojection, and each becomes a shift in its
+        photograph's pixels: ``delta_A = f_ab`` (A's image is the parameterisation) and
+        ``delta_B(x) = x_B(x) - x_B(x - f_ba(x))`` (``x_B``: B's pixel of the point seen at
+        ``x``), so that B sampled at ``x_B - w_A delta_B`` is B's reprojection displaced by A's
+        share of the flow (to first order in ``w_A``; exact at 0 and 1), as the numpy path
+        displaces the reprojections in the new view.
+
+        Returns
+        -------
+        (h, w, 4) float32
+            ``delta_A`` (channels 0, 1) and ``delta_B`` (2, 3), pixels of A and B; 0 off the
+            model; A's image reduced :data:`SHIFT_REDUCE` times (row 0 = top).
+        """
+        key = (int(a), int(b))
+        if key in self._shifts:
+            return self._shifts[key]
+        cam = self.cameras[key[0]]
+        H, W = cam.height, cam.width
+        out = np.zeros((H, W, 4), np.float32)
+        idx, pts, nrm = self._photo_surface(key[0])
+        color_b, gb = self._photo_weights(key[1], pts, nrm)
+        seen = gb > 0
+        if key[0] != key[1] and seen.any():
+            rows, cols = np.divmod(idx, W)
+            m = 16  # margin for the flow's patches
+            r0, r1 = max(int(rows.min()) - m, 0), min(int(rows.max()) + m + 1, H)
+            c0, c1 = max(int(cols.min()) - m, 0), min(int(cols.max()) + m + 1, W)
+            h, w = r1 - r0, c1 - c0
+            flat = (rows - r0) * w + (cols - c0)
+            img_a = cv2.cvtColor(np.ascontiguousarray(self.photos[key[0]][r0:r1, c0:c1]), cv2.COLOR_RGB2GRAY)
+            img_b = img_a.copy()
+            grey_b = color_b[seen].astype(np.float32) @ np.float32([0.299, 0.587, 0.114])
+            img_b.reshape(-1)[flat[seen]] = np.clip(np.round(grey_b), 0, 255).astype(np.uint8)
+            dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)
+            f_ab = dis.calc(img_a, img_b, None)  # A(x) ≈ B'(x + f_ab(x))
+            f_ba = dis.calc(img_b, img_a, None)
+            x_b = np.zeros((h * w, 3), np.float32)  # B's pixel of the point seen at each pixel, "on the model"
+            uv_b, _ = project_points(self.cameras[key[1]], pts)
+            x_b[flat, :2] = uv_b
+            x_b[flat, 2] = 1.0
+            x_b = x_b.reshape(h, w, 3)
+            gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
+            back = cv2.remap(x_b, gx - f_ba[..., 0], gy - f_ba[..., 1], cv2.INTER_LINEAR,
+                             borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            on = x_b[..., 2] > 0
+            out[r0:r1, c0:c1, :2] = np.where(on[..., None], f_ab, 0.0)
+            # on the model at both ends (displaced off it: no shift)
+            ok = on & (back[..., 2] > 0.999)
+            out[r0:r1, c0:c1, 2:] = np.where(ok[..., None], x_b[..., :2] - back[..., :2], 0.0)
+        if SHIFT_REDUCE > 1:
+            size = (max(W // SHIFT_REDUCE, 1), max(H // SHIFT_REDUCE, 1))
+            out = cv2.resize(out, size, interpolation=cv2.INTER_AREA)
+        self._shifts[key] = out
+        return out
+
+    def forget_registration(self) -> None:
+        """Drop the registration maps computed so far (here and on the GPU): the next frame of
+        each pair computes them again."""
+        self._shifts.clear()
+        if self._gl is not None and self._gl.usable:
+            self._gl.forget_registration()
 
     def _render_per_vertex(self, camera, views, V, background) -> ViewDependentRender:
         """The paper's multi-pass rendering: one textured pass per selected photograph
@@ -483,23 +571,6 @@ def _fill_unseen(color: np.ndarray, mask: np.ndarray, unseen: np.ndarray) -> Non
             break
         todo = todo[~ok]
         r *= 2
-
-
-def _dis_flow(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The optical flow from one grey image to another, both reduced ``FLOW_REDUCE``× (shader path).
-
-    OpenCV's DIS down to the images' own resolution (finest scale 0): the numpy path's "fast"
-    preset on full-resolution images stops at a quarter of their resolution (finest scale 2),
-    so on images reduced 4× this is the same resolution of flow. "Ultrafast" patch search with
-    one variational refinement iteration (the "fast" preset does 5), and one flow, not both
-    ways (:data:`photomodel.rendering.view_dependent.FlowFunction`): on the sample's held-out views this is
-    within 0.03 dB of the numpy path's registration at ~9 ms instead of ~30 ms.
-    """
-
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
-    dis.setFinestScale(0)
-    dis.setVariationalRefinementIterations(1)
-    return dis.calc(a, b, None)
 
 
 def render_view_dependent(
