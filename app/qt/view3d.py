@@ -9,7 +9,8 @@ can afford. With a view-dependent texture it draws the fragment-shader frame of
 and the floating-texture registration, as ``ViewDependentTexture.render`` by default — and takes
 its depth for the feature dots: ~20–30 ms for the 400×780 dock on llvmpipe, where the numpy
 path's plain blend plus a depth render took ~70–80 ms (the first frame also uploads the photos
-and compiles the shaders, ~1 s). Left-drag orbits, the wheel zooms, a click (press and release
+and compiles the shaders, ~1 s; the first frame between a new pair of photos computes their
+registration, ~0.2–0.3 s). Left-drag orbits, the wheel zooms, a click (press and release
 without moving) on the mesh picks the nearest named feature as the active one; the project's
 features are drawn as dots, the active one ringed and named; the pose feature to click next (the
 first of the fit's checklist, :meth:`~app.model.StudioModel.next_feature`) is ringed in orange and
