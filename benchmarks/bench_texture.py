@@ -263,6 +263,8 @@ def main(argv=None) -> int:
             ts.append(time.perf_counter() - t)
         timings[label] = statistics.median(ts) * 1000.0
         runs[label] = [x * 1000.0 for x in ts]
+        if label == "default":  # the picture of the nominal view, as the other methods'
+            frame = vdt.render(new_view, background=BACKGROUND)
         write_png(out / f"vd_new_view_{label}.png", frame.color)
     t = time.perf_counter()
     render_cylindrical(new_view, Vf, F, tex.uv, tex.image, background=BACKGROUND)
