@@ -480,15 +480,8 @@ class ViewDependentGL:
         planes = auto_near_far(Xc[:, 2]) if len(self.vertices) and len(self.faces) else None
         box = _bounding_box(camera, Xc) if planes is not None else None
         align = two and shift is not None and box is not None
-        # off the model's bounding box nothing is drawn: the background is filled here, and the
-        # GL clears and read-back cover the box alone (a third of a 1000×1000 frame of a face)
-        color = np.empty((H, W, 3), np.float32)
-        row = np.empty((W, 3), np.float32)
-        row[:] = bg
-        color[:] = row  # row by row: ~8x faster than broadcasting the 3-vector itself
-        depth = np.full((H, W), np.inf, np.float32)
         if box is None:
-            return _frame(color, depth)
+            return _frame(*_background(W, H, bg, (0, 0, 0, 0)), (0, 0, 0, 0))
         x0, y0, x1, y1 = box
         inner = (x0, y0, x1 - x0, y1 - y0)
         maps = self._shift_maps(sel, shift) if align else None
@@ -505,9 +498,12 @@ class ViewDependentGL:
             box_depth = np.empty((y1 - y0, x1 - x0), np.float32)
             t["out"].read_into(box_color, viewport=inner, components=3, attachment=0, dtype="f4", alignment=1)
             t["out"].read_into(box_depth, viewport=inner, components=1, attachment=1, dtype="f4", alignment=1)
+        # off the model's bounding box nothing is drawn: the background is filled here, and the
+        # GL clears and read-back cover the box alone (a third of a 1000×1000 frame of a face)
+        color, depth = _background(W, H, bg, box)
         color[y0:y1, x0:x1] = box_color
         depth[y0:y1, x0:x1] = box_depth
-        return _frame(color, depth)
+        return _frame(color, depth, box)
 
     def _check_frame(self, camera: Camera) -> tuple[int, int]:
         """(W, H) of a camera the renderer can draw."""
@@ -574,15 +570,35 @@ class ViewDependentGL:
         fbo.depth_mask = True
 
 
-def _frame(color: np.ndarray, depth: np.ndarray) -> GLFrame:
-    """The :class:`GLFrame` of the read-back output: a negative depth marks a pixel of the
-    single-view fallback, whose colour then carries its direction and weight."""
-    fallback = np.flatnonzero(depth.reshape(-1) < 0.0)
+def _background(W: int, H: int, bg: tuple, box) -> tuple[np.ndarray, np.ndarray]:
+    """An (H, W, 3) frame of colour ``bg`` and an (H, W) depth of ``inf``, both left unset
+    inside ``box`` = (x0, y0, x1, y1), which the read-back fills."""
+    x0, y0, x1, y1 = box
+    color = np.empty((H, W, 3), np.float32)
+    depth = np.empty((H, W), np.float32)
+    row = np.empty((W, 3), np.float32)
+    row[:] = bg
+    for rows, cols in (((0, y0), (0, W)), ((y1, H), (0, W)), ((y0, y1), (0, x0)), ((y0, y1), (x1, W))):
+        color[rows[0]:rows[1], cols[0]:cols[1]] = row[cols[0]:cols[1]]  # ~8x faster than broadcasting a 3-vector
+        depth[rows[0]:rows[1], cols[0]:cols[1]] = np.inf
+    return color, depth
+
+
+def _frame(color: np.ndarray, depth: np.ndarray, box) -> GLFrame:
+    """The :class:`GLFrame` of the read-back output (drawn inside ``box``; ``inf`` depth outside):
+    a negative depth marks a pixel of the single-view fallback, whose colour then carries its
+    direction and weight."""
+    x0, y0, x1, y1 = box
+    W = depth.shape[1]
+    rows, cols = np.nonzero(depth[y0:y1, x0:x1] < 0.0)
+    fallback = (rows + y0) * W + cols + x0
     c = color.reshape(-1, 3)[fallback]
     length = np.sqrt(np.einsum("ij,ij->i", c, c))
     depth.reshape(-1)[fallback] *= -1.0
+    mask = np.zeros(depth.shape, bool)
+    mask[y0:y1, x0:x1] = depth[y0:y1, x0:x1] < np.inf
     return GLFrame(
-        color, depth < np.inf, depth, fallback, c / np.maximum(length, 1e-12)[:, None],
+        color, mask, depth, fallback, c / np.maximum(length, 1e-12)[:, None],
         np.clip(length - 1.0, 0.0, 1.0).astype(np.float32),
     )
 
