@@ -40,7 +40,9 @@ from the front photo) from a prepared :class:`ViewDependentTexture`, after a war
 read-back and the CPU fallback pixels; ``vd_frame_runs_ms`` each frame) of a **moving** view —
 each frame's camera turned a further 0.25° about the head, as an orbit in the studio draws
 them; ``vd_frame_same_view_ms`` (and ``_runs_ms``) redraws one view (a repaint); the other
-methods' medians of 5. The registration of the two photographs (see
+methods' medians of 5; ``vd_numpy_over_shader`` the numpy path's frame time over the shader
+path's, measured in the same run (this machine's speed drifts by ±20 % within an hour; the
+ratio of two paths timed minutes apart drifts less). The registration of the two photographs (see
 :mod:`photomodel.texturing.view_dependent`) depends on the pair, not on the view: it is
 computed once per pair, outside these frames, and timed on its own as ``vd_pair_setup_ms``
 (what the pair's first frame adds: the reprojection, two DIS flows and the shift maps).
@@ -308,6 +310,7 @@ def main(argv=None) -> int:
         "vd_pair_setup_ms": pair_ms,
         "vd_plain_frame_ms": timings["plain"],
         "vd_numpy_frame_ms": timings["numpy"],
+        "vd_numpy_over_shader": timings["numpy"] / timings["default"],
         "vd_numpy_plain_frame_ms": timings["numpy_plain"],
         "vd_per_vertex_frame_ms": timings["per_vertex"],
         "vd_frame_size": [new_view.width, new_view.height],
