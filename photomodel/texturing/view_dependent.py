@@ -30,9 +30,9 @@ Both per-pixel methods give the same image — same coverage and fallback pixels
 them with the plain blend, ~50 dB with the registration below (its flow is estimated
 differently) — and the same held-out PSNR within a few hundredths of a dB;
 ``benchmarks/bench_texture.py`` measures them side by side (docs/texturing.md). The shader path
-is ~7× faster (74 ms against 529 ms for a 1000×1000 registered frame of a moving view on
-llvmpipe, 2026-12-02, the machine slow that hour: the earlier screen-space registration
-measured 85–90 ms beside it), fast enough for the 3D view to show the registered
+is ~7× faster (58–65 ms against 398–438 ms for a 1000×1000 registered frame of a moving view
+on llvmpipe, 2026-12-02; the screen-space registration it replaced measured 85–89 ms against
+61–70 in alternating runs), fast enough for the 3D view to show the registered
 view-dependent rendering while orbiting. (Taking the photographs' weights from the
 flow's quarter-resolution pass instead of per pixel made the frame ~17 % faster, 67 against
 81 ms back to back, but it missed visibility slivers and took the shader frame from 47 to 38 dB
