@@ -10,7 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from peers import rigs
 from peers.bundle_adjust import bundle_adjust
+from peers.rigs import H, W
 from photomodel.camera import (
     PRESET_AZIMUTH_DEG,
     Camera,
@@ -22,31 +24,12 @@ from photomodel.camera import (
 from photomodel.errors import FitError
 from photomodel.modeling.pose import recover_poses, reprojection_residuals, rodrigues_batch
 
-W, H = 1000, 1333
-
-# rough facial landmarks in mm, head frame (+y up, +z out of the face, origin at the head centre)
-LANDMARKS = np.array(
-    [
-        [-45.0, 33.0, 86.0], [-18.0, 32.0, 94.0], [18.0, 32.0, 94.0], [45.0, 33.0, 86.0],  # eye corners
-        [0.0, 12.0, 127.0], [0.0, 40.0, 104.0],  # nose tip, bridge
-        [-16.0, 0.0, 108.0], [16.0, 0.0, 108.0],  # nostrils
-        [-24.0, -33.0, 99.0], [24.0, -33.0, 99.0],  # mouth corners
-        [0.0, -75.0, 102.0],  # chin
-        [-72.0, 10.0, 30.0], [72.0, 10.0, 30.0],  # jaw below the ears
-    ]
-)  # fmt: skip
 NAMES = [f"f{i:02d}" for i in range(80)]
 
 
 def face_points(n: int) -> np.ndarray:
-    """``n`` face-like points: the landmarks, then points on an ellipsoidal face surface."""
-    if n <= len(LANDMARKS):
-        return LANDMARKS[:n].copy()
-    rng = np.random.default_rng(11)
-    m = n - len(LANDMARKS)
-    az, el = rng.uniform(-1.3, 1.3, m), rng.uniform(-0.9, 0.7, m)
-    d = np.column_stack([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])
-    return np.vstack([LANDMARKS, d * [75.0, 95.0, 115.0]])
+    """``n`` face-like points: the landmarks, then points on an ellipsoidal face surface (no noise)."""
+    return rigs.face_points(n, seed=11, noise_mm=0.0)
 
 
 def generic_head(points: np.ndarray, seed: int = 3) -> np.ndarray:
