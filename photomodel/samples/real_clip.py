@@ -18,11 +18,16 @@ widest head turns (0 and 12: turned one way, sad, mouth closed; 232: the other w
 
 from __future__ import annotations
 
+import hashlib
+import json
 import sys
 from pathlib import Path
 
 import cv2
 
+import photomodel.landmarks.detect
+import photomodel.landmarks.mapping
+import photomodel.photos.intake
 from photomodel.errors import SampleDataError
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.modeling.generic_mesh import load_generic_mesh
@@ -56,6 +61,9 @@ FRAMES = (0, 12, 232, 312, 368)
 #: The sample's folder in the cache, and its project file inside it.
 SAMPLE_FOLDER = "real-clip-sample"
 PROJECT_FILE = "clip.facestudio.json"
+#: Beside the project: what made its automatic landmarks (:func:`intake_fingerprint`), so that a
+#: cached sample made by an earlier detector or mapping is made again, not measured stale.
+STAMP_FILE = "made_by.json"
 
 
 def clip_path() -> Path:
@@ -86,6 +94,15 @@ def read_frames(path: Path, frames: tuple[int, ...]) -> dict[int, bytes]:
     return out
 
 
+def intake_fingerprint() -> str:
+    """A digest of the code that places automatic landmarks (the detector, the mapping to the
+    features, the intake of photos): it changes whenever what ``facestudio new`` makes may."""
+    h = hashlib.sha256()
+    for module in (photomodel.landmarks.detect, photomodel.landmarks.mapping, photomodel.photos.intake):
+        h.update(Path(module.__file__).read_bytes())
+    return h.hexdigest()[:16]
+
+
 def real_sample_project(folder: Path | None = None, *, rebuild: bool = False) -> Path:
     """The real sample's project file, made on first use: the frames as PNGs in ``photos/`` and a
     project of one expression with automatic landmarks (one camera group, ``"clip"``).
@@ -93,7 +110,8 @@ def real_sample_project(folder: Path | None = None, *, rebuild: bool = False) ->
     Parameters
     ----------
     folder : where to make it (default ``<cache>/real-clip-sample``).
-    rebuild : make it again even if the project file exists.
+    rebuild : make it again even if the project file exists. It is also made again when the
+        landmark code has changed since (:data:`STAMP_FILE`, :func:`intake_fingerprint`).
 
     Returns
     -------
@@ -101,7 +119,9 @@ def real_sample_project(folder: Path | None = None, *, rebuild: bool = False) ->
     """
     folder = Path(folder) if folder is not None else cache_dir() / SAMPLE_FOLDER
     project_file = folder / PROJECT_FILE
-    if project_file.is_file() and not rebuild:
+    stamp = folder / STAMP_FILE
+    made_by = {"intake": intake_fingerprint()}
+    if project_file.is_file() and not rebuild and _read_stamp(stamp) == made_by:
         return project_file
     photos = folder / "photos"
     photos.mkdir(parents=True, exist_ok=True)
@@ -115,7 +135,15 @@ def real_sample_project(folder: Path | None = None, *, rebuild: bool = False) ->
     for w in warnings:
         print(f"real sample: {w}", file=sys.stderr)
     save_project(project, project_file)
+    atomic_write_bytes(stamp, json.dumps(made_by).encode())
     return project_file
+
+
+def _read_stamp(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
 
 
 def main(argv: list[str] | None = None) -> int:
