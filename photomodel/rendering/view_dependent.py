@@ -107,13 +107,13 @@ void main() {  // one triangle over the whole viewport
 }
 """
 
-# what passes 2 and 3 share: the G-buffer, the selected photographs A and B, g_k = F_k P_k.
+# the blend pass: the G-buffer, the selected photographs A and B, g_k = F_k P_k, the blend.
 # Everything is written in the new view's homogeneous pixel q = (x, y, 1): its viewing ray is
 # r = M q (world directions, Z_cam = 1), the point X = c + Z_cam r, and a photograph's
 # homogeneous pixel K_k (R_k X + t_k) = Z_cam H_k q + h_k, with M, H_k and h_k composed per
 # frame in float64 on the CPU (ViewDependentGL._set_photos): 12 multiply-adds and a division
 # per projection instead of a rotation, a translation and the intrinsics.
-_COMMON = """
+_BLEND_FS = """
 #version 330
 uniform usampler2D gbuf;
 uniform sampler2DArray geo;     // R: depth map Z_cam (far sentinel off the model), G: feather F_k
@@ -137,7 +137,6 @@ struct Surface {
     vec3 n;        // unit normal
     float s;       // single-view weight
     float z;       // Z_cam in the new view
-    bool covered;
 };
 
 Surface surface(ivec2 p) {
@@ -149,7 +148,7 @@ Surface surface(ivec2 p) {
     float s = float((g.y >> 24) & 0x7Fu) / 127.0 * use_single;
     // the point from the depth, as the numpy path rebuilds it
     vec3 q = vec3(vec2(p), 1.0);
-    return Surface(q, view_M * q, normalize(n), s, z, (g.y & 0x80000000u) != 0u);
+    return Surface(q, view_M * q, normalize(n), s, z);
 }
 
 // the pixel of a photograph (H, h) where the point seen at homogeneous pixel q with depth z lies
@@ -183,9 +182,7 @@ vec2 shares(float ga, float gb, float s) {
     if (gb > ga) w.y += s; else w.x += s;  // argmax, the first photograph on a tie
     return w;
 }
-"""
 
-_BLEND_FS = _COMMON + """
 uniform sampler2DArray photos;  // RGB8, one layer per photograph, row 0 = top
 uniform sampler2D shift;        // registration over A's image: delta_A (xy), delta_B (zw), pixels of A and B
 uniform float align;            // 1: register A and B by the shift maps
@@ -425,7 +422,7 @@ class ViewDependentGL:
 
     def _set_photos(self, prog, camera: Camera, sel, vw, align: bool) -> None:
         """The uniforms of the selected photographs ``sel`` (weights ``vw``) seen from the frame's
-        view, composed in float64 (see ``_COMMON``)."""
+        view, composed in float64 (see ``_BLEND_FS``)."""
         view_c = camera.center - self.centre
         M = camera.R.T @ np.linalg.inv(camera.K)  # homogeneous pixel -> ray (world, Z_cam = 1)
         prog["view_M"].write(_gl_mat3(M))
@@ -529,7 +526,7 @@ class ViewDependentGL:
         return sel, vw, two
 
     def _gbuffer_pass(self, ctx, t: dict, camera: Camera, Xc: np.ndarray, planes, inner) -> None:
-        """Pass 1: the G-buffer (depth, normal, single-view weight, registration coordinates),
+        """Pass 1: the G-buffer (depth, normal, single-view weight),
         cleared over ``inner`` (the model's bounding box); then bound for the blend."""
         mgl = self._mgl
         ctx.disable(mgl.BLEND | mgl.CULL_FACE)

@@ -412,9 +412,7 @@ class ViewDependentTexture:
             img_b = img_a.copy()
             grey_b = color_b[seen].astype(np.float32) @ np.float32([0.299, 0.587, 0.114])
             img_b.reshape(-1)[flat[seen]] = np.clip(np.round(grey_b), 0, 255).astype(np.uint8)
-            dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)
-            f_ab = dis.calc(img_a, img_b, None)  # A(x) ≈ B'(x + f_ab(x))
-            f_ba = dis.calc(img_b, img_a, None)
+            f_ab, f_ba = _flows(img_a, img_b)  # A(x) ≈ B'(x + f_ab(x))
             x_b = np.zeros((h * w, 3), np.float32)  # B's pixel of the point seen at each pixel, "on the model"
             uv_b, _ = project_points(self.cameras[key[1]], pts)
             x_b[flat, :2] = uv_b
@@ -504,16 +502,21 @@ def _floating_alignment(shape, rows, cols, colors, weights):
         # where this photograph does not see the surface, show the other one: no motion there
         img.reshape(-1, 3)[rr * w + cc] = np.where(blind[:, None], other, mine)
         imgs.append(img)
-    ga, gb = (cv2.cvtColor(i, cv2.COLOR_RGB2GRAY) for i in imgs)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)
-    f_ab = dis.calc(ga, gb, None)  # A(x) ≈ B(x + f_ab(x))
-    f_ba = dis.calc(gb, ga, None)
+    f_ab, f_ba = _flows(*(cv2.cvtColor(i, cv2.COLOR_RGB2GRAY) for i in imgs))  # A(x) ≈ B(x + f_ab(x))
     out = []
     for img, flow, share in ((imgs[0], f_ab, wb), (imgs[1], f_ba, wa)):
         f = flow.reshape(-1, 2)[rr * w + cc]
         src = np.column_stack([cc - share * f[:, 0], rr - share * f[:, 1]])
         out.append(sample_image(img.astype(np.float32), src))
     return out
+
+
+def _flows(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The optical flows between two grey images both ways, ``(f_ab, f_ba)`` with
+    ``a(x) ≈ b(x + f_ab(x))``: OpenCV's DIS, "fast" preset (it estimates down to a quarter of
+    the images' resolution)."""
+    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)
+    return dis.calc(a, b, None), dis.calc(b, a, None)
 
 
 def _pixel_points(camera: Camera, idx: np.ndarray, depth: np.ndarray) -> np.ndarray:
