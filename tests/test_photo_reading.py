@@ -82,6 +82,9 @@ def test_other_damaged_files_are_errors_naming_the_file(tmp_path):
         read_photo(tmp_path / "notes.png")
     with pytest.raises(PhotoError, match=r"^missing\.jpg: no such file"):
         read_photo(tmp_path / "missing.jpg")
+    (tmp_path / "empty.jpg").write_bytes(b"")  # a copy that never started (OpenCV asserts on it)
+    with pytest.raises(PhotoError, match=r"^empty\.jpg: the file is empty"):
+        read_photo(tmp_path / "empty.jpg")
 
 
 # ------------------------------------------------------------------------- orientation
@@ -160,6 +163,12 @@ def test_photos_in_folder_and_camera_identity(tmp_path):
         (tmp_path / name).write_bytes(b"x")
     (tmp_path / "sub.jpg").mkdir()
     assert [p.name for p in photos_in_folder(tmp_path)] == ["a.png", "b.JPG", "c.tiff"]
+    for name in ("IMG_10.jpg", "img_9.JPG", "IMG_0011.jpg"):  # as a file browser orders them
+        (tmp_path / name).write_bytes(b"x")
+    assert [p.name for p in photos_in_folder(tmp_path)] == [
+        "a.png", "b.JPG", "c.tiff", "img_9.JPG", "IMG_10.jpg", "IMG_0011.jpg"]
+    for name in ("IMG_10.jpg", "img_9.JPG", "IMG_0011.jpg"):
+        (tmp_path / name).unlink()
     (tmp_path / "empty").mkdir()
     with pytest.raises(PhotoError, match="no photos in it"):
         photos_in_folder(tmp_path / "empty")

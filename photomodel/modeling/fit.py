@@ -34,6 +34,7 @@ No file I/O happens here; :func:`photomodel.project.results.store_fit_result` st
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -518,12 +519,13 @@ def fit_expression(
     check_cancel()
     # 4. refinement with fixed cameras, on the clicks the detector is sure of
     vertices, names, points_3d, dropped, curve_report = initial_vertices, [], stage.pose_points, [], {}
-    refine_project, unsure = _sure_clicks(project, expression_name)
+    refine_project, unsure, unsure_names = _sure_clicks(project, expression_name)
     if opt.refine:
         vertices, names, points_3d, dropped, curve_report = _refine(
             refine_project, expression_name, mesh, opt, stage, initial_vertices, curve_mesh, deform, progress,
             check_cancel,
         )
+        dropped = _say_why_unsure(dropped, unsure_names)
     names = list(stage.pose_names) + names
     photo_ids = [p.id for p in expr.photos]
     report = build_report(photo_ids, stage.cameras, stage.pose, project, expression_name, names, points_3d)
@@ -604,10 +606,11 @@ def _fit_input(project, expression_name: str, source) -> tuple[object, list[str]
     return _with_photos(project, expression_name, [p for p in photos if p.id not in left_out]), left_out
 
 
-def _sure_clicks(project, expression_name: str, least: float = MIN_AUTO_CONFIDENCE) -> tuple[object, int]:
+def _sure_clicks(project, expression_name: str, least: float = MIN_AUTO_CONFIDENCE) -> tuple[object, int, dict]:
     """The project the shape is refined with: automatic clicks below ``least`` confidence removed
-    (they still helped place the cameras). Returns it and the number removed."""
-    photos, removed = [], 0
+    (they still helped place the cameras). Returns it, the number removed and, per feature, how
+    many of its clicks were removed."""
+    photos, removed, names = [], 0, {}
     for p in project.expression(expression_name).photos:
         unsure = {n for n, c in p.confidence.items() if p.sources.get(n) == "auto" and c < least}
         if unsure:
@@ -615,8 +618,26 @@ def _sure_clicks(project, expression_name: str, least: float = MIN_AUTO_CONFIDEN
                         sources={n: v for n, v in p.sources.items() if n not in unsure},
                         confidence={n: c for n, c in p.confidence.items() if n not in unsure})
             removed += len(unsure)
+            for n in unsure:
+                names[n] = names.get(n, 0) + 1
         photos.append(p)
-    return (_with_photos(project, expression_name, photos) if removed else project), removed
+    return (_with_photos(project, expression_name, photos) if removed else project), removed, names
+
+
+def _say_why_unsure(dropped: list[str], unsure: dict) -> list[str]:
+    """The refinement's "seen in n photo(s)" for a feature some of whose automatic clicks were
+    left out as unsure (:data:`MIN_AUTO_CONFIDENCE`; ``unsure``: feature -> how many): it is
+    clicked, so say why it is not refined to."""
+    out = []
+    for line in dropped:
+        name = line.split(":", 1)[0]
+        seen = re.match(r"[^:]*: seen in (\d+) photo", line)
+        if name in unsure and seen:
+            line = (f"{name}: {unsure[name]} automatic click(s) unsure (confidence < {MIN_AUTO_CONFIDENCE:g}, "
+                    f"e.g. outline or far-side points) and {seen.group(1)} sure; triangulation needs 2 sure "
+                    "clicks, so the generic mesh places it: click or drag it by hand to fit to it")
+        out.append(line)
+    return out
 
 
 def build_report(photo_ids, cameras, pose, project, expression_name, names, points_3d) -> dict:

@@ -39,6 +39,7 @@ photo check, texturing) goes through :func:`read_photo`, which
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -124,7 +125,12 @@ def read_photo(path: str | os.PathLike, max_side: int | None = MAX_WORKING_SIDE)
     if max_side is not None and width and height and data[:3] == b"\xff\xd8\xff":
         while factor < 8 and max(width, height) / factor > max_side:
             factor *= 2
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), _REDUCED[factor])
+    if not data:
+        raise PhotoError(f"{path.name}: the file is empty (0 bytes; {path})")
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), _REDUCED[factor])
+    except cv2.error:  # OpenCV asserts on some malformed headers instead of returning None
+        img = None
     if img is None or img.ndim != 3 or img.size == 0:
         raise PhotoError(f"{path.name}: not an image this program can decode (unknown format or damaged; {path})")
     if factor == 1 or not width:
@@ -192,16 +198,23 @@ def duplicate_pairs(fingerprints: list[np.ndarray]) -> list[tuple[int, int]]:
 
 
 def photos_in_folder(folder: str | os.PathLike) -> list[Path]:
-    """The photo files (:data:`PHOTO_SUFFIXES`, any case) directly in ``folder``, sorted by name;
+    """The photo files (:data:`PHOTO_SUFFIXES`, any case) directly in ``folder``, in name order
+    as a file browser shows them (case-insensitive, numbers by value: ``IMG_2`` before ``IMG_10``);
     :class:`PhotoError` when the folder does not exist or holds none."""
     folder = Path(folder)
     if not folder.is_dir():
         raise PhotoError(f"{folder}: no such folder")
-    paths = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES
-                   and not p.name.startswith("."))
+    paths = sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES
+                    and not p.name.startswith(".")), key=_name_order)
     if not paths:
         raise PhotoError(f"{folder}: no photos in it (looked for {', '.join(PHOTO_SUFFIXES)})")
     return paths
+
+
+def _name_order(path: Path) -> tuple:
+    """Sort key of a file name: case-folded text and runs of digits by value, then the name."""
+    parts = re.split(r"(\d+)", path.name.casefold())
+    return tuple((1, int(x), "") if x.isdigit() else (0, 0, x) for x in parts), path.name
 
 
 def _read_bytes(path: Path) -> bytes:
