@@ -124,6 +124,10 @@ def test_texture_action_shows_textures_and_weight_maps(qtbot, window, project_co
     from app.qt.view3d import BACKGROUND
 
     v3 = window.view3d
+    # the pairs an orbit selects are registered ahead, off the GUI thread
+    qtbot.waitUntil(lambda: v3.registration_thread is not None, timeout=20000)
+    v3.registration_thread.join(timeout=60)
+    assert set(v3.view_dependent.orbit_pairs()) <= set(v3.view_dependent._shifts)
     shown_rgb = qimage_rgb(v3.render_image(200, 160))
     frame = v3.view_dependent.render(v3.camera(200, 160), background=BACKGROUND)
     np.testing.assert_array_equal(shown_rgb, (np.clip(frame.color, 0, 1) * 255 + 0.5).astype(np.uint8))

@@ -9,6 +9,8 @@ are downscaled 4× (250×250, cameras scaled to match) to keep the tests fast.
 
 from __future__ import annotations
 
+import threading
+
 from pathlib import Path
 
 import cv2
@@ -309,6 +311,27 @@ def test_view_dependent_registration_is_per_pair_and_kept(vdt):
     assert vdt.registration_shift(*pair) is maps
     vdt.forget_registration()
     assert np.array_equal(vdt.render(a).color, moved)  # computed afresh: the same image
+
+
+def test_view_dependent_registration_ahead_on_another_thread(scene, vdt):
+    """The pairs an orbit selects are registered ahead on a worker thread (no GL there): the
+    same maps as computed on demand, and a frame of such a pair computes nothing."""
+    pairs = vdt.orbit_pairs()
+    assert (2, 3) in pairs and (0, 1) in pairs  # the two pairs test_..._selects_the_two_nearest sees
+    assert all(a < b for a, b in pairs) and len(set(pairs)) == len(pairs)
+    fresh = ViewDependentTexture(scene["V"], scene["F"], scene["cams"], scene["photos"])
+    with pytest.raises(RuntimeError, match="prepare_surfaces"):
+        fresh.register_pairs()
+    fresh.prepare_surfaces()
+    worker = threading.Thread(target=fresh.register_pairs, kwargs={"pairs": [(3, 2), (0, 1)]})
+    worker.start()
+    worker.join()
+    for pair in ((2, 3), (0, 1)):
+        np.testing.assert_array_equal(fresh._shifts[pair], vdt.registration_shift(*pair))
+    fresh._registration = None  # a frame of a registered pair must not compute again
+    between = orbit_camera(20.0, 200, 200, distance_mm=900.0, target=(0.0, 12.0, 55.0))
+    np.testing.assert_array_equal(fresh.render(between).color, vdt.render(between).color)
+    assert fresh.register_pairs([(2, 3)], cancel=lambda: True) == 0
 
 
 def test_view_dependent_held_out_view_with_true_geometry(scene):

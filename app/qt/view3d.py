@@ -9,8 +9,12 @@ can afford. With a view-dependent texture it draws the fragment-shader frame of
 and the floating-texture registration, as ``ViewDependentTexture.render`` by default — and takes
 its depth for the feature dots: ~20–30 ms for the 400×780 dock on llvmpipe, where the numpy
 path's plain blend plus a depth render took ~70–80 ms (the first frame also uploads the photos
-and compiles the shaders, ~1 s; the first frame between a new pair of photos computes their
-registration, ~0.2–0.3 s). Left-drag orbits, the wheel zooms, a click (press and release
+and compiles the shaders, ~1 s). The registration of each pair of photos an orbit selects
+(~0.2 s a pair) is computed ahead, off the GUI thread, as soon as the texture is shown (the
+photos' surfaces one per event-loop turn, then the pairs in a worker thread: ~1.8 s for the
+sample's eight pairs): an orbit of the 400×780 dock from −120° to 120° in 5° steps drew its 49
+frames in 23 ms median, 72 ms at most, where computing each pair on its first frame had
+stalled 4 frames, the longest 348 ms (2026-12-02, ad-hoc script, one run each). Left-drag orbits, the wheel zooms, a click (press and release
 without moving) on the mesh picks the nearest named feature as the active one; the project's
 features are drawn as dots, the active one ringed and named; the pose feature to click next (the
 first of the fit's checklist, :meth:`~app.model.StudioModel.next_feature`) is ringed in orange and
@@ -23,10 +27,11 @@ neutral's cylindrical texture when that is the expression shown, else shaded.
 from __future__ import annotations
 
 import math
+import threading
 import time
 
 import numpy as np
-from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
+from PySide6.QtCore import QPointF, QRectF, QSize, Qt, QTimer, Signal
 from PySide6.QtGui import QColor, QImage, QPainter, QPen
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
@@ -71,7 +76,9 @@ class View3D(QWidget):
         self.focal_mm = 50.0  # on a 36 mm sensor spanning the widget's shorter side
         self.show_features = True
         self.texture = None
-        self.view_dependent = None
+        self._view_dependent = None
+        self._registration_stop: threading.Event | None = None
+        self.registration_thread: threading.Thread | None = None
         self.last_render_s: float | None = None
         self._image: QImage | None = None
         self._depth = None
@@ -128,6 +135,37 @@ class View3D(QWidget):
         """Draw with a :class:`~photomodel.texturing.view_dependent.ViewDependentTexture` (None: stop)."""
         self.view_dependent = texture
         self.invalidate()
+
+    @property
+    def view_dependent(self):
+        return self._view_dependent
+
+    @view_dependent.setter
+    def view_dependent(self, texture) -> None:
+        """A new view-dependent texture: the registration of the pairs of photographs an orbit
+        selects is computed ahead, off the GUI thread, so that no frame of the orbit waits for a
+        new pair's (~0.2 s each): the photographs' surfaces first, one per event-loop turn on
+        this thread (they need its renderer), then the pairs in a worker thread."""
+        if texture is self._view_dependent:
+            return
+        if self._registration_stop is not None:
+            self._registration_stop.set()  # the worker stops after its current pair
+        self._view_dependent = texture
+        self._registration_stop = None
+        if texture is not None:
+            stop = self._registration_stop = threading.Event()
+            QTimer.singleShot(0, lambda: self._prepare_registration(texture, stop, 0))
+
+    def _prepare_registration(self, texture, stop: threading.Event, k: int) -> None:
+        if stop.is_set() or texture is not self._view_dependent:
+            return
+        if k < len(texture.cameras):
+            texture.prepare_surfaces([k])
+            QTimer.singleShot(0, lambda: self._prepare_registration(texture, stop, k + 1))
+            return
+        self.registration_thread = threading.Thread(
+            target=texture.register_pairs, kwargs={"cancel": stop.is_set}, name="vd-registration", daemon=True)
+        self.registration_thread.start()
 
     def invalidate(self, *args) -> None:
         self._dirty = True

@@ -75,7 +75,8 @@ that holds any), so a new view has no black holes.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import threading
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -211,6 +212,8 @@ class ViewDependentTexture:
         self._gl = None  # photomodel.rendering.view_dependent.ViewDependentGL of this thread's renderer
         self._surfaces: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # per photograph
         self._shifts: dict[tuple[int, int], np.ndarray] = {}  # registration maps per pair
+        self._pair_locks: dict[tuple[int, int], threading.Lock] = {}  # one computation per pair at a time
+        self._locks_lock = threading.Lock()
 
     # -------------------------------------------------------------------------------------
     def view_weights(self, camera: Camera) -> tuple[tuple[int, int], np.ndarray]:
@@ -395,6 +398,15 @@ class ViewDependentTexture:
         key = (int(a), int(b))
         if key in self._shifts:
             return self._shifts[key]
+        with self._locks_lock:
+            lock = self._pair_locks.setdefault(key, threading.Lock())
+        with lock:  # another thread computing this pair (register_pairs): wait for its maps
+            if key not in self._shifts:
+                self._shifts[key] = self._registration(key)
+        return self._shifts[key]
+
+    def _registration(self, key: tuple[int, int]) -> np.ndarray:
+        """The registration maps of the pair ``key`` (see :meth:`registration_shift`)."""
         cam = self.cameras[key[0]]
         H, W = cam.height, cam.width
         out = np.zeros((H, W, 4), np.float32)
@@ -429,8 +441,45 @@ class ViewDependentTexture:
         if SHIFT_REDUCE > 1:
             size = (max(W // SHIFT_REDUCE, 1), max(H // SHIFT_REDUCE, 1))
             out = cv2.resize(out, size, interpolation=cv2.INTER_AREA)
-        self._shifts[key] = out
         return out
+
+    def orbit_pairs(self, step_deg: float = 5.0, elevations_deg: Sequence[float] = (-20.0, 0.0, 20.0)) -> list:
+        """The pairs of photographs (:func:`~photomodel.texturing.weights.select_views`, two
+        different ones) that views orbiting the head select: azimuths all round in ``step_deg``
+        steps (0 = the head's front, +z) at ``elevations_deg``, the pairs nearest the front first."""
+        seen: dict[tuple[int, int], float] = {}
+        for el in np.radians(np.asarray(elevations_deg, float)):
+            for az in np.radians(np.arange(-180.0, 180.0, step_deg)):
+                d = np.array([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])
+                a, b = sorted(int(i) for i in select_views(d, self.directions))
+                if a != b:
+                    seen[(a, b)] = min(seen.get((a, b), np.inf), abs(az) + abs(el))
+        return sorted(seen, key=seen.get)
+
+    def prepare_surfaces(self, photos: Sequence[int] | None = None) -> None:
+        """Render the model as photographs ``photos`` (default: every one) see it, kept, on this
+        thread's renderer: what :meth:`register_pairs` needs before it can run on another thread."""
+        for k in range(len(self.cameras)) if photos is None else photos:
+            self._photo_surface(int(k))
+
+    def register_pairs(self, pairs: Sequence[tuple[int, int]] | None = None,
+                       cancel: Callable[[], bool] | None = None) -> int:
+        """Compute the registration of ``pairs`` (default :meth:`orbit_pairs`) ahead of the
+        frames that need them — on any thread, after :meth:`prepare_surfaces` (no GL here), so
+        the studio's orbit never waits a pair's ~0.2 s. A frame asking for a pair being computed
+        waits for it rather than computing it twice. Stops early when ``cancel()`` is true.
+        Returns the number of pairs computed here."""
+        if len(self._surfaces) < len(self.cameras):
+            raise RuntimeError("call prepare_surfaces() on the renderer's thread first")
+        done = 0
+        for a, b in self.orbit_pairs() if pairs is None else pairs:
+            if cancel is not None and cancel():
+                break
+            key = (min(int(a), int(b)), max(int(a), int(b)))
+            if key not in self._shifts:
+                self.registration_shift(*key)
+                done += 1
+        return done
 
     def forget_registration(self) -> None:
         """Drop the registration maps computed so far (here and on the GPU): the next frame of
