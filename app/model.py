@@ -55,7 +55,7 @@ from photomodel.project import (
     texture_files,
 )
 from photomodel.rig.build import RigBuilder
-from photomodel.texturing.job import load_stored_texture, load_texture_photos, texture_expression
+from photomodel.texturing.job import load_stored_texture, load_texture_photos, photo_side_for, texture_expression
 from photomodel.texturing.view_dependent import ViewDependentTexture
 from tracking.project_model import register_expression
 
@@ -125,7 +125,7 @@ class TextureState:
 
                 if self.photos_from is None:
                     raise ProjectError(f"the photographs of the texture of {i.expression!r} are not known")
-                load_texture_photos(self.photos_from, i)
+                load_texture_photos(self.photos_from, i, photo_side_for(self.job.size))
             self._view_dependent = ViewDependentTexture(i.vertices, i.faces, i.cameras, i.photos,
                                                         single_view=self.job.single_view)
         return self._view_dependent

@@ -10,7 +10,6 @@ are downscaled 4× (250×250, cameras scaled to match) to keep the tests fast.
 from __future__ import annotations
 
 import threading
-
 from pathlib import Path
 
 import cv2

@@ -18,12 +18,16 @@ from photomodel.errors import FitError, ProjectError
 from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.fit import Cancelled, fit_expression
 from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.photos.reading import MAX_WORKING_SIDE, to_working
 from photomodel.project import load_project, save_project, store_fit_result, store_texture_result
+from photomodel.rendering.depth import project_points
 from photomodel.texturing.job import (
     encode_texture_outputs,
     fitted_expressions,
     load_stored_texture,
+    load_texture_inputs,
     load_texture_photos,
+    photo_side_for,
     texture_expression,
 )
 
@@ -61,6 +65,24 @@ def test_texture_from_the_project_files_is_written_and_recorded(fitted):
     assert stored.size == 64 and set(stored.weight_maps) == set(job.inputs.photo_ids)
     for f in [stored.image, rel["mtl"], *stored.weight_maps.values(), *stored.exports.values()]:
         assert (path.parent / f).is_file(), f
+
+
+def test_large_photos_are_textured_at_twice_the_texture_side(fitted):
+    """Photos larger than twice the texture's side add memory, not detail: read reduced, with
+    their cameras scaled, so a point lands on the same spot of the face in the reduced photo."""
+    assert photo_side_for(1024) == 2048 and photo_side_for(256) == 2048
+    assert photo_side_for(2500) == 5000 and photo_side_for(16384) == MAX_WORKING_SIDE
+    path, _ = fitted
+    project = load_project(path)
+    full = load_texture_inputs(project, "neutral")
+    half = load_texture_inputs(project, "neutral", max_side=500)  # the sample's photos are 1000²
+    points = full.vertices[::97]
+    for cam, photo, small_cam, small in zip(full.cameras, full.photos, half.cameras, half.photos, strict=True):
+        assert photo.shape == (1000, 1000, 3) and small.shape == (500, 500, 3)
+        assert (small_cam.width, small_cam.height) == (500, 500) and small_cam.f == pytest.approx(cam.f / 2)
+        uv_full, _ = project_points(cam, points)
+        uv_small, _ = project_points(small_cam, points)
+        np.testing.assert_allclose(uv_small, to_working(uv_full, 0.5), atol=1e-6)
 
 
 def test_cancel_stops_the_extraction(fitted):

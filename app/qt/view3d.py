@@ -14,7 +14,8 @@ and compiles the shaders, ~1 s). The registration of each pair of photos an orbi
 photos' surfaces one per event-loop turn, then the pairs in a worker thread: ~1.8 s for the
 sample's eight pairs): an orbit of the 400×780 dock from −120° to 120° in 5° steps drew its 49
 frames in 23 ms median, 72 ms at most, where computing each pair on its first frame had
-stalled 4 frames, the longest 348 ms (2026-12-02, ad-hoc script, one run each). Left-drag orbits, the wheel zooms, a click (press and release
+stalled 4 frames, the longest 348 ms (2026-12-02, ad-hoc script, one run each).
+Left-drag orbits, the wheel zooms, a click (press and release
 without moving) on the mesh picks the nearest named feature as the active one; the project's
 features are drawn as dots, the active one ringed and named; the pose feature to click next (the
 first of the fit's checklist, :meth:`~app.model.StudioModel.next_feature`) is ringed in orange and

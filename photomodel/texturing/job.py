@@ -38,7 +38,7 @@ from photomodel.exchange.obj import encode_textured_obj
 from photomodel.exchange.ply import encode_colored_ply
 from photomodel.exchange.uv import merge_uv_seams
 from photomodel.modeling.fit import Cancelled
-from photomodel.photos.reading import read_photo
+from photomodel.photos.reading import MAX_WORKING_SIDE, read_photo
 from photomodel.texturing.cylindrical import (
     CylinderMap,
     CylindricalTexture,
@@ -59,12 +59,15 @@ __all__ = [
     "load_stored_texture",
     "load_texture_inputs",
     "load_texture_photos",
+    "photo_side_for",
     "stored_cylinder",
     "texture_expression",
 ]
 
 #: Texture sizes accepted (texels per side), as :func:`photomodel.texturing.cylindrical.cylindrical_texture`.
 TEXTURE_SIZES = (8, 16384)
+#: The smallest longest side (px) :func:`photo_side_for` reads photographs at for texturing.
+MIN_TEXTURE_PHOTO_SIDE = 2048
 
 
 @dataclass
@@ -129,8 +132,20 @@ def fitted_expressions(project, name: str | None) -> list[str]:
     return names
 
 
+def photo_side_for(size: int) -> int:
+    """The longest side (px) photographs are read at to texture a ``size``² texture: twice the
+    texture's side, at least :data:`MIN_TEXTURE_PHOTO_SIDE`, at most the working resolution.
+
+    A cylindrical texture spends about a quarter of its width on the face; a face filling an
+    eighth of a photo's long side then meets it texel for pixel at twice the texture's side,
+    so larger photos add no detail, only memory (three 6000² photos took 3.1 GB to texture at
+    1024², 2026-12-02). The stored cameras are of the original photos; the reduced ones come
+    with their cameras scaled (:func:`load_texture_inputs`)."""
+    return int(min(MAX_WORKING_SIDE, max(MIN_TEXTURE_PHOTO_SIDE, 2 * int(size))))
+
+
 def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
-                        faces: np.ndarray | None = None) -> TextureInputs:
+                        faces: np.ndarray | None = None, max_side: int | None = None) -> TextureInputs:
     """The fitted mesh, cameras and RGB photographs of a fitted expression.
 
     Parameters
@@ -139,6 +154,9 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
     name : str, a fitted expression (its ``result`` holds the cameras).
     vertices, faces : optional, the fitted mesh held in memory (the studio, before a save);
         default: read the expression's ``result.mesh_obj``.
+    max_side : int, optional
+        read larger photographs reduced to this longest side (:func:`photo_side_for`), their
+        cameras scaled; default the working resolution (:data:`~photomodel.photos.reading.MAX_WORKING_SIDE`).
 
     Raises
     ------
@@ -163,13 +181,14 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
             vertices, faces = read_mesh(mesh_path)
         except Exception as exc:  # trimesh raises many kinds on a damaged file
             raise ProjectError(f"expression {name!r}: cannot read the fitted mesh {result.mesh_obj}: {exc}") from exc
-    ids, cameras, photos = _read_photos(project, name, [p.id for p in expr.photos if p.id in result.cameras])
+    ids, cameras, photos = _read_photos(project, name, [p.id for p in expr.photos if p.id in result.cameras],
+                                        max_side)
     if not cameras:
         raise FitError(f"expression {name!r}: no photo has a recovered camera; run `facestudio fit` first")
     return TextureInputs(name, np.asarray(vertices, dtype=float), np.asarray(faces), ids, cameras, photos)
 
 
-def _read_photos(project, name: str, photo_ids) -> tuple[list, list, list]:
+def _read_photos(project, name: str, photo_ids, max_side: int | None = None) -> tuple[list, list, list]:
     """``(ids, cameras, RGB photos)`` of the expression's photos ``photo_ids`` (all with a
     recovered camera), each checked against its camera; ProjectError naming the photo.
 
@@ -191,7 +210,7 @@ def _read_photos(project, name: str, photo_ids) -> tuple[list, list, list]:
         if not path.is_file():
             raise ProjectError(f"{who}: {photo.path} does not exist (looked for {path})")
         try:
-            read = read_photo(path)
+            read = read_photo(path, MAX_WORKING_SIDE if max_side is None else max_side)
         except PhotoError as exc:
             raise ProjectError(f"{who}: {exc}") from exc
         if (read.width, read.height) != (cam.width, cam.height):
@@ -385,11 +404,12 @@ def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndar
     return TextureJob(inputs, S, tex, single, report)
 
 
-def load_texture_photos(project, inputs: TextureInputs) -> list:
+def load_texture_photos(project, inputs: TextureInputs, max_side: int | None = None) -> list:
     """The RGB photographs of ``inputs.photo_ids`` (for a :func:`load_stored_texture` job, whose
-    ``inputs.photos`` is None), each checked against its camera; sets and returns
-    ``inputs.photos``. ProjectError names a photo that is missing, unreadable or resized."""
-    _, cameras, photos = _read_photos(project, inputs.expression, inputs.photo_ids)
+    ``inputs.photos`` is None), each checked against its camera, larger ones reduced to
+    ``max_side`` (:func:`photo_side_for`); sets and returns ``inputs.photos``. ProjectError
+    names a photo that is missing, unreadable or resized."""
+    _, cameras, photos = _read_photos(project, inputs.expression, inputs.photo_ids, max_side)
     inputs.photos = photos
     inputs.cameras = cameras  # a photo read at a working resolution comes with its scaled camera
     return photos
@@ -408,7 +428,7 @@ def texture_expression(project, name: str, size: int = 1024, *, face_mask: np.nd
     if cancel is not None and cancel():
 
         raise Cancelled("texture extraction cancelled")
-    inputs = load_texture_inputs(project, name, vertices, faces)
+    inputs = load_texture_inputs(project, name, vertices, faces, photo_side_for(size))
     job = extract_texture(inputs, size, face_mask=face_mask, cancel=cancel,
                           progress=lambda label, f: stage(label, 0.1 + 0.85 * f))
     stage("done", 1.0)
