@@ -46,6 +46,10 @@ ratio of two paths timed minutes apart drifts less). The registration of the two
 :mod:`photomodel.texturing.view_dependent`) depends on the pair, not on the view: it is
 computed once per pair, outside these frames, and timed on its own as ``vd_pair_setup_ms``
 (what the pair's first frame adds: the reprojection, two DIS flows and the shift maps).
+The studio's orbit (:func:`studio_orbit`): ``vd_orbit_{on_demand,ahead}_{median_ms,max_ms,stalls}``
+over ``vd_orbit_frames`` frames of its 400×780 view turning −120°…120° in 5° steps, each pair's
+registration computed by the frame that first needs it or ahead on a worker thread as the studio
+does (``vd_orbit_pairs`` pairs in ``vd_register_ahead_s``); a stall is a frame over 100 ms.
 
 Images: ``<out>/texture_<geometry>_<held-out>.png`` — held-out photo | cylindrical |
 view-dependent | |error|×4 of each (inside the comparison region); ``<out>/texture_fitted.png``
@@ -62,6 +66,7 @@ import json
 import os
 import statistics
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -70,7 +75,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from photomodel.camera import rodrigues
+from photomodel.camera import orbit_camera, rodrigues
 from photomodel.exchange.files import atomic_write_bytes, encode_png  # noqa: E402
 from photomodel.modeling.fit import fit_expression  # noqa: E402
 from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
@@ -193,6 +198,38 @@ def turned(camera, centre, degrees: float):
     return view
 
 
+def studio_orbit(V, F, cams, photos, single, width=400, height=780, step_deg=5.0) -> dict:
+    """Frames of an orbit as the studio's 3D view draws them (its default 400×780 dock, 450 mm
+    away, azimuth −120°…120° in ``step_deg`` steps), with each pair's registration computed on
+    the frame that first needs it (``on_demand``) and computed ahead on a worker thread as the
+    studio does (``ahead``: ``prepare_surfaces`` then ``register_pairs``, timed as
+    ``vd_register_ahead_s``). A frame over 100 ms counts as a stall."""
+    out = {}
+    for mode in ("on_demand", "ahead"):
+        vdt = ViewDependentTexture(V, F, cams, photos, single_view=single)
+        vdt.render(orbit_camera(0.0, width, height, distance_mm=450.0, target=vdt.centre))  # warm: GL state
+        vdt.forget_registration()
+        if mode == "ahead":
+            t = time.perf_counter()
+            vdt.prepare_surfaces()
+            worker = threading.Thread(target=vdt.register_pairs)
+            worker.start()
+            worker.join()
+            out["vd_register_ahead_s"] = time.perf_counter() - t
+            out["vd_orbit_pairs"] = len(vdt.orbit_pairs())
+        ts = []
+        for az in np.arange(-120.0, 120.0 + 1e-9, step_deg):
+            cam = orbit_camera(float(az), width, height, distance_mm=450.0, target=vdt.centre)
+            t = time.perf_counter()
+            vdt.render(cam, background=BACKGROUND)
+            ts.append((time.perf_counter() - t) * 1000.0)
+        out[f"vd_orbit_{mode}_median_ms"] = statistics.median(ts)
+        out[f"vd_orbit_{mode}_max_ms"] = max(ts)
+        out[f"vd_orbit_{mode}_stalls"] = sum(x > 100.0 for x in ts)
+        out["vd_orbit_frames"] = len(ts)
+    return out
+
+
 def mean_of(rows, key):
     return float(np.mean([r[key] for r in rows]))
 
@@ -271,6 +308,7 @@ def main(argv=None) -> int:
     t = time.perf_counter()
     render_cylindrical(new_view, Vf, F, tex.uv, tex.image, background=BACKGROUND)
     cyl_frame_ms = (time.perf_counter() - t) * 1000.0
+    orbit = studio_orbit(Vf, F, fit_cams, photos, single)
     del renderer
 
     result = {
@@ -316,6 +354,7 @@ def main(argv=None) -> int:
         "vd_frame_size": [new_view.width, new_view.height],
         "load_1min": load_1min,
         "cyl_frame_ms": cyl_frame_ms,
+        **orbit,
         "fit_s": fit_s,
         "texture_size": args.size,
         "feather_mm": FEATHER_WIDTH_MM,
@@ -356,6 +395,11 @@ def main(argv=None) -> int:
           f"kept), {timings['plain']:.0f} ms shader plain; "
           f"numpy {timings['numpy']:.0f} ms aligned, {timings['numpy_plain']:.0f} ms plain; "
           f"{timings['per_vertex']:.0f} ms per-vertex multi-pass; cylindrical frame {cyl_frame_ms:.0f} ms")
+    print(f"studio orbit 400×780, {orbit['vd_orbit_frames']} frames: pairs registered on demand "
+          f"{orbit['vd_orbit_on_demand_median_ms']:.0f} ms median, {orbit['vd_orbit_on_demand_max_ms']:.0f} ms max, "
+          f"{orbit['vd_orbit_on_demand_stalls']} over 100 ms; {orbit['vd_orbit_pairs']} pairs registered ahead in "
+          f"{orbit['vd_register_ahead_s']:.1f} s: {orbit['vd_orbit_ahead_median_ms']:.0f} ms median, "
+          f"{orbit['vd_orbit_ahead_max_ms']:.0f} ms max, {orbit['vd_orbit_ahead_stalls']} over 100 ms")
     if args.feather_sweep:
         for w, r in result["feather_sweep"].items():
             print(f"feather {float(w):5.1f} mm: PSNR cyl {r['psnr_cyl_db']:.2f} dB, vd {r['psnr_vd_db']:.2f} dB")

@@ -11,10 +11,10 @@ its depth for the feature dots: ~20–30 ms for the 400×780 dock on llvmpipe, w
 path's plain blend plus a depth render took ~70–80 ms (the first frame also uploads the photos
 and compiles the shaders, ~1 s). The registration of each pair of photos an orbit selects
 (~0.2 s a pair) is computed ahead, off the GUI thread, as soon as the texture is shown (the
-photos' surfaces one per event-loop turn, then the pairs in a worker thread: ~1.8 s for the
+photos' surfaces one per event-loop turn, then the pairs in a worker thread: ~1.9 s for the
 sample's eight pairs): an orbit of the 400×780 dock from −120° to 120° in 5° steps drew its 49
-frames in 23 ms median, 72 ms at most, where computing each pair on its first frame had
-stalled 4 frames, the longest 348 ms (2026-12-02, ad-hoc script, one run each).
+frames in 21 ms median, 62 ms at most, where computing each pair on its first frame had
+stalled 4 frames, the longest 350 ms (``benchmarks/bench_texture.py``'s ``vd_orbit_*``, 2026-12-02).
 Left-drag orbits, the wheel zooms, a click (press and release
 without moving) on the mesh picks the nearest named feature as the active one; the project's
 features are drawn as dots, the active one ringed and named; the pose feature to click next (the
