@@ -71,22 +71,6 @@ def test_a_rolled_photo_is_levelled_before_the_face_mesh(truth):
     assert np.mean(errors) < 0.06 * eye_px  # unrolled this photo measures ~4 %
 
 
-def test_an_upside_down_photo_is_searched_turned(truth):
-    """A photo upside down with no EXIF orientation to say so: found half-turned, its points
-    turned back into the photo's pixels."""
-    image = _photo("front")
-    h, w = image.shape[:2]
-    face = detect_468(np.ascontiguousarray(image[::-1, ::-1]), name="upside down")
-    clean = truth.clean_points["neutral"]["front"]
-    eye_px = _eye_px(truth, "front")
-    for name in ("eye_r_outer", "eye_l_outer", "mouth_r", "mouth_l", "nose_tip"):
-        true_turned = np.array([w - 1, h - 1]) - np.asarray(clean[name])
-        err = np.linalg.norm(face.points[MESH_OF_IBUG68[FEATURE_ALIASES[name]], :2] - true_turned)
-        assert err < 0.05 * eye_px, name  # as upright (the same crops, turned)
-    x0, y0, x1, y1 = face.box
-    assert x0 < w - 1 - clean["nose_tip"][0] < x1 and y0 < h - 1 - clean["nose_tip"][1] < y1
-
-
 def test_no_face_is_an_error_naming_the_photo():
     blank = np.full((300, 400, 3), 128, np.uint8)
     with pytest.raises(NoFaceFound, match="IMG_0001.jpg.*by hand"):

@@ -17,10 +17,6 @@ The pipeline is MediaPipe's own face-mesh graph, rewritten over numpy arrays:
    matters: at ~18° of head roll the mouth and jaw points degrade in an unrotated crop.
 5. Points mapped back to the photo's pixels (:mod:`photomodel.camera`: pixel centres at
    integers, y down).
-6. **Upside down** (beyond MediaPipe's graph): BlazeFace and the levelled crops find faces
-   rolled up to ~90° (a phone photo turned a quarter with its EXIF orientation lost), not
-   upside down; when steps 1–4 find no face, the photo is searched again turned half a turn and
-   the points turned back (a face-free photo then costs twice the search).
 
 Flip-averaging (:data:`FLIP_AVERAGE`, **off**): each face-mesh pass run on the crop and on its
 mirror image, the mirror's points mirrored back, renumbered
@@ -386,8 +382,7 @@ def detect_468(image: np.ndarray, *, name: str = "the photo") -> Face468:
     Parameters
     ----------
     image : (H, W, 3) uint8
-        RGB photo, already turned upright (EXIF orientation applied); a photo upside down (no
-        face found as it is) is searched again turned half a turn.
+        RGB photo, already turned upright (EXIF orientation applied).
     name : str
         how error messages name the photo (its file name).
 
@@ -406,32 +401,8 @@ def detect_468(image: np.ndarray, *, name: str = "the photo") -> Face468:
     image = np.asarray(image)
     if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
         raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {image.shape} {image.dtype}")
-    face, best = _largest_face(image)
-    if face is None:  # a photo upside down with no EXIF orientation to say so (the detector finds
-        # faces turned up to ~90° but not upside down): the half-turned photo, points turned back
-        face, best_turned = _largest_face(np.ascontiguousarray(image[::-1, ::-1]))
-        best = max(best, best_turned)
-        if face is not None:
-            H, W = image.shape[:2]
-            points = face.points.copy()
-            points[:, 0] = (W - 1) - points[:, 0]
-            points[:, 1] = (H - 1) - points[:, 1]
-            x0, y0, x1, y1 = face.box
-            face = Face468(points=points, score=face.score, box=(W - 1 - x1, H - 1 - y1, W - 1 - x0, H - 1 - y0),
-                           faces_found=face.faces_found)
-    if face is not None:
-        return face
-    raise NoFaceFound(
-        f"no face found in {name} (best face-mesh score {best:.2f}, needs {MIN_FACE_SCORE}): "
-        "click its landmarks by hand"
-    )
-
-
-def _largest_face(image: np.ndarray) -> tuple[Face468 | None, float]:
-    """The largest face the face mesh accepts (None if none) and the best face-mesh score seen,
-    searching smaller tiles only when the larger find no face."""
     best = 0.0
-    for level in range(DETECTION_LEVELS):
+    for level in range(DETECTION_LEVELS):  # smaller tiles only when the larger find no face
         boxes, keypoints, _ = detect_faces(image, level)
         faces = [_face_mesh(image, b, k) for b, k in zip(boxes[:MAX_FACES], keypoints[:MAX_FACES], strict=True)]
         best = max([best] + [score for _, score in faces])
@@ -441,5 +412,8 @@ def _largest_face(image: np.ndarray) -> tuple[Face468 | None, float]:
             points, score = faces[int(np.argmax(sizes))]
             lo, hi = points[:, :2].min(0), points[:, :2].max(0)
             box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
-            return Face468(points=points, score=score, box=box, faces_found=len(faces)), best
-    return None, best
+            return Face468(points=points, score=score, box=box, faces_found=len(faces))
+    raise NoFaceFound(
+        f"no face found in {name} (best face-mesh score {best:.2f}, needs {MIN_FACE_SCORE}): "
+        "click its landmarks by hand"
+    )
