@@ -28,12 +28,13 @@ class MissingClicks(FitError):
         ``photo`` (or None), ``photos_clicked``, ``needed``, ``hint``, ``clicked_in``, ``hidden_in``.
     """
 
-    def __init__(self, expression: str, checklist: list[dict], *, placed: int, pose_features: int):
+    def __init__(self, expression: str, checklist: list[dict], *, placed: int, pose_features: int,
+                 note: str | None = None):
         self.expression = expression
         self.checklist = list(checklist)
         head = (f"expression {expression!r} cannot be fitted yet: {placed} of {pose_features} pose feature(s) "
                 f"are clicked in 2+ photos; {len(self.checklist)} thing(s) to click:")
-        lines = [head]
+        lines = [head] if note is None else [head, f"  ({note})"]
         for it in self.checklist:
             if it.get("feature") is not None:
                 lines.append(f"  - {it['feature']}: clicked in {it['photos_clicked']} photo(s), "

@@ -32,6 +32,8 @@ def test_no_clicks_lists_every_pose_feature_and_photo(mesh):
     assert all(it["photos_clicked"] == 0 and it["needed"] in (2, 4) for it in err.checklist)
     msg = str(err)
     assert all(name in msg for name in pose) and "0 of 13 pose feature(s)" in msg
+    # with no click anywhere (no face found in any photo), the message says where to click
+    assert "no photo has a click yet" in msg and f"facestudio studio {project.path}" in msg
 
 
 def test_under_clicked_and_hidden_features_say_where(mesh):

@@ -136,5 +136,12 @@ def require_clicks(project, expression_name: str, *, pose_only: bool = False) ->
              or placed < (MIN_POINTS if pose_only else MIN_POSE_FEATURES)
              or (pose_only and short))
     if fails:
-        raise MissingClicks(expression_name, [it.to_dict() for it in items], placed=placed, pose_features=n_pose)
+        photos = project.expression(expression_name).photos
+        note = None
+        if photos and not any(p.points for p in photos):
+            where = f" (`facestudio studio {project.path}`)" if project.path is not None else ""
+            note = (f"no photo has a click yet — in a project `facestudio new` made, no face was found "
+                    f"automatically in any photo: click the features by hand in the studio{where}")
+        raise MissingClicks(expression_name, [it.to_dict() for it in items], placed=placed, pose_features=n_pose,
+                            note=note)
     return items
