@@ -630,11 +630,11 @@ def _say_why_unsure(dropped: list[str], unsure: dict) -> list[str]:
     clicked, so say why it is not refined to."""
     out = []
     for line in dropped:
-        name = line.split(":", 1)[0]
-        seen = re.match(r"[^:]*: seen in (\d+) photo", line)
-        if name in unsure and seen:
+        seen = re.match(r"([^:]*): seen in (\d+) photo", line)
+        if seen and seen.group(1) in unsure:
+            name = seen.group(1)
             line = (f"{name}: {unsure[name]} automatic click(s) unsure (confidence < {MIN_AUTO_CONFIDENCE:g}, "
-                    f"e.g. outline or far-side points) and {seen.group(1)} sure; triangulation needs 2 sure "
+                    f"e.g. outline or far-side points) and {seen.group(2)} sure; triangulation needs 2 sure "
                     "clicks, so the generic mesh places it: click or drag it by hand to fit to it")
         out.append(line)
     return out

@@ -114,6 +114,8 @@ def read_photo(path: str | os.PathLike, max_side: int | None = MAX_WORKING_SIDE)
     """
     path = Path(path)
     data = _read_bytes(path)
+    if not data:
+        raise PhotoError(f"{path.name}: the file is empty (0 bytes; {path})")
     problem = truncation_problem(data)
     if problem:
         raise PhotoError(f"{path.name}: {problem}; the file is damaged or was not copied whole ({path})")
@@ -125,8 +127,6 @@ def read_photo(path: str | os.PathLike, max_side: int | None = MAX_WORKING_SIDE)
     if max_side is not None and width and height and data[:3] == b"\xff\xd8\xff":
         while factor < 8 and max(width, height) / factor > max_side:
             factor *= 2
-    if not data:
-        raise PhotoError(f"{path.name}: the file is empty (0 bytes; {path})")
     try:
         img = cv2.imdecode(np.frombuffer(data, np.uint8), _REDUCED[factor])
     except cv2.error:  # OpenCV asserts on some malformed headers instead of returning None
@@ -212,9 +212,10 @@ def photos_in_folder(folder: str | os.PathLike) -> list[Path]:
 
 
 def _name_order(path: Path) -> tuple:
-    """Sort key of a file name: case-folded text and runs of digits by value, then the name."""
+    """Sort key of a file name: case-folded text and runs of digits by value, then the name
+    (``re.split`` with a group alternates text and digits, so like compares with like)."""
     parts = re.split(r"(\d+)", path.name.casefold())
-    return tuple((1, int(x), "") if x.isdigit() else (0, 0, x) for x in parts), path.name
+    return [int(x) if i % 2 else x for i, x in enumerate(parts)], path.name
 
 
 def _read_bytes(path: Path) -> bytes:

@@ -291,7 +291,6 @@ class ViewDependentGL:
     ):
 
         self.renderer = renderer
-        self._mgl = mgl
         ctx = renderer.context()
         k = len(cameras)
         if k == 0 or not (len(photos) == len(depths) == len(feather_maps) == k):
@@ -375,7 +374,7 @@ class ViewDependentGL:
                 obj.release()
         ctx = self.renderer.context()
         gbuf = ctx.texture((W, H), 2, dtype="u4")
-        gbuf.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
+        gbuf.filter = (mgl.NEAREST, mgl.NEAREST)
         zbuf = ctx.depth_renderbuffer((W, H))
         color = ctx.renderbuffer((W, H), components=3, dtype="f4")
         depth = ctx.renderbuffer((W, H), components=1, dtype="f4")
@@ -414,7 +413,7 @@ class ViewDependentGL:
                 old.release()
             ctx = self.renderer.context()
             tex = ctx.texture((maps.shape[1], maps.shape[0]), 4, maps.tobytes(), dtype="f4")
-            tex.filter = (self._mgl.LINEAR, self._mgl.LINEAR)
+            tex.filter = (mgl.LINEAR, mgl.LINEAR)
             tex.repeat_x = tex.repeat_y = False
             self._owned.append(tex)
         self._shifts[key] = tex  # the newest last
@@ -528,7 +527,6 @@ class ViewDependentGL:
     def _gbuffer_pass(self, ctx, t: dict, camera: Camera, Xc: np.ndarray, planes, inner) -> None:
         """Pass 1: the G-buffer (depth, normal, single-view weight),
         cleared over ``inner`` (the model's bounding box); then bound for the blend."""
-        mgl = self._mgl
         ctx.disable(mgl.BLEND | mgl.CULL_FACE)
         fbo = t["gbuffer"]
         fbo.use()
@@ -545,7 +543,6 @@ class ViewDependentGL:
     def _blend_pass(self, ctx, t: dict, camera: Camera, sel, vw, align: bool, planes, z_max: float, inner) -> None:
         """Pass 2: weights, registration and blend, per pixel of the bounding box ``inner`` that
         the G-buffer covers (``z_max``: the farthest vertex's ``Z_cam``)."""
-        mgl = self._mgl
         self._photo_sampler.use(location=3)
         p = self._blend
         self._set_photos(p, camera, sel, vw, align)

@@ -145,7 +145,7 @@ def photo_side_for(size: int) -> int:
 
 
 def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
-                        faces: np.ndarray | None = None, max_side: int | None = None) -> TextureInputs:
+                        faces: np.ndarray | None = None, max_side: int = MAX_WORKING_SIDE) -> TextureInputs:
     """The fitted mesh, cameras and RGB photographs of a fitted expression.
 
     Parameters
@@ -154,7 +154,7 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
     name : str, a fitted expression (its ``result`` holds the cameras).
     vertices, faces : optional, the fitted mesh held in memory (the studio, before a save);
         default: read the expression's ``result.mesh_obj``.
-    max_side : int, optional
+    max_side : int
         read larger photographs reduced to this longest side (:func:`photo_side_for`), their
         cameras scaled; default the working resolution (:data:`~photomodel.photos.reading.MAX_WORKING_SIDE`).
 
@@ -188,7 +188,7 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
     return TextureInputs(name, np.asarray(vertices, dtype=float), np.asarray(faces), ids, cameras, photos)
 
 
-def _read_photos(project, name: str, photo_ids, max_side: int | None = None) -> tuple[list, list, list]:
+def _read_photos(project, name: str, photo_ids, max_side: int = MAX_WORKING_SIDE) -> tuple[list, list, list]:
     """``(ids, cameras, RGB photos)`` of the expression's photos ``photo_ids`` (all with a
     recovered camera), each checked against its camera; ProjectError naming the photo.
 
@@ -210,7 +210,7 @@ def _read_photos(project, name: str, photo_ids, max_side: int | None = None) -> 
         if not path.is_file():
             raise ProjectError(f"{who}: {photo.path} does not exist (looked for {path})")
         try:
-            read = read_photo(path, MAX_WORKING_SIDE if max_side is None else max_side)
+            read = read_photo(path, max_side)
         except PhotoError as exc:
             raise ProjectError(f"{who}: {exc}") from exc
         if (read.width, read.height) != (cam.width, cam.height):
@@ -404,7 +404,7 @@ def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndar
     return TextureJob(inputs, S, tex, single, report)
 
 
-def load_texture_photos(project, inputs: TextureInputs, max_side: int | None = None) -> list:
+def load_texture_photos(project, inputs: TextureInputs, max_side: int = MAX_WORKING_SIDE) -> list:
     """The RGB photographs of ``inputs.photo_ids`` (for a :func:`load_stored_texture` job, whose
     ``inputs.photos`` is None), each checked against its camera, larger ones reduced to
     ``max_side`` (:func:`photo_side_for`); sets and returns ``inputs.photos``. ProjectError
