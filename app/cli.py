@@ -38,6 +38,7 @@ from photomodel.landmarks import place_landmarks
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.intake import default_features, new_project_from_photos
+from photomodel.photos.reading import PHOTO_SUFFIXES
 from photomodel.project import load_project, record_fit, save_project, save_results
 from photomodel.samples.sample_data import sample_data_dir
 from photomodel.texturing.job import TEXTURE_SIZES, encode_texture_outputs, fitted_expressions, texture_expression
@@ -434,7 +435,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "from EXIF, landmarks placed automatically")
     n.add_argument("project", type=Path, help="the project file to create (*.facestudio.json); never overwritten")
     n.add_argument("--photos", type=Path, required=True, metavar="DIR",
-                   help="folder of photos (jpg, jpeg, png, ppm, bmp, tif), added in name order")
+                   help=f"folder of photos ({', '.join(x.lstrip('.') for x in PHOTO_SUFFIXES)}), added in name order; "
+                        "HEIC, camera raw and GIF files in it are named in a warning, not added")
     n.add_argument("--expression", default="neutral", help="the expression the photos show (default: neutral)")
     n.add_argument("--camera-group", metavar="NAME", help="one camera group for every photo (frames of one "
                                                           "video); default: by camera and lens from EXIF")

@@ -38,7 +38,7 @@ from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.modeling.overlay import mesh_lines, photo_overlay
 from photomodel.modeling.refit import Refitter
 from photomodel.photos.exif import focal_mm_guess_from_exif
-from photomodel.photos.reading import photo_size
+from photomodel.photos.reading import PHOTO_SUFFIXES, photo_size
 from photomodel.project import (
     CurveDef,
     Expression,
@@ -63,8 +63,8 @@ from tracking.project_model import register_expression
 AUTOSAVE_SUFFIX = ".autosave"
 #: Name of the first expression of a new project.
 DEFAULT_EXPRESSION = "neutral"
-#: Image files a photo may be (what OpenCV and Qt both read).
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
+#: Image files a photo may be: the modeling core's one list (:mod:`photomodel.photos.reading`).
+IMAGE_SUFFIXES = PHOTO_SUFFIXES
 
 
 class Signal:

@@ -66,6 +66,7 @@ def folder(tmp_path):
     photo(d / "IMG_0003.jpg", -1)  # black: no face
     (d / "IMG_0004.png").write_bytes((d / "IMG_0002.png").read_bytes())  # the same image again
     (d / "notes.txt").write_text("not a photo")
+    (d / "IMG_0005.HEIC").write_bytes(b"\0\0\0\x18ftypheic")  # a phone's default format: named, not added
     return d
 
 
@@ -89,7 +90,8 @@ def test_new_project_from_a_folder_with_automatic_clicks(tmp_path, folder, monke
     assert any("no face found in IMG_0003.jpg: click its landmarks by hand" in w for w in warnings)
     assert any("IMG_0002.png: 3 faces found; the largest used" in w for w in warnings)
     assert any("IMG_0002.png and IMG_0004.png are the same image" in w for w in warnings)
-    assert len(warnings) == 4  # ...and IMG_0004's three faces
+    assert any("IMG_0005.HEIC is not read (HEIC: export it as JPEG" in w and "not added" in w for w in warnings)
+    assert len(warnings) == 5  # ...and IMG_0004's three faces
     assert all(f"warning: {w}" in err for w in warnings)
 
     p = load_project(target)

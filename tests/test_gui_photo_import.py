@@ -91,3 +91,42 @@ def test_new_from_photos_auto_landmarks_drag_fit(qtbot, studio_window, tmp_path,
         qtbot.wait(50)
         SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
         assert w.grab().save(str(SCREENSHOT))
+
+
+def test_a_phone_portrait_photo_stands_up_as_its_clicks_were_placed(qtbot, studio_window, tmp_path, messages):
+    """A photo stored sideways with EXIF orientation 6 (as phones save portrait photos) is shown
+    turned, through the core's one reader: the view's pixels and the automatic clicks (placed in
+    the oriented photo) agree. Before, Qt's own reader showed it as stored, the clicks off it."""
+    np = pytest.importorskip("numpy")
+    cv2 = pytest.importorskip("cv2")
+    from PIL import Image
+
+    upright = cv2.cvtColor(cv2.imread(str(PHOTOS / "neutral_front.png")), cv2.COLOR_BGR2RGB)[100:900]  # 1000 × 800
+    folder = tmp_path / "phone"
+    folder.mkdir()
+    stored = Image.fromarray(np.ascontiguousarray(np.rot90(upright)))  # 800 wide, 1000 high, as the sensor saw it
+    exif = stored.getexif()
+    exif[0x0112] = 6  # "turn 90° clockwise to show"
+    stored.save(folder / "IMG_0001.jpg", exif=exif, quality=95)
+    target = tmp_path / "phone.facestudio.json"
+    w, model = studio_window, studio_window.model
+
+    assert w.importer.new_from_photos(folder, target)
+    qtbot.waitUntil(lambda: not w.importer.busy and model.path == target, timeout=60_000)
+    photo = model.photo("IMG_0001")
+    assert (photo.width, photo.height) == (1000, 800)
+    view = w.show_photo("IMG_0001")
+    qtbot.waitUntil(lambda: view.isVisible())
+    assert view.missing is None
+    rect = view.pixmap_item.sceneBoundingRect()
+    assert (rect.width(), rect.height()) == (1000, 800) and (rect.x(), rect.y()) == (-0.5, -0.5)
+    shown = view.pixmap_item.pixmap().toImage()
+    nose = photo.points["nose_tip"]  # the detector's, in the oriented photo
+    # the nose tip found where the upright image has it (the sample's front view: its true
+    # projection is near (500, 509) of the full photo, 409 of this crop; the detector within ~10 px)
+    assert abs(nose[0] - 500) < 25 and abs(nose[1] - 409) < 25
+    for u, v in ((nose[0], nose[1]), (120.0, 700.0), (880.0, 60.0)):
+        p = view.pixmap_item.mapFromScene(QPointF(float(u), float(v)))
+        c = shown.pixelColor(int(p.x()), int(p.y()))
+        # JPEG at quality 95: a few grey levels of the upright original
+        assert np.abs(np.array([c.red(), c.green(), c.blue()]) - upright[round(v), round(u)].astype(int)).max() < 20

@@ -23,6 +23,7 @@ from photomodel.photos.reading import (
     to_original,
     to_working,
     truncation_problem,
+    unreadable_photos_in_folder,
 )
 from photomodel.project import save_project
 
@@ -179,3 +180,25 @@ def test_photos_in_folder_and_camera_identity(tmp_path):
     exif.get_ifd(EXIF_IFD)[TAG_FOCAL_LENGTH] = 50.0
     assert camera_identity(write(tmp_path / "cam.jpg", textured(), exif=exif)) == "Canon EOS R5 50 mm"
     assert camera_identity(write(tmp_path / "plain.jpg", textured())) is None
+
+
+def test_webp_is_read_and_photos_of_unread_types_are_named(tmp_path):
+    rgb = textured()
+    write(tmp_path / "a.webp", rgb, quality=100)
+    p = read_photo(tmp_path / "a.webp")
+    assert (p.width, p.height) == (400, 300)
+    assert np.abs(p.image.astype(int) - rgb).mean() < 3  # lossy WebP at quality 100: ~1 grey level
+    data = (tmp_path / "a.webp").read_bytes()
+    (tmp_path / "cut.webp.bin").write_bytes(data[: len(data) // 2])
+    with pytest.raises(PhotoError, match="cut.webp.bin: not an image this program can decode"):
+        read_photo(tmp_path / "cut.webp.bin")  # a WebP cut short: libwebp refuses it
+    for name in ("IMG_2.HEIC", "IMG_1.heic", "DSC_1.NEF", "x.cr3", "anim.gif"):
+        (tmp_path / name).write_bytes(b"x")
+    assert [q.name for q in photos_in_folder(tmp_path)] == ["a.webp"]
+    assert [q.name for q in unreadable_photos_in_folder(tmp_path)] == [
+        "anim.gif", "DSC_1.NEF", "IMG_1.heic", "IMG_2.HEIC", "x.cr3"]
+    (tmp_path / "a.webp").unlink()
+    with pytest.raises(PhotoError, match=r"no photos this program reads in it; anim.gif is not read \(GIF: convert it "
+                                         r"to PNG\); DSC_1.NEF is not read \(NEF: a camera raw file"):
+        photos_in_folder(tmp_path)
+    assert unreadable_photos_in_folder(tmp_path / "nowhere") == []

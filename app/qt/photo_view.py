@@ -31,10 +31,9 @@ from __future__ import annotations
 import math
 import time
 
-import cv2
 import numpy as np
 from PySide6.QtCore import QLineF, QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QBrush, QColor, QFont, QImage, QPainter, QPainterPath, QPen, QPixmap
+from PySide6.QtGui import QBrush, QColor, QFont, QImage, QPainter, QPainterPath, QPen, QPixmap, QTransform
 from PySide6.QtWidgets import (
     QGraphicsItem,
     QGraphicsPathItem,
@@ -47,6 +46,7 @@ from PySide6.QtWidgets import (
 from app.model import StudioModel
 from app.qt.commands import SetCurveCommand, SetHiddenCommand, SetPointCommand
 from photomodel.errors import FaceStudioError
+from photomodel.photos.reading import read_photo
 
 #: A press closer than this (screen px) to a marker grabs it.
 HIT_RADIUS_PX = 9.0
@@ -77,19 +77,21 @@ def residual_color(px: float | None) -> QColor:
     return QColor(255, int(220 * (1.0 - x) * 2), 40)
 
 
-def load_photo_image(path, width: int, height: int) -> tuple[QImage, str | None]:
-    """The photo as a QImage, or a grey placeholder of the stored size and the reason."""
-    img = QImage(str(path))
-    if not img.isNull():
-        return img, None
-    try:  # formats Qt lacks a plug-in for (e.g. 16-bit TIFF) but OpenCV reads
-
-        a = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if a is not None:
-            a = np.ascontiguousarray(cv2.cvtColor(a, cv2.COLOR_BGR2RGB))
-            return QImage(a.data, a.shape[1], a.shape[0], 3 * a.shape[1], QImage.Format.Format_RGB888).copy(), None
-    except Exception:  # pragma: no cover - cv2 is a dependency; any failure means "unreadable"
-        pass
+def load_photo_image(path, width: int, height: int) -> tuple[QImage, str | None, float]:
+    """The photo as a QImage at its working resolution, through the modeling core's one reader
+    (:func:`photomodel.photos.reading.read_photo`: EXIF orientation applied — a phone's
+    portrait photo stands up, as its clicks were placed —, a truncated file refused, a very
+    large one reduced), the reason it cannot be shown (``None`` when it can) and its scale
+    (working pixels per original pixel). Unreadable: a grey placeholder of the stored size
+    naming the reason, scale 1."""
+    try:
+        photo = read_photo(path)
+    except FaceStudioError as exc:
+        reason = str(exc)
+    else:
+        a = np.ascontiguousarray(photo.image)
+        image = QImage(a.data, a.shape[1], a.shape[0], 3 * a.shape[1], QImage.Format.Format_RGB888).copy()
+        return image, None, photo.scale
     ph = QImage(max(width, 1), max(height, 1), QImage.Format.Format_RGB32)
     ph.fill(QColor(90, 90, 90))
     p = QPainter(ph)
@@ -97,9 +99,9 @@ def load_photo_image(path, width: int, height: int) -> tuple[QImage, str | None]
     f = QFont()
     f.setPixelSize(max(12, width // 40))
     p.setFont(f)
-    p.drawText(ph.rect(), Qt.AlignmentFlag.AlignCenter | Qt.TextFlag.TextWordWrap, f"missing photo\n{path}")
+    p.drawText(ph.rect(), Qt.AlignmentFlag.AlignCenter | Qt.TextFlag.TextWordWrap, f"photo not shown\n{reason}")
     p.end()
-    return ph, f"{path} is missing or unreadable"
+    return ph, reason, 1.0
 
 
 class PointItem(QGraphicsItem):
@@ -341,9 +343,11 @@ class PhotoView(QGraphicsView):
         # kept: a view being torn down still fits its photo without asking the model (whose
         # project may already be another one, see detach)
         self.photo_size = (photo.width, photo.height)
-        image, self.missing = load_photo_image(model.project.photo_path(photo), photo.width, photo.height)
+        image, self.missing, scale = load_photo_image(model.project.photo_path(photo), photo.width, photo.height)
         self.pixmap_item = QGraphicsPixmapItem(QPixmap.fromImage(image))
-        self.pixmap_item.setOffset(-0.5, -0.5)  # pixel centres at integer scene coordinates
+        # the original photo's pixel centres at integer scene coordinates: working pixel i spans
+        # [i, i + 1] in the item and [i / s − ½, (i + 1) / s − ½] in the scene
+        self.pixmap_item.setTransform(QTransform(1.0 / scale, 0.0, 0.0, 1.0 / scale, -0.5, -0.5))
         self.pixmap_item.setTransformationMode(Qt.TransformationMode.SmoothTransformation)
         self.pixmap_item.setShapeMode(QGraphicsPixmapItem.ShapeMode.BoundingRectShape)
         self.scene().addItem(self.pixmap_item)

@@ -36,7 +36,15 @@ from photomodel.errors import NoFaceFound, PhotoError, ProjectError
 from photomodel.landmarks import place_landmarks
 from photomodel.modeling.generic_mesh import IBUG68_NAMES, GenericMesh
 from photomodel.photos.exif import camera_identity, focal_mm_guess_from_exif
-from photomodel.photos.reading import duplicate_pairs, fingerprint, photos_in_folder, read_photo, to_original
+from photomodel.photos.reading import (
+    duplicate_pairs,
+    fingerprint,
+    photos_in_folder,
+    read_photo,
+    to_original,
+    unreadable_note,
+    unreadable_photos_in_folder,
+)
 from photomodel.project.model import FILE_SUFFIX, CurveDef, Expression, Feature, Photo, Project, new_project
 from photomodel.project.validate import OUT_OF_BOUNDS_MARGIN
 
@@ -116,8 +124,11 @@ def new_project_from_photos(
     name = project_path.name.removesuffix(FILE_SUFFIX).removesuffix(".json") or "face"
     project = new_project(name, features=features, curves=curves)
     project.path = project_path
-    paths = photos_in_folder(photos) if isinstance(photos, (str, os.PathLike)) else [Path(p) for p in photos]
+    folder = isinstance(photos, (str, os.PathLike))
+    paths = photos_in_folder(photos) if folder else [Path(p) for p in photos]
     warnings = add_photos(project, expression, paths, camera_group=camera_group, placer=placer, progress=progress)
+    if folder:  # photos of a type not read (HEIC, raw…) are named, not passed over in silence
+        warnings += [unreadable_note(p) + "; not added" for p in unreadable_photos_in_folder(photos)]
     return project, warnings
 
 

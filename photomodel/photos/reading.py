@@ -16,7 +16,7 @@ photo check, texturing) goes through :func:`read_photo`, which
   image's scans, so this holds for a complete file with a thumbnail, with a progressive scan
   sequence or with bytes appended after it (a phone's second picture) and fails for a file cut
   anywhere after its headers. A PNG must end with its ``IEND`` chunk (trailing bytes after it are
-  tolerated). Other formats (BMP, PPM, TIFF) are refused by OpenCV itself when cut short.
+  tolerated). Other formats (WebP, BMP, PPM, TIFF) are refused by OpenCV itself when cut short.
   Pillow, which Face Studio uses for EXIF, is not used to decode: it would be a second image
   reader whose pixels (colour management, orientation) might differ from OpenCV's.
 * **bounds memory on very large photos**: a photo whose longer side exceeds
@@ -52,8 +52,18 @@ from photomodel.errors import PhotoError
 
 #: The longer side (px) of the working image: photos larger than this are decoded reduced.
 MAX_WORKING_SIDE = 6000
-#: Image file suffixes Face Studio reads as photos (lower case).
-PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".ppm", ".bmp", ".tif", ".tiff")
+#: Image file suffixes Face Studio reads as photos (lower case): what OpenCV decodes.
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".webp", ".tif", ".tiff", ".bmp", ".ppm", ".pgm")
+#: Photo files Face Studio does not read, and what to do instead: a folder's such files are
+#: listed (:func:`unreadable_photos_in_folder`) rather than passed over in silence. OpenCV's
+#: wheels decode none of these (HEIF/AVIF need codecs it is built without; raw files need
+#: demosaicing, and their embedded previews are small and lens-corrected differently).
+UNREADABLE_PHOTO_SUFFIXES = {
+    **dict.fromkeys((".heic", ".heif", ".avif"), "export it as JPEG; on a phone, choose the Most Compatible format"),
+    **dict.fromkeys((".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"),
+                    "a camera raw file: develop it to JPEG or TIFF first"),
+    ".gif": "convert it to PNG",
+}
 #: Two photos whose 32 × 32 grey thumbnails differ by at most this many grey levels (0-255)
 #: on average are the same image. Re-encoding a JPEG at quality 75 or resizing it changes the
 #: thumbnail by well under 1 level; a head turned by 2-3 degrees changes it by 3 or more.
@@ -204,11 +214,33 @@ def photos_in_folder(folder: str | os.PathLike) -> list[Path]:
     folder = Path(folder)
     if not folder.is_dir():
         raise PhotoError(f"{folder}: no such folder")
-    paths = sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES
-                    and not p.name.startswith(".")), key=_name_order)
+    paths = _files_in(folder, PHOTO_SUFFIXES)
     if not paths:
+        unreadable = unreadable_photos_in_folder(folder)
+        if unreadable:
+            raise PhotoError(f"{folder}: no photos this program reads in it; "
+                             + "; ".join(unreadable_note(p) for p in unreadable))
         raise PhotoError(f"{folder}: no photos in it (looked for {', '.join(PHOTO_SUFFIXES)})")
     return paths
+
+
+def unreadable_photos_in_folder(folder: str | os.PathLike) -> list[Path]:
+    """The photo files directly in ``folder`` that :func:`photos_in_folder` passes over because
+    they are not read (:data:`UNREADABLE_PHOTO_SUFFIXES`: HEIC, camera raw…), in name order."""
+    folder = Path(folder)
+    return _files_in(folder, tuple(UNREADABLE_PHOTO_SUFFIXES)) if folder.is_dir() else []
+
+
+def unreadable_note(path: Path) -> str:
+    """What to do about a photo file of an unread type, naming it."""
+    advice = UNREADABLE_PHOTO_SUFFIXES.get(path.suffix.lower(), "convert it to JPEG or PNG")
+    return f"{path.name} is not read ({path.suffix.lstrip('.').upper()}: {advice})"
+
+
+def _files_in(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
+    """The visible files directly in ``folder`` with one of ``suffixes`` (any case), in name order."""
+    return sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in suffixes
+                   and not p.name.startswith(".")), key=_name_order)
 
 
 def _name_order(path: Path) -> tuple:
