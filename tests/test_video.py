@@ -42,7 +42,7 @@ def test_unreadable_video_is_named(tmp_path, kind, fitted_sample):
         path, words = tmp_path / "broken.mp4", "cannot be opened"
         path.write_bytes(b"\x00not a video" * 50)
     elif kind == "empty_folder":
-        path, words = tmp_path / "frames", "no PNG or JPG"
+        path, words = tmp_path / "frames", "holds no images"
         path.mkdir()
     else:
         path, words = tmp_path / "frames", "not an image"
@@ -63,6 +63,8 @@ def test_a_frame_folder_takes_one_frame_name_pattern_and_lists_what_it_ignored(t
     for name in ("frame_2.png", "frame_10.png", "frame_1.png", "contact_sheet.png", "poster_1.jpg"):
         cv2.imwrite(str(tmp_path / name), img if name.startswith("frame") else np.zeros((20, 20, 3), np.uint8))
     (tmp_path / "notes.txt").write_text("not an image")
+    for name in ("._frame_1.png", "._frame_2.png", "._frame_10.png"):  # macOS's AppleDouble files: not frames
+        (tmp_path / name).write_bytes(b"\0\5\x16\7")
     v = VideoFrames(tmp_path)
     assert [p.name for p in v.files] == ["frame_1.png", "frame_2.png", "frame_10.png"]  # natural order
     assert [p.name for p in v.ignored] == ["contact_sheet.png", "poster_1.jpg"]

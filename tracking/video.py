@@ -2,9 +2,12 @@
 
 * **A video file**: anything OpenCV's :class:`cv2.VideoCapture` decodes; its frame count and frame
   rate are read from the container when it says (:data:`DEFAULT_FPS` otherwise).
-* **A frame folder**: PNG/JPG images (:data:`IMAGE_SUFFIXES`) named by one frame-name pattern
-  (:func:`frame_files`: the most common pattern with a number; other images are ignored and listed
-  in ``ignored``) in natural name order (``f2.png`` before ``f10.png``), all of the first one's size.
+* **A frame folder**: images of any type a photo may be (:data:`IMAGE_SUFFIXES`, the modeling
+  core's list) named by one frame-name pattern (:func:`frame_files`: the most common pattern with
+  a number; other images are ignored and listed in ``ignored``) in natural name order
+  (``f2.png`` before ``f10.png``), all of the first one's size. Hidden files are not frames:
+  macOS writes a ``._frame_0001.png`` beside each file it copies to some drives, as many as the
+  frames, and sorting first their pattern would otherwise win the tie.
 
 Errors are :class:`VideoError` naming the file.
 """
@@ -21,20 +24,18 @@ import cv2
 import numpy as np
 
 from photomodel.errors import FaceStudioError
+from photomodel.photos.reading import PHOTO_SUFFIXES, name_order
 
 __all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "VideoError", "VideoFrames", "frame_files", "frame_pattern"]
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+#: Frame image suffixes: those of a photo.
+IMAGE_SUFFIXES = PHOTO_SUFFIXES
 #: Frame rate of a frame folder, or of a video file whose container gives none.
 DEFAULT_FPS = 10.0
 
 
 class VideoError(FaceStudioError):
     """The video (file or frame folder) is missing, unreadable or inconsistent."""
-
-
-def _natural_key(path: Path):
-    return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", path.name)]
 
 
 def frame_pattern(path: Path) -> str:
@@ -52,13 +53,13 @@ def frame_files(images: list[Path]) -> tuple[list[Path], list[Path]]:
     and returned, sorted, so that the caller can say so. A folder without numbered names keeps
     all its images."""
     groups: dict[str, list[Path]] = {}
-    for p in sorted(images, key=_natural_key):
+    for p in sorted(images, key=name_order):
         groups.setdefault(frame_pattern(p), []).append(p)
     numbered = [k for k in groups if "#" in k]
     if not numbered:
-        return sorted(images, key=_natural_key), []
+        return sorted(images, key=name_order), []
     best = max(numbered, key=lambda k: len(groups[k]))  # max keeps the first of equals
-    ignored = sorted((p for k, ps in groups.items() if k != best for p in ps), key=_natural_key)
+    ignored = sorted((p for k, ps in groups.items() if k != best for p in ps), key=name_order)
     return groups[best], ignored
 
 
@@ -90,9 +91,11 @@ class VideoFrames:
         self.fps = DEFAULT_FPS
         self.ignored: list[Path] = []
         if self.is_folder:
-            images = [p for p in self.path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES]
+            images = [p for p in self.path.iterdir()
+                      if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")]
             if not images:
-                raise VideoError(f"the frame folder {self.path} holds no PNG or JPG images")
+                raise VideoError(f"the frame folder {self.path} holds no images "
+                                 f"(looked for {', '.join(IMAGE_SUFFIXES)})")
             self.files, self.ignored = frame_files(images)
             self.count: int | None = len(self.files)
             first = self._read_image(self.files[0])

@@ -240,10 +240,10 @@ def unreadable_note(path: Path) -> str:
 def _files_in(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
     """The visible files directly in ``folder`` with one of ``suffixes`` (any case), in name order."""
     return sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in suffixes
-                   and not p.name.startswith(".")), key=_name_order)
+                   and not p.name.startswith(".")), key=name_order)
 
 
-def _name_order(path: Path) -> tuple:
+def name_order(path: Path) -> tuple:
     """Sort key of a file name: case-folded text and runs of digits by value, then the name
     (``re.split`` with a group alternates text and digits, so like compares with like)."""
     parts = re.split(r"(\d+)", path.name.casefold())
