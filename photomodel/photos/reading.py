@@ -214,7 +214,7 @@ def photos_in_folder(folder: str | os.PathLike) -> list[Path]:
     folder = Path(folder)
     if not folder.is_dir():
         raise PhotoError(f"{folder}: no such folder")
-    paths = _files_in(folder, PHOTO_SUFFIXES)
+    paths = files_in_folder(folder, PHOTO_SUFFIXES)
     if not paths:
         unreadable = unreadable_photos_in_folder(folder)
         if unreadable:
@@ -228,17 +228,18 @@ def unreadable_photos_in_folder(folder: str | os.PathLike) -> list[Path]:
     """The photo files directly in ``folder`` that :func:`photos_in_folder` passes over because
     they are not read (:data:`UNREADABLE_PHOTO_SUFFIXES`: HEIC, camera raw…), in name order."""
     folder = Path(folder)
-    return _files_in(folder, tuple(UNREADABLE_PHOTO_SUFFIXES)) if folder.is_dir() else []
+    return files_in_folder(folder, tuple(UNREADABLE_PHOTO_SUFFIXES)) if folder.is_dir() else []
 
 
 def unreadable_note(path: Path) -> str:
-    """What to do about a photo file of an unread type, naming it."""
-    advice = UNREADABLE_PHOTO_SUFFIXES.get(path.suffix.lower(), "convert it to JPEG or PNG")
-    return f"{path.name} is not read ({path.suffix.lstrip('.').upper()}: {advice})"
+    """What to do about a photo file of an unread type (:data:`UNREADABLE_PHOTO_SUFFIXES`), naming it."""
+    return (f"{path.name} is not read ({path.suffix.lstrip('.').upper()}: "
+            f"{UNREADABLE_PHOTO_SUFFIXES[path.suffix.lower()]})")
 
 
-def _files_in(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
-    """The visible files directly in ``folder`` with one of ``suffixes`` (any case), in name order."""
+def files_in_folder(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
+    """The visible files directly in ``folder`` with one of ``suffixes`` (lower case, matched in
+    any case), in name order (:func:`name_order`); hidden ones (``.name``) are left out."""
     return sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in suffixes
                    and not p.name.startswith(".")), key=name_order)
 
