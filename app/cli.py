@@ -2,6 +2,7 @@
 
     facestudio new PROJECT --photos DIR [--expression neutral] [--camera-group NAME]
                    [--features-from PROJECT] [--json]
+    facestudio add-photos PROJECT --photos PATH... [--expression neutral] [--camera-group NAME] [--json]
     facestudio fit PROJECT [--expression NAME] [--no-refine] [--json] [--dry-run]
     facestudio texture PROJECT [--expression NAME] [--size 1024] [--json]
     facestudio track PROJECT --video PATH [--out DIR] [--first-pose JSON] [--focal-px F] [--frames N]
@@ -37,7 +38,7 @@ from photomodel.errors import FaceStudioError, MissingClicks, ProjectError
 from photomodel.landmarks import place_landmarks
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.photos.intake import default_features, new_project_from_photos
+from photomodel.photos.intake import add_photos, default_features, new_project_from_photos, photo_files
 from photomodel.photos.reading import PHOTO_SUFFIXES
 from photomodel.project import load_project, record_fit, save_project, save_results
 from photomodel.samples.sample_data import sample_data_dir
@@ -110,24 +111,62 @@ def cmd_new(args) -> int:
         if bar is not None:
             bar.close()
     save_project(project, target)
+    out = _intake_summary(target, args.expression, project.expression(args.expression).photos, warnings)
+    return _print_intake(args, out, f"created {target}", len(project.features))
+
+
+def cmd_add_photos(args) -> int:
+    """``facestudio add-photos``: photos added to an expression of a project, with automatic
+    landmarks, as the studio's *Add photos with automatic landmarks…* adds them."""
+    target = Path(args.project)
+    project = load_project(target)
+    paths, skipped = photo_files(args.photos)
+    if not paths:
+        raise ProjectError(f"no photos to add from {', '.join(str(p) for p in args.photos)}")
+    expr_names = [e.name for e in project.expressions]
+    dropped = args.expression in expr_names and project.expression(args.expression).result is not None
+    bar, progress = _progress_bar(not args.json or sys.stderr.isatty(), "add-photos")
+    try:
+        warnings = add_photos(project, args.expression, paths, camera_group=args.camera_group,
+                              placer=place_landmarks, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
     expr = project.expression(args.expression)
+    if dropped:  # a fit is of a set of photos (the studio drops it the same way)
+        expr.result = None
+        warnings.append(f"expression {args.expression!r}: its fit and texture were of the photos before; "
+                        f"fit it again (facestudio fit {target} --expression {args.expression})")
+    save_project(project, target)
+    out = _intake_summary(target, args.expression, expr.photos[len(expr.photos) - len(paths):], warnings + skipped)
+    out["fit_dropped"] = dropped
+    out["photos_in_expression"] = len(expr.photos)
+    return _print_intake(args, out, f"added to {target}", len(project.features))
+
+
+def _intake_summary(target: Path, expression: str, photos, warnings: list[str]) -> dict:
+    """The JSON object of ``new`` and ``add-photos``: the photos taken in, with their automatic
+    clicks, curves, view, focal guess and camera group."""
     views = [{"id": p.id, "file": Path(p.path).name, "width": p.width, "height": p.height,
               "preset": p.preset, "clicks_auto": len(p.auto_clicks()), "curves_auto": p.auto_curves(),
-              "focal_mm_guess": p.focal_mm_guess, "camera_group": p.camera_group} for p in expr.photos]
-    out = {"path": str(target), "expression": args.expression, "photos": len(views),
-           "clicks_auto": sum(v["clicks_auto"] for v in views),
-           "curves_auto": sum(len(v["curves_auto"]) for v in views), "warnings": warnings, "views": views}
-    for w in warnings:
+              "focal_mm_guess": p.focal_mm_guess, "camera_group": p.camera_group} for p in photos]
+    return {"path": str(target), "expression": expression, "photos": len(views),
+            "clicks_auto": sum(v["clicks_auto"] for v in views),
+            "curves_auto": sum(len(v["curves_auto"]) for v in views), "warnings": warnings, "views": views}
+
+
+def _print_intake(args, out: dict, done: str, n_features: int) -> int:
+    for w in out["warnings"]:
         print(f"facestudio: warning: {w}", file=sys.stderr)
     if args.json:
         print(json.dumps(out, indent=1))
     else:
-        print(_format_new(out, len(project.features)))
+        print(_format_intake(out, done, n_features))
     return 0
 
 
-def _format_new(out: dict, n_features: int) -> str:
-    lines = [f"created {out['path']}: expression {out['expression']!r}, {out['photos']} photos, "
+def _format_intake(out: dict, done: str, n_features: int) -> str:
+    lines = [f"{done}: expression {out['expression']!r}, {out['photos']} photos, "
              f"{out['clicks_auto']} automatic clicks and {out['curves_auto']} automatic curves (source \"auto\"; "
              "check them in the studio)"]
     wid = max([len("photo")] + [len(v["id"]) for v in out["views"]])
@@ -445,6 +484,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "13 pose features, the 68 landmarks and the generic mesh's curves)")
     n.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     n.set_defaults(func=cmd_new)
+    a = sub.add_parser("add-photos", help="add photos to an expression of a project (a new expression, or more "
+                                          "views of one), with automatic landmarks as `new` places them")
+    a.add_argument("project", type=Path, help="the project file (*.facestudio.json); saved with a backup")
+    a.add_argument("--photos", type=Path, nargs="+", required=True, metavar="PATH",
+                   help="photo files and folders of photos (a folder's in name order)")
+    a.add_argument("--expression", default="neutral",
+                   help="the expression the photos show, created when the project has none of that name "
+                        "(default: neutral); adding photos drops its fit, which is of the photos before")
+    a.add_argument("--camera-group", metavar="NAME", help="one camera group for every new photo; default: by "
+                                                          "camera and lens from EXIF")
+    a.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+    a.set_defaults(func=cmd_add_photos)
     f = sub.add_parser("fit", help="recover cameras and fit the face mesh to the clicked photos")
     f.add_argument("project", help="project file (*.facestudio.json)")
     f.add_argument("--expression", help="fit only this expression (default: all; one that reuses another's "

@@ -20,7 +20,8 @@ import app.cli as cli
 from photomodel.errors import NoFaceFound, PhotoError
 from photomodel.photos.exif import EXIF_IFD, TAG_FOCAL_LENGTH, TAG_FOCAL_LENGTH_35MM
 from photomodel.photos.intake import add_photos, new_project_from_photos
-from photomodel.project import Feature, load_project
+from photomodel.project import Feature, load_project, save_project
+from photomodel.project.model import ExpressionResult
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 #: Where the fake placer puts its points, as fractions of the image it is given.
@@ -170,3 +171,58 @@ def test_add_photos_to_a_project_and_a_large_photo(tmp_path, folder):
     # a new expression is created on the way
     add_photos(project, "smile", [folder / "IMG_0002.png"], placer=fake_placer)
     assert [e.name for e in project.expressions] == ["neutral", "smile"]
+
+
+
+def run_command(command, monkeypatch, capsys, *argv):
+    monkeypatch.setattr(cli, "place_landmarks", fake_placer)
+    code = cli.main([command, *map(str, argv)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.fixture
+def one_photo_project(tmp_path, monkeypatch, capsys):
+    first = tmp_path / "first"
+    first.mkdir()
+    photo(first / "front.jpg", 11)
+    target = tmp_path / "me.facestudio.json"
+    assert run_command("new", monkeypatch, capsys, target, "--photos", first)[0] == 0
+    return target
+
+
+def test_add_photos_command_adds_a_new_expression(one_photo_project, folder, monkeypatch, capsys):
+    target = one_photo_project
+    # files and a folder holding one of them again: each file once, in the order named
+    code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", folder / "IMG_0002.png",
+                                 folder, "--expression", "smile", "--camera-group", "rig", "--json")
+    assert code == 0, err
+    report = json.loads(out)  # exactly one JSON object on stdout
+    assert report["path"] == str(target) and report["expression"] == "smile"
+    assert [v["id"] for v in report["views"]] == ["IMG_0002", "IMG_0001", "IMG_0003", "IMG_0004"]
+    assert report["photos"] == report["photos_in_expression"] == 4 and report["fit_dropped"] is False
+    assert report["clicks_auto"] == 9 and {v["camera_group"] for v in report["views"]} == {"rig"}
+    assert any("IMG_0005.HEIC is not read" in w for w in report["warnings"])
+    p = load_project(target)
+    assert [e.name for e in p.expressions] == ["neutral", "smile"]
+    assert p.expression("smile").photo("IMG_0002").path == "photos/IMG_0002.png"
+    assert p.expression("neutral").photo("front").auto_clicks() == ["eye_r_outer", "eye_l_outer", "nose_tip"]
+
+
+def test_add_photos_drops_the_fit_it_outdates_and_names_bad_paths(one_photo_project, folder, monkeypatch, capsys):
+    target = one_photo_project
+    p = load_project(target)
+    p.expression("neutral").result = ExpressionResult(report={"rms_px": 1.0})  # a fit of the one photo
+    save_project(p, target)
+    code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", folder / "IMG_0001.jpg")
+    assert code == 0, err
+    assert out.startswith(f"added to {target}: expression 'neutral', 1 photos, 3 automatic clicks")
+    assert "its fit and texture were of the photos before; fit it again" in err
+    p = load_project(target)
+    assert p.expression("neutral").result is None and [x.id for x in p.expression("neutral").photos] == [
+        "front", "IMG_0001"]
+    before = target.read_bytes()
+    for bad in (folder.parent / "nothere.jpg", folder / "notes.txt"):
+        code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", bad, "--json")
+        assert code == 2 and json.loads(out)["error"]["type"] == "PhotoError" and bad.name in err
+    assert target.read_bytes() == before  # nothing written

@@ -124,12 +124,34 @@ def new_project_from_photos(
     name = project_path.name.removesuffix(FILE_SUFFIX).removesuffix(".json") or "face"
     project = new_project(name, features=features, curves=curves)
     project.path = project_path
-    folder = isinstance(photos, (str, os.PathLike))
-    paths = photos_in_folder(photos) if folder else [Path(p) for p in photos]
+    paths, skipped = photo_files([photos] if isinstance(photos, (str, os.PathLike)) else photos)
     warnings = add_photos(project, expression, paths, camera_group=camera_group, placer=placer, progress=progress)
-    if folder:  # photos of a type not read (HEIC, raw…) are named, not passed over in silence
-        warnings += [unreadable_note(p) + "; not added" for p in unreadable_photos_in_folder(photos)]
-    return project, warnings
+    return project, warnings + skipped
+
+
+def photo_files(sources: Sequence[str | os.PathLike]) -> tuple[list[Path], list[str]]:
+    """The photo files a user named: each folder's photos in name order
+    (:func:`photomodel.photos.reading.photos_in_folder`), each file as it is, in the order given.
+
+    Returns the files, each once (a file named again, or also in a named folder, is taken where
+    it first comes), and a warning for each file in those folders of a type that is not read
+    (HEIC, camera raw…: named with what to do, not passed over in silence). A folder without
+    photos, or a path that does not exist, is a :class:`PhotoError` naming it.
+    """
+    paths: list[Path] = []
+    skipped: list[str] = []
+    for source in sources:
+        source = Path(source)
+        if source.is_dir():
+            paths += photos_in_folder(source)
+            skipped += [unreadable_note(p) + "; not added" for p in unreadable_photos_in_folder(source)]
+        elif source.exists():
+            paths.append(source)
+        else:
+            raise PhotoError(f"{source}: no such photo or folder")
+    seen: set[Path] = set()
+    once = [p for p in paths if not (p.resolve() in seen or seen.add(p.resolve()))]
+    return once, skipped
 
 
 def add_photos(
