@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import re
 import signal
 import sys
 from pathlib import Path
@@ -86,9 +87,33 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
     for p in pts[:10]:
         tag = " (pose)" if p["pose"] else ""
         lines.append(f"    {p['feature']:<22} {p['rms_px']:7.3f} px in {p['views']} photos{tag}")
-    for why in dropped:
+    for why in _grouped_reasons(dropped):
         lines.append(f"  not used: {why}")
     return "\n".join(lines)
+
+
+def _grouped_reasons(reasons: list[str]) -> list[str]:
+    """``name: why`` lines that say the same of several features (up to their numbers: "3
+    automatic click(s)…" and "4 automatic click(s)…") as one line naming them all, with the first
+    one's reason as the example: the 16 jaw points of an automatic project are one line, not 16.
+    Other lines are kept as they are, in order (the JSON report keeps every line)."""
+    groups: dict[str, list[tuple[str, str]]] = {}
+    order: list[str] = []
+    for line in reasons:
+        name, sep, why = line.partition(": ")
+        key = re.sub(r"\d+", "#", why) if sep and " " not in name else line
+        if key not in groups:
+            order.append(key)
+        groups.setdefault(key, []).append((name, why))
+    out = []
+    for key in order:
+        members = groups[key]
+        if len(members) < 3:
+            out += [f"{name}: {why}" for name, why in members]
+        else:
+            names = ", ".join(name for name, _ in members)
+            out.append(f"{len(members)} features for one reason ({names}), e.g. {members[0][0]}: {members[0][1]}")
+    return out
 
 
 def cmd_new(args) -> int:

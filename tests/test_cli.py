@@ -140,3 +140,16 @@ def test_fit_json_error_lists_every_missing_click(project_copy, capsys):
     pose = [f["name"] for f in data["features"] if f["pose"]]
     assert [c["feature"] for c in err["checklist"] if c["feature"]] == pose
     assert all(name in captured.err for name in pose)  # the plain message lists them all too
+
+
+def test_the_fit_summary_says_one_reason_for_many_features_once():
+    from app.cli import _grouped_reasons
+
+    why = "automatic click(s) unsure (confidence < 0.5) and 0 sure; the generic mesh places it"
+    reasons = ["photo 'right': no click (no face found?), left out of the fit"]
+    reasons += [f"jaw_{i:02d}: {3 + i % 2} {why}" for i in range(5)]
+    reasons += ["nose_tip: clicked in 1 photo(s)", "chin: clicked in 1 photo(s)"]
+    out = _grouped_reasons(reasons)
+    assert out[0] == reasons[0]
+    assert out[1] == f"5 features for one reason (jaw_00, jaw_01, jaw_02, jaw_03, jaw_04), e.g. jaw_00: 3 {why}"
+    assert out[2:] == ["nose_tip: clicked in 1 photo(s)", "chin: clicked in 1 photo(s)"]  # two: as they are
