@@ -130,3 +130,30 @@ def test_a_phone_portrait_photo_stands_up_as_its_clicks_were_placed(qtbot, studi
         c = shown.pixelColor(int(p.x()), int(p.y()))
         # JPEG at quality 95: a few grey levels of the upright original
         assert np.abs(np.array([c.red(), c.green(), c.blue()]) - upright[round(v), round(u)].astype(int)).max() < 20
+
+
+def test_a_dropped_folder_adds_its_photos_and_names_what_it_cannot(qtbot, studio_window, tmp_path, messages):
+    from PySide6.QtCore import QMimeData, QUrl
+    from PySide6.QtGui import QDropEvent
+
+    folder = tmp_path / "shoot"
+    folder.mkdir()
+    for view in ("front", "three_quarter_left"):
+        shutil.copy(PHOTOS / f"neutral_{view}.png", folder / f"neutral_{view}.png")
+    (folder / "IMG_0100.HEIC").write_bytes(b"\0\0\0\x18ftypheic")  # a phone's format: named, not added
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    single = tmp_path / "single.png"
+    shutil.copy(PHOTOS / "neutral_three_quarter_right.png", single)
+    mime = QMimeData()
+    mime.setUrls([QUrl.fromLocalFile(str(p)) for p in (folder, single, empty)])
+    drop = QDropEvent(QPointF(20, 20), Qt.DropAction.CopyAction, mime, Qt.MouseButton.NoButton,
+                      Qt.KeyboardModifier.NoModifier)
+    studio_window.dropEvent(drop)
+    assert [p.id for p in studio_window.model.photos] == [
+        "neutral_front", "neutral_three_quarter_left", "single"]  # the folder's in name order, then the file
+    (kind, title, text), = messages  # one message for what was not added
+    assert kind == "critical" and "not added" in title
+    assert "IMG_0100.HEIC is not read" in text and f"{empty}: no photos in it" in text
+    studio_window.undo_stack.undo()  # one drop, one undo step
+    assert studio_window.model.photos == []
