@@ -145,11 +145,8 @@ def cmd_add_photos(args) -> int:
     landmarks, as the studio's *Add photos with automatic landmarks…* adds them."""
     target = Path(args.project)
     project = load_project(target)
-    paths, skipped = photo_files(args.photos)
-    if not paths:
-        raise ProjectError(f"no photos to add from {', '.join(str(p) for p in args.photos)}")
-    expr_names = [e.name for e in project.expressions]
-    dropped = args.expression in expr_names and project.expression(args.expression).result is not None
+    paths, skipped = photo_files(args.photos)  # at least one photo, or a PhotoError naming the path
+    dropped = any(e.name == args.expression and e.result is not None for e in project.expressions)
     bar, progress = _progress_bar(not args.json or sys.stderr.isatty(), "add-photos")
     try:
         warnings = add_photos(project, args.expression, paths, camera_group=args.camera_group,

@@ -80,8 +80,8 @@ from app.qt.tracking_view import TrackingView
 from app.qt.view3d import View3D
 from app.qt.workers import FitController, JobController
 from photomodel.camera import PRESET_AZIMUTH_DEG
-from photomodel.errors import FaceStudioError, PhotoError, ProjectError
-from photomodel.photos.reading import photos_in_folder, unreadable_note, unreadable_photos_in_folder
+from photomodel.errors import FaceStudioError, ProjectError
+from photomodel.photos.intake import gather_photo_files
 from photomodel.project import FILE_SUFFIX
 
 #: Qt platforms without a screen: error boxes there do not block (:func:`run_studio`).
@@ -1300,19 +1300,11 @@ class MainWindow(QMainWindow):
 
     def add_dropped(self, paths) -> int:
         """Photos dropped on the window: files, and folders of photos (each folder's photos in name
-        order, its HEIC/raw files named); what cannot be added is said in one message."""
-        files, problems = [], []
-        for path in paths:
-            if not os.path.isdir(path):
-                files.append(path)
-                continue
-            try:
-                files += [str(p) for p in photos_in_folder(path)]
-            except PhotoError as exc:
-                problems.append(str(exc))
-                continue
-            problems += [unreadable_note(p) + "; not added" for p in unreadable_photos_in_folder(path)]
-        added = self.add_photos(files) if files else 0
+        order, its HEIC/raw files named: :func:`photomodel.photos.intake.gather_photo_files`); what
+        cannot be added is said in one message."""
+        files, skipped, errors = gather_photo_files(paths)
+        added = self.add_photos([str(p) for p in files]) if files else 0
+        problems = [str(e) for e in errors] + skipped
         if problems:
             self.show_error("Some of the dropped files were not added", "\n".join(problems))
         return added

@@ -130,29 +130,44 @@ def new_project_from_photos(
 
 
 def photo_files(sources: Sequence[str | os.PathLike]) -> tuple[list[Path], list[str]]:
-    """The photo files a user named: each folder's photos in name order
-    (:func:`photomodel.photos.reading.photos_in_folder`), each file as it is, in the order given.
+    """The photo files a user named (:func:`gather_photo_files`) and the warnings for files of a
+    type that is not read; the first problem (a folder without photos, a path that does not
+    exist) is raised as a :class:`PhotoError` naming it."""
+    paths, skipped, problems = gather_photo_files(sources)
+    if problems:
+        raise problems[0]
+    return paths, skipped
+
+
+def gather_photo_files(sources: Sequence[str | os.PathLike]) -> tuple[list[Path], list[str], list[PhotoError]]:
+    """The photo files a user named (a command's arguments, a drop on the studio): each folder's
+    photos in name order (:func:`photomodel.photos.reading.photos_in_folder`), each file as it is,
+    in the order given.
 
     Returns the files, each once (a file named again, or also in a named folder, is taken where
-    it first comes), and a warning for each file in those folders of a type that is not read
-    (HEIC, camera raw…: named with what to do, not passed over in silence). A folder without
-    photos, or a path that does not exist, is a :class:`PhotoError` naming it.
+    it first comes); a warning for each file in those folders of a type that is not read (HEIC,
+    camera raw…: named with what to do, not passed over in silence); and, without raising, a
+    :class:`PhotoError` naming each folder without photos and each path that does not exist.
     """
     paths: list[Path] = []
     skipped: list[str] = []
+    problems: list[PhotoError] = []
     for source in sources:
         source = Path(source)
         if source.is_dir():
-            paths += photos_in_folder(source)
+            try:
+                paths += photos_in_folder(source)
+            except PhotoError as exc:
+                problems.append(exc)
+                continue
             skipped += [unreadable_note(p) + "; not added" for p in unreadable_photos_in_folder(source)]
         elif source.exists():
             paths.append(source)
         else:
-            raise PhotoError(f"{source}: no such photo or folder")
+            problems.append(PhotoError(f"{source}: no such photo or folder"))
     seen: set[Path] = set()
     once = [p for p in paths if not (p.resolve() in seen or seen.add(p.resolve()))]
-    return once, skipped
-
+    return once, skipped, problems
 
 def add_photos(
     project: Project,
