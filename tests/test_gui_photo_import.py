@@ -132,10 +132,18 @@ def test_a_phone_portrait_photo_stands_up_as_its_clicks_were_placed(qtbot, studi
         assert np.abs(np.array([c.red(), c.green(), c.blue()]) - upright[round(v), round(u)].astype(int)).max() < 20
 
 
-def test_a_dropped_folder_adds_its_photos_and_names_what_it_cannot(qtbot, studio_window, tmp_path, messages):
+def _drop(window, paths, modifiers=Qt.KeyboardModifier.NoModifier):
+    """Drop ``paths`` on the window as a file manager does (a real QDropEvent)."""
     from PySide6.QtCore import QMimeData, QUrl
     from PySide6.QtGui import QDropEvent
 
+    mime = QMimeData()
+    mime.setUrls([QUrl.fromLocalFile(str(p)) for p in paths])
+    window.dropEvent(QDropEvent(QPointF(20, 20), Qt.DropAction.CopyAction, mime, Qt.MouseButton.NoButton, modifiers))
+
+
+def test_a_dropped_folder_adds_its_photos_and_names_what_it_cannot(qtbot, studio_window, tmp_path, messages):
+    """Shift held: the photos alone, at once (to click by hand)."""
     folder = tmp_path / "shoot"
     folder.mkdir()
     for view in ("front", "three_quarter_left"):
@@ -145,15 +153,37 @@ def test_a_dropped_folder_adds_its_photos_and_names_what_it_cannot(qtbot, studio
     empty.mkdir()
     single = tmp_path / "single.png"
     shutil.copy(PHOTOS / "neutral_three_quarter_right.png", single)
-    mime = QMimeData()
-    mime.setUrls([QUrl.fromLocalFile(str(p)) for p in (folder, single, empty)])
-    drop = QDropEvent(QPointF(20, 20), Qt.DropAction.CopyAction, mime, Qt.MouseButton.NoButton,
-                      Qt.KeyboardModifier.NoModifier)
-    studio_window.dropEvent(drop)
+    _drop(studio_window, (folder, single, empty), Qt.KeyboardModifier.ShiftModifier)
     assert [p.id for p in studio_window.model.photos] == [
         "neutral_front", "neutral_three_quarter_left", "single"]  # the folder's in name order, then the file
+    assert all(not p.points for p in studio_window.model.photos)  # no automatic clicks
     (kind, title, text), = messages  # one message for what was not added
     assert kind == "critical" and "not added" in title
     assert "IMG_0100.HEIC is not read" in text and f"{empty}: no photos in it" in text
     studio_window.undo_stack.undo()  # one drop, one undo step
     assert studio_window.model.photos == []
+
+
+def test_dropped_photos_get_automatic_landmarks(qtbot, studio_window, tmp_path, messages):
+    """A plain drop is *Add photos with automatic landmarks…*: the photos arrive from the worker
+    with the detector's clicks; a second drop while it reads is refused with a message, not lost
+    silently."""
+    folder = tmp_path / "shoot"
+    folder.mkdir()
+    for view in ("front", "three_quarter_left"):
+        shutil.copy(PHOTOS / f"neutral_{view}.png", folder / f"neutral_{view}.png")
+    w, model = studio_window, studio_window.model
+    defined = [f.name for f in model.project.features]  # a blank project's 13 pose features
+    _drop(w, (folder,))
+    assert w.importer.busy
+    _drop(w, (PHOTOS / "neutral_left.png",))  # while the first drop is being read
+    (kind, title, text), = messages
+    assert "not added" in title and "still being read" in text
+    qtbot.waitUntil(lambda: not w.importer.busy and len(model.photos) == 2, timeout=60_000)
+    assert [p.id for p in model.photos] == ["neutral_front", "neutral_three_quarter_left"]
+    for photo in model.photos:
+        auto = [name for name in photo.points if photo.sources.get(name) == "auto"]
+        assert len(auto) >= 60, (photo.id, len(auto))  # the 68 points `new` places (a blank project gets them)
+    assert len(model.project.features) == 68  # `facestudio new`'s, defined for the first photos
+    w.undo_stack.undo()  # the drop's photos and the features they brought go back in one step
+    assert model.photos == [] and [f.name for f in model.project.features] == defined

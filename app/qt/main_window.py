@@ -777,9 +777,16 @@ class MainWindow(QMainWindow):
     def add_photos_auto_dialog(self) -> None:
         files, _ = QFileDialog.getOpenFileNames(self, "Add photos with automatic landmarks", "", IMAGE_FILTER)
         if files:
-            if self.model.expression_name is None:
-                self.undo_stack.push(AddExpressionCommand(self.model, "neutral"))
-            self.importer.add_photos(files)
+            self.add_photos_auto(files)
+
+    def add_photos_auto(self, files) -> bool:
+        """Add image files to the current expression (made ``neutral`` when there is none) with
+        automatic landmarks, in the importer's worker; False when an import is running."""
+        if self.importer.busy:
+            return False
+        if self.model.expression_name is None:
+            self.undo_stack.push(AddExpressionCommand(self.model, "neutral"))
+        return self.importer.add_photos(files)
 
     def add_photos(self, files) -> int:
         """Add image files to the current expression; unreadable ones are named in one message."""
@@ -1294,20 +1301,29 @@ class MainWindow(QMainWindow):
         projects = [f for f in files if f.endswith(".json")]
         if projects:
             self.open_project(projects[0])
-        else:
-            self.add_dropped(files)
+        else:  # Shift held: the photos alone, to click by hand (as *Add photos…*)
+            shift = bool(event.modifiers() & Qt.KeyboardModifier.ShiftModifier)
+            self.add_dropped(files, automatic=not shift)
         event.acceptProposedAction()
 
-    def add_dropped(self, paths) -> int:
+    def add_dropped(self, paths, *, automatic: bool = True) -> int:
         """Photos dropped on the window: files, and folders of photos (each folder's photos in name
         order, its HEIC/raw files named: :func:`photomodel.photos.intake.gather_photo_files`); what
-        cannot be added is said in one message."""
+        cannot be added is said in one message. ``automatic``: with automatic landmarks, in the
+        importer's worker (as *Add photos with automatic landmarks…*; the photos arrive when it
+        finishes); otherwise the photos alone, at once. Returns how many photos were taken."""
         files, skipped, errors = gather_photo_files(paths)
-        added = self.add_photos([str(p) for p in files]) if files else 0
         problems = [str(e) for e in errors] + skipped
+        taken = 0
+        if files and automatic and self.importer.busy:
+            problems.insert(0, "photos are still being read from the last import: drop these again when it is done")
+        elif files and automatic:
+            taken = len(files) if self.add_photos_auto([str(p) for p in files]) else 0
+        elif files:
+            taken = self.add_photos([str(p) for p in files])
         if problems:
             self.show_error("Some of the dropped files were not added", "\n".join(problems))
-        return added
+        return taken
 
     def closeEvent(self, event):
         if not self.maybe_save():

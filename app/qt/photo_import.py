@@ -9,9 +9,12 @@ being read (the core reports progress once a photo); the project is untouched th
 * **New from photos…** asks for a folder and where to save the project, writes the project with
   the core function, then opens it (the clicks it placed are automatic: violet diamonds in the
   photo views, see :mod:`app.qt.photo_view`).
-* **Add photos…** adds the photos to the current expression of a snapshot of the project; the
-  new photos — with their automatic clicks — go into the studio as one undoable edit (the
-  feature definitions they need, then the photos: one undo takes both back).
+* **Add photos…** (and photos dropped on the window) adds the photos to the current expression
+  of a snapshot of the project; the new photos — with their automatic clicks — go into the
+  studio as one undoable edit (the feature definitions they need, then the photos: one undo
+  takes both back). A project with no photo yet first gets the features ``facestudio new``
+  starts with (:func:`~photomodel.photos.intake.default_features`: the 68 points the detector
+  places), so photos dropped on a new studio window are clicked as ``new`` would click them.
 
 A photo without a face, or with several (the largest is used), is named in the status bar; the
 core's warnings (two views of the same image …) likewise.
@@ -87,6 +90,11 @@ class PhotoImporter(QObject):
         if self.busy or model.expression_name is None:
             return False
         snapshot, expression = model.fit_snapshot(), model.expression_name
+        if not any(e.photos for e in snapshot.expressions):
+            # a project without photos yet gets the features `facestudio new` starts with (the
+            # 68 points the detector places), defined with the photos in one undoable step
+            have = {f.name for f in snapshot.features}
+            snapshot.features += [f for f in default_features(model.mesh)[0] if f.name not in have]
         before = {p.id for p in snapshot.expression(expression).photos}
         files = [Path(f) for f in files]
 
