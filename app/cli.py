@@ -159,6 +159,11 @@ def cmd_add_photos(args) -> int:
         expr.result = None
         warnings.append(f"expression {args.expression!r}: its fit and texture were of the photos before; "
                         f"fit it again (facestudio fit {target} --expression {args.expression})")
+        followers = [e.name for e in project.expressions
+                     if e.cameras_from == args.expression and e.result is not None]
+        if followers:  # their fits keep the cameras they were made with, until fitted again
+            warnings.append(f"{', '.join(map(repr, followers))} reuse the cameras of {args.expression!r}: "
+                            f"fit them again after it (facestudio fit {target} fits them in order)")
     save_project(project, target)
     out = _intake_summary(target, args.expression, expr.photos[len(expr.photos) - len(paths):], warnings + skipped)
     out["fit_dropped"] = dropped

@@ -21,7 +21,7 @@ from photomodel.errors import NoFaceFound, PhotoError
 from photomodel.photos.exif import EXIF_IFD, TAG_FOCAL_LENGTH, TAG_FOCAL_LENGTH_35MM
 from photomodel.photos.intake import add_photos, new_project_from_photos
 from photomodel.project import Feature, load_project, save_project
-from photomodel.project.model import ExpressionResult
+from photomodel.project.model import Expression, ExpressionResult
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 #: Where the fake placer puts its points, as fractions of the image it is given.
@@ -213,11 +213,15 @@ def test_add_photos_drops_the_fit_it_outdates_and_names_bad_paths(one_photo_proj
     target = one_photo_project
     p = load_project(target)
     p.expression("neutral").result = ExpressionResult(report={"rms_px": 1.0})  # a fit of the one photo
+    # an expression fitted with the neutral's cameras keeps its fit, and is named
+    p.expressions.append(Expression(name="smile", cameras_from="neutral", result=ExpressionResult(report={})))
     save_project(p, target)
     code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", folder / "IMG_0001.jpg")
     assert code == 0, err
     assert out.startswith(f"added to {target}: expression 'neutral', 1 photos, 3 automatic clicks")
     assert "its fit and texture were of the photos before; fit it again" in err
+    assert "'smile' reuse the cameras of 'neutral': fit them again after it" in err
+    assert load_project(target).expression("smile").result is not None
     p = load_project(target)
     assert p.expression("neutral").result is None and [x.id for x in p.expression("neutral").photos] == [
         "front", "IMG_0001"]
