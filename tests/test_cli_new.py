@@ -168,6 +168,12 @@ def test_add_photos_to_a_project_and_a_large_photo(tmp_path, folder):
     with pytest.raises(PhotoError, match=r"^cut\.png: truncated PNG"):
         add_photos(project, "neutral", [folder / "IMG_0002.png", tmp_path / "cut.png"], placer=fake_placer)
     assert len(project.expression("neutral").photos) == before
+    # ... or, asked to skip it (the studio's drop), is left out and named; the others come in
+    warnings = add_photos(project, "neutral", [tmp_path / "cut.png", folder / "IMG_0002.png"], placer=fake_placer,
+                          skip_unreadable=True)
+    assert warnings[0].startswith("cut.png: truncated PNG") and warnings[0].endswith("not added")
+    assert warnings[1:] == ["IMG_0002.png: 3 faces found; the largest used"]  # the fake placer's say
+    assert [p.id for p in project.expression("neutral").photos[before:]] == ["IMG_0002"]
     # a new expression is created on the way
     add_photos(project, "smile", [folder / "IMG_0002.png"], placer=fake_placer)
     assert [e.name for e in project.expressions] == ["neutral", "smile"]

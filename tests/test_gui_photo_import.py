@@ -187,3 +187,11 @@ def test_dropped_photos_get_automatic_landmarks(qtbot, studio_window, tmp_path, 
     assert len(model.project.features) == 68  # `facestudio new`'s, defined for the first photos
     w.undo_stack.undo()  # the drop's photos and the features they brought go back in one step
     assert model.photos == [] and [f.name for f in model.project.features] == defined
+    # a truncated photo among the dropped ones is named; the others still come in
+    (tmp_path / "cut.png").write_bytes((PHOTOS / "neutral_left.png").read_bytes()[:300])
+    _drop(w, (tmp_path / "cut.png", PHOTOS / "neutral_front.png"))
+    qtbot.waitUntil(lambda: not w.importer.busy and len(model.photos) == 1, timeout=60_000)
+    assert "cut.png: truncated PNG" in w.statusBar().currentMessage()
+    _drop(w, (tmp_path / "cut.png",))  # nothing readable: a message, not silence
+    qtbot.waitUntil(lambda: not w.importer.busy and len(messages) == 2, timeout=60_000)
+    assert messages[-1][1] == "No photo added" and "cut.png: truncated PNG" in messages[-1][2]

@@ -17,7 +17,10 @@ being read (the core reports progress once a photo); the project is untouched th
   places), so photos dropped on a new studio window are clicked as ``new`` would click them.
 
 A photo without a face, or with several (the largest is used), is named in the status bar; the
-core's warnings (two views of the same image …) likewise.
+core's warnings (two views of the same image …) likewise. A photo that cannot be read (truncated,
+not an image) is left out of *Add photos…* and named, the others added; when none could be, a
+message says why. (*New from photos…* and the command line refuse the whole set instead, naming
+the file: nothing half-made is written.)
 """
 
 from __future__ import annotations
@@ -99,7 +102,9 @@ class PhotoImporter(QObject):
         files = [Path(f) for f in files]
 
         def work(progress, cancel):
-            warnings = add_photos(snapshot, expression, files, progress=_cancellable(progress, cancel))
+            # a drop of many files: one that cannot be read is named, the others still come in
+            warnings = add_photos(snapshot, expression, files, progress=_cancellable(progress, cancel),
+                                  skip_unreadable=True)
             new = [p for p in snapshot.expression(expression).photos if p.id not in before]
             return snapshot, new, warnings
 
@@ -127,7 +132,10 @@ class PhotoImporter(QObject):
         _, project, expression = pending
         snapshot, photos, warnings = result
         model = self.window.model
-        if project is not model.project or not photos:
+        if project is not model.project:
+            return
+        if not photos:
+            self.window.show_error("No photo added", "\n".join(map(str, warnings)) or "no photos to add")
             return
         missing = [f for f in snapshot.features if not model.has_feature(f.name)]
         stack = self.window.undo_stack

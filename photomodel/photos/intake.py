@@ -177,11 +177,14 @@ def add_photos(
     camera_group: str | None = None,
     placer: Placer = place_landmarks,
     progress: Progress | None = None,
+    skip_unreadable: bool = False,
 ) -> list[str]:
     """Add photos to an expression of ``project`` (created when absent), with automatic landmarks.
 
     Every photo is read and placed first; only when all of them could be read are they
-    appended to the expression, so an error leaves the project untouched.
+    appended to the expression, so an error leaves the project untouched — or, with
+    ``skip_unreadable`` (the studio's drop of many files), a photo that cannot be read is left
+    out and named in a warning, and the others are added.
 
     Parameters
     ----------
@@ -200,7 +203,8 @@ def add_photos(
 
     Raises
     ------
-    PhotoError naming the file, when a photo is missing, truncated or cannot be decoded.
+    PhotoError naming the file, when a photo is missing, truncated or cannot be decoded (not
+    with ``skip_unreadable``).
     """
     if camera_group is not None and (not isinstance(camera_group, str) or not camera_group):
         raise ProjectError(f"a camera group is a non-empty name or none, got {camera_group!r}")
@@ -208,16 +212,22 @@ def add_photos(
     names = project.feature_names()
     curves = {c.name for c in project.curves}
     ids = {p.id for p in expr.photos}
-    incoming = []
+    incoming, unread = [], []
     for k, path in enumerate(paths):
         if progress is not None:
             progress(f"reading {Path(path).name}", k / max(len(paths), 1))
-        one = _intake_photo(Path(path).absolute(), ids, names, curves, camera_group, placer)
+        try:
+            one = _intake_photo(Path(path).absolute(), ids, names, curves, camera_group, placer)
+        except PhotoError as exc:
+            if not skip_unreadable:
+                raise
+            unread.append(f"{exc}; not added")
+            continue
         ids.add(one.photo.id)
         incoming.append(one)
     if progress is not None:
         progress("comparing photos", 1.0)
-    warnings = [w for one in incoming for w in one.warnings]
+    warnings = unread + [w for one in incoming for w in one.warnings]
     warnings += _duplicate_warnings(project, expr, incoming)
     expr.photos.extend(one.photo for one in incoming)
     return warnings
