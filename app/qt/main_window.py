@@ -1315,12 +1315,12 @@ class MainWindow(QMainWindow):
         files, skipped, errors = gather_photo_files(paths)
         problems = [str(e) for e in errors] + skipped
         taken = 0
-        if files and automatic and self.importer.busy:
-            problems.insert(0, "photos are still being read from the last import: drop these again when it is done")
-        elif files and automatic:
-            taken = len(files) if self.add_photos_auto([str(p) for p in files]) else 0
-        elif files:
+        if files and not automatic:
             taken = self.add_photos([str(p) for p in files])
+        elif files and self.add_photos_auto([str(p) for p in files]):
+            taken = len(files)
+        elif files:  # the importer is busy
+            problems.insert(0, "photos are still being read from the last import: drop these again when it is done")
         if problems:
             self.show_error("Some of the dropped files were not added", "\n".join(problems))
         return taken

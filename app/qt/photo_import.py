@@ -135,7 +135,7 @@ class PhotoImporter(QObject):
         if project is not model.project:
             return
         if not photos:
-            self.window.show_error("No photo added", "\n".join(map(str, warnings)) or "no photos to add")
+            self.window.show_error("No photo added", "\n".join(warnings))  # each file's reason
             return
         missing = [f for f in snapshot.features if not model.has_feature(f.name)]
         stack = self.window.undo_stack

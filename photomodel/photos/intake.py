@@ -165,9 +165,11 @@ def gather_photo_files(sources: Sequence[str | os.PathLike]) -> tuple[list[Path]
             paths.append(source)
         else:
             problems.append(PhotoError(f"{source}: no such photo or folder"))
-    seen: set[Path] = set()
-    once = [p for p in paths if not (p.resolve() in seen or seen.add(p.resolve()))]
-    return once, skipped, problems
+    once: dict[Path, Path] = {}  # the file itself -> the path it was first named by
+    for p in paths:
+        once.setdefault(p.resolve(), p)
+    return list(once.values()), skipped, problems
+
 
 def add_photos(
     project: Project,
