@@ -5,7 +5,7 @@ import pytest
 
 from photomodel.camera import orbit_camera
 from photomodel.errors import FitError
-from photomodel.modeling.refine import curve_observations, refine_points, triangulate
+from photomodel.modeling.refine import curve_observations, place_at_depth, refine_points, triangulate
 
 AXES = np.array([75.0, 100.0, 90.0])  # head-sized ellipsoid, mm
 
@@ -130,6 +130,48 @@ def test_parallel_rays_are_flagged_not_solved():
     np.testing.assert_allclose(tri.points, X, atol=1e-5)
     tri = triangulate([same, far], project_all([same, far], X))
     assert not tri.near_parallel.any() and np.all(np.abs(tri.parallax_deg - 30) < 15)
+
+
+def test_place_at_depth_keeps_the_rays_and_takes_the_reference_depth():
+    """Views a degree apart measure no depth: each point goes on its rays at the reference's depth."""
+    X = face_cloud(200, 7)
+    cams = [orbit_camera(a, 1000, 1500, distance_mm=600) for a in (-0.8, 0.0, 0.7)]
+    obs = project_all(cams, X)
+    axis = np.mean([c.R[2] for c in cams], axis=0)
+    a = axis / np.linalg.norm(axis)
+    # the true depth as reference: the truth, to round-off (the rays meet there)
+    tri = place_at_depth(cams, obs, X, axis)
+    np.testing.assert_allclose(tri.points, X, atol=1e-6)
+    assert tri.ok.all() and np.nanmax(tri.residual_px) < 1e-6
+    # a reference 10 mm off in depth: the point's depth is the reference's, and it stays on its
+    # rays — across the line of sight it moves by 10 mm × the slant of its ray, not 10 mm
+    ref = X + 10.0 * a
+    tri = place_at_depth(cams, obs, ref, axis)
+    np.testing.assert_allclose(tri.points @ a, ref @ a, atol=1e-9)
+    lateral = lambda d: np.linalg.norm(d - (d @ a)[:, None] * a, axis=1)  # noqa: E731
+    slant = lateral(X - cams[1].center) / ((X - cams[1].center) @ a)
+    # (each camera's ray has its own slant: the cameras ~10 mm apart at 600 mm add ≤ 0.02)
+    assert np.all(lateral(tri.points - X) <= 10.0 * (slant + 0.02))
+    assert np.nanmax(tri.residual_px) < 0.5  # still on the rays: the views barely disagree
+    # where triangulation gives up (rays < 2° apart), every point is placed; one view is not enough
+    assert triangulate(cams, obs).near_parallel.all()
+    obs[1:, :5] = np.nan
+    tri = place_at_depth(cams, obs, X, axis)
+    assert np.isnan(tri.points[:5]).all() and tri.ok[5:].all()
+    assert "seen in 1 photo" in tri.problems()[0]
+
+
+def test_refine_points_with_a_depth_reference_places_instead_of_triangulating():
+    X = face_cloud(30, 8)
+    cams = [orbit_camera(a, 1000, 1500, distance_mm=600) for a in (-0.8, 0.0, 0.8)]
+    obs = project_all(cams, X)
+    axis = np.mean([c.R[2] for c in cams], axis=0)
+    verts = np.arange(30)
+    plain = refine_points(cams, X, point_vertices=verts, point_observations=obs)
+    assert len(plain.vertices) == 0 and len(plain.dropped) == 30  # all nearly parallel
+    held = refine_points(cams, X, point_vertices=verts, point_observations=obs, depth_reference=(X, axis))
+    np.testing.assert_array_equal(held.vertices, verts)
+    np.testing.assert_allclose(held.targets, X, atol=1e-6)
 
 
 def test_rays_meeting_behind_the_cameras():

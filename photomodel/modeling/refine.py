@@ -379,6 +379,59 @@ class RefinementTargets:
     dropped: list = field(default_factory=list)
 
 
+def place_at_depth(cameras: Sequence[Camera], observations, reference, axis) -> Triangulation:
+    """Points on their viewing rays at the depth of ``reference``, for views that cannot measure
+    depth (*beyond the paper*).
+
+    When the camera solve had to take the face's depth from the generic head (the photos are
+    nearly one viewpoint: frames of a clip facing the camera), triangulating the other features
+    would turn click noise into depth — a pixel of noise moves a point tens of millimetres
+    along rays a degree apart. Each click's ray is instead cut by the plane through the point's
+    ``reference`` position (the mesh the pose features deformed) across the views' mean
+    direction ``axis``, and the cuts are averaged: the clicks give what they measure, the
+    position across the line of sight, and the depth is the reference's.
+
+    Parameters
+    ----------
+    cameras : k Camera; observations : (k, n, 2) float px, NaN where not clicked
+    reference : (n, 3) float mm; axis : (3,) viewing direction (need not be unit)
+
+    Returns
+    -------
+    Triangulation
+        points seen in at least 2 photos (no parallax needed), their RMS reprojection error.
+    """
+    obs = _validate_observations(cameras, observations)
+    k, n, _ = obs.shape
+    R, t, f, pp = _stack_cameras(cameras)
+    seen = ~np.isnan(obs[..., 0])
+    n_views = seen.sum(axis=0)
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    d_cam = np.concatenate([(obs - pp[:, None, :]) / f[:, None, None], np.ones((k, n, 1))], axis=2)
+    d = np.einsum("kji,knj->kni", R, d_cam)  # (k, n, 3) world rays
+    centres = -np.einsum("kji,kj->ki", R, t)
+    ref = np.asarray(reference, float).reshape(n, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = ((ref[None] - centres[:, None, :]) @ a) / (d @ a)  # (k, n) ray parameter at the plane
+        cuts = centres[:, None, :] + lam[..., None] * d
+        ok = seen & (lam > 0)
+        X = np.where(ok[..., None], cuts, 0.0).sum(axis=0) / ok.sum(axis=0)[:, None]
+    uv, Xc = _project_all(R, t, f, pp, X)
+    r2 = np.where(seen, ((uv - obs) ** 2).sum(axis=2), 0.0).sum(axis=0)
+    behind = (n_views >= 2) & ~np.all(~seen | (Xc[..., 2] > 0), axis=0)
+    good = (n_views >= 2) & ~behind & np.all(np.isfinite(X), axis=1)
+    X[~good] = np.nan
+    return Triangulation(
+        points=X,
+        residual_px=np.where(good, np.sqrt(r2 / np.maximum(n_views, 1)), np.nan),
+        n_views=n_views,
+        parallax_deg=np.full(n, np.nan),
+        near_parallel=np.zeros(n, bool),
+        behind_camera=behind,
+        min_parallax_deg=0.0,
+    )
+
+
 def refine_points(
     cameras: Sequence[Camera],
     mesh_vertices,
@@ -388,6 +441,7 @@ def refine_points(
     curves: Sequence[tuple] = (),
     point_names: Sequence[str] | None = None,
     curve_names: Sequence[str] | None = None,
+    depth_reference: tuple[np.ndarray, np.ndarray] | None = None,
     **triangulate_kw,
 ) -> RefinementTargets:
     """Triangulate extra clicked points and curves into 3D vertex targets (§5.1.3).
@@ -404,6 +458,9 @@ def refine_points(
     curves : sequence of (polyline (p,) int, drawn dict {photo: (q, 2) px})
         Curves as accepted by :func:`curve_observations`.
     point_names, curve_names : optional labels used in ``dropped``.
+    depth_reference : ((N, 3) float mm, (3,) float) or None
+        ``(vertices, axis)``: the views cannot measure depth; every point is placed on its rays
+        at its vertex's depth along ``axis`` (:func:`place_at_depth`) instead of triangulated.
     **triangulate_kw
         Passed to :func:`triangulate`.
 
@@ -418,11 +475,17 @@ def refine_points(
     from_point: set[int] = set()
     dropped: list[str] = []
 
+    def locate(obs, vertices) -> Triangulation:
+        if depth_reference is None:
+            return triangulate(cameras, obs, **triangulate_kw)
+        ref, axis = depth_reference
+        return place_at_depth(cameras, obs, np.asarray(ref)[np.asarray(vertices, int)], axis)
+
     if point_vertices is not None:
         pv = np.asarray(point_vertices)
         if point_observations is None:
             raise FitError("point_vertices given without point_observations")
-        tri = triangulate(cameras, point_observations, **triangulate_kw)
+        tri = locate(point_observations, pv)
         if tri.points.shape[0] != pv.shape[0]:
             raise FitError(
                 f"{pv.shape[0]} point vertices but observations of {tri.points.shape[0]} points"
@@ -438,7 +501,7 @@ def refine_points(
         cname = curve_names[ci] if curve_names is not None else f"curve {ci}"
         poly = np.asarray(polyline)
         obs = curve_observations(cameras, mesh_vertices, poly, drawn)
-        tri = triangulate(cameras, obs, **triangulate_kw)
+        tri = locate(obs, poly)
         names = [f"{cname} vertex {v}" for v in poly.tolist()]
         dropped += list(tri.problems(names).values())
         for i in np.flatnonzero(tri.ok):
