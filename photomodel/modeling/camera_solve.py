@@ -84,6 +84,7 @@ recovered from. :func:`solve_cameras` keeps the paper's method at its core and a
 from __future__ import annotations
 
 from collections.abc import Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import cv2
@@ -505,6 +506,7 @@ def _generic_depth_attempts(prob, prepared, labels, o, v, p0, robust, cams, fixe
     sweeps, iterations)`` of the first plausible attempt, or None (each failure appended to
     ``failures``)."""
     lens = np.log([c.f for c in cams])
+    lens = np.array([lens[prob.groups == g].mean() for g in range(prob.G)])  # per camera group
     for lens_guess in (False, True) if not fixed_focal else (False,):
         p = prob if not lens_guess else BundleProblem(
             o, v, np.stack([c.principal_point for c in cams]), prob.groups, False, weights=weights)
@@ -512,7 +514,7 @@ def _generic_depth_attempts(prob, prepared, labels, o, v, p0, robust, cams, fixe
             st0, sweeps = prepared[label]
             st = st0.copy()
             if lens_guess:
-                st.logf = np.array([lens[prob.groups == g].mean() for g in range(prob.G)])
+                st.logf = lens.copy()
             final, used, sigma, its = _polish_generic_depth(p, st, o, v, p0, robust, cams)
             fcams = p.cameras(final, cams)
             why = plausibility_problem(fcams, final.m, p0, names, vname)
@@ -523,16 +525,23 @@ def _generic_depth_attempts(prob, prepared, labels, o, v, p0, robust, cams, fixe
     return None
 
 
-def _polish_generic_depth(prob, st, o, v, p0, robust, template):
-    """:func:`_polish` with the generic-head prior stiffened along the views' mean direction
-    (:data:`DEPTH_PRIOR_SIGMA_MM`), as :func:`_depth_from_prior` does."""
-    axis = st.R[:, 2, :].mean(0)
+@contextmanager
+def _stiff_depth(prob, st):
+    """``prob``'s generic-head prior stiffened along the views' mean direction in the state ``st``
+    (σ :data:`DEPTH_PRIOR_SIGMA_MM` there, :data:`PRIOR_SIGMA_MM` across) while inside."""
+    axis = st.R[:, 2, :].mean(0)  # the cameras' mean viewing direction in the points' frame
     prob.depth_axis = axis / np.linalg.norm(axis)
     prob.depth_gain = (PRIOR_SIGMA_MM / DEPTH_PRIOR_SIGMA_MM) ** 2 - 1.0
     try:
-        return _polish(prob, st, o, v, p0, robust, True, template)
+        yield
     finally:
         prob.depth_axis, prob.depth_gain = None, 0.0
+
+
+def _polish_generic_depth(prob, st, o, v, p0, robust, template):
+    """:func:`_polish` with the generic-head prior stiffened along the views' mean direction."""
+    with _stiff_depth(prob, st):
+        return _polish(prob, st, o, v, p0, robust, True, template)
 
 
 def _choose_per_photo(pnp, reg, o, v, p0) -> tuple[list[Camera], np.ndarray]:
@@ -627,14 +636,11 @@ def _depth_from_prior(prob, st, used, sigma, p0, template, names, vname):
     e_free = prob.evaluate(st, used)[4]
     saved = prob.valid, prob.prior, prob.beta
     prob.valid, prob.prior, prob.beta = used, p0, (sigma / PRIOR_SIGMA_MM) ** 2
-    axis = st.R[:, 2, :].mean(0)  # the cameras' mean viewing direction in the points' frame
-    prob.depth_axis = axis / np.linalg.norm(axis)
-    prob.depth_gain = (PRIOR_SIGMA_MM / DEPTH_PRIOR_SIGMA_MM) ** 2 - 1.0
     try:
-        alt, _, _ = prob.solve(st.copy(), c=np.inf, max_iter=100, tol=1e-9)
+        with _stiff_depth(prob, st):
+            alt, _, _ = prob.solve(st.copy(), c=np.inf, max_iter=100, tol=1e-9)
     finally:
         prob.valid, prob.prior, prob.beta = saved
-        prob.depth_axis, prob.depth_gain = None, 0.0
     e_alt = prob.evaluate(alt, used)[4]
     delta = float(((e_alt**2).sum() - (e_free**2).sum()) / sigma**2)
     if not delta < stats.chi2.ppf(0.95, 3 * m - 7):

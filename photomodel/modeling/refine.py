@@ -51,6 +51,14 @@ def _project_all(R, t, f, pp, X):
     return uv, Xc
 
 
+def _world_rays(R, t, f, pp, obs):
+    """Viewing rays of clicks ``obs`` (k, n, 2): world directions ``R_kᵀ [(uv − pp)/f, 1]``
+    (k, n, 3), not normalised (NaN where not clicked), and the camera centres ``−R_kᵀ t_k`` (k, 3)."""
+    k, n, _ = obs.shape
+    d_cam = np.concatenate([(obs - pp[:, None, :]) / f[:, None, None], np.ones((k, n, 1))], axis=2)
+    return np.einsum("kji,knj->kni", R, d_cam), -np.einsum("kji,kj->ki", R, t)
+
+
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class Triangulation:
@@ -176,11 +184,9 @@ def triangulate(
     n_views = seen.sum(axis=0)
 
     # rays: d = Rᵀ [(uv − pp)/f, 1], normalised; centre c = −Rᵀ t
-    d_cam = np.concatenate([(obs - pp[:, None, :]) / f[:, None, None], np.ones((k, n, 1))], axis=2)
-    d = np.einsum("kji,knj->kni", R, d_cam)
+    d, centres = _world_rays(R, t, f, pp, obs)
     d /= np.linalg.norm(d, axis=2, keepdims=True)
     d = np.where(seen[..., None], d, 0.0)
-    centres = -np.einsum("kji,kj->ki", R, t)  # (k, 3)
 
     # parallax: largest pairwise angle between the rays of each point
     cos = np.einsum("ani,bni->nab", d, d)
@@ -406,11 +412,11 @@ def place_at_depth(cameras: Sequence[Camera], observations, reference, axis) -> 
     R, t, f, pp = _stack_cameras(cameras)
     seen = ~np.isnan(obs[..., 0])
     n_views = seen.sum(axis=0)
+    ref = np.asarray(reference, float)
+    if ref.shape != (n, 3):
+        raise FitError(f"{len(ref)} reference points for observations of {n} points; need one per point")
     a = np.asarray(axis, float) / np.linalg.norm(axis)
-    d_cam = np.concatenate([(obs - pp[:, None, :]) / f[:, None, None], np.ones((k, n, 1))], axis=2)
-    d = np.einsum("kji,knj->kni", R, d_cam)  # (k, n, 3) world rays
-    centres = -np.einsum("kji,kj->ki", R, t)
-    ref = np.asarray(reference, float).reshape(n, 3)
+    d, centres = _world_rays(R, t, f, pp, obs)
     with np.errstate(divide="ignore", invalid="ignore"):
         lam = ((ref[None] - centres[:, None, :]) @ a) / (d @ a)  # (k, n) ray parameter at the plane
         cuts = centres[:, None, :] + lam[..., None] * d
