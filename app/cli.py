@@ -71,8 +71,12 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         b = report["bundle"]
         cs = report.get("camera_solve") or {}
         how = f" (start: {cs['start']}, noise σ̂ {cs['sigma_px']:.2f} px)" if cs else ""
-        lines.append(f"  cameras placed with all {b['points']} features clicked in 2+ photos: "
-                     f"{b['rms_px']:.3f} px{how}")
+        if len(report.get("views", [])) == 1:
+            lines.append(f"  one photo: its camera placed with {b['points']} clicked features against the generic "
+                         f"head, whose depth the face takes (one view cannot measure it){how}")
+        else:
+            lines.append(f"  cameras placed with all {b['points']} features clicked in 2+ photos: "
+                         f"{b['rms_px']:.3f} px{how}")
     suspects = report.get("suspect_clicks") or []
     if suspects:
         lines.append(f"  suspect clicks ({len(suspects)}, left out of the fit; check them):")

@@ -96,6 +96,15 @@ AUTO_FIT_BAR_MM = 1.5
 DRAW_SCALE, DRAW_TURN_DEG, DRAW_SHIFT_PX = (0.92, 1.08), 4.0, 30.0
 
 
+def _jittered(src: Path, dst: Path, rng) -> None:
+    """A copy of the photo ``src`` at ``dst`` scaled, turned and shifted within the draw bounds."""
+    image = cv2.imread(str(src))
+    h, w = image.shape[:2]
+    m = cv2.getRotationMatrix2D((w / 2, h / 2), rng.uniform(-DRAW_TURN_DEG, DRAW_TURN_DEG), rng.uniform(*DRAW_SCALE))
+    m[:, 2] += rng.uniform(-DRAW_SHIFT_PX, DRAW_SHIFT_PX, 2)
+    cv2.imwrite(str(dst), cv2.warpAffine(image, m, (w, h), borderMode=cv2.BORDER_REPLICATE))
+
+
 def auto_fit_draws_section(args, log) -> dict:
     project = load_project(SAMPLE / "james.facestudio.json")
     expr = project.expression("neutral")
@@ -106,13 +115,7 @@ def auto_fit_draws_section(args, log) -> dict:
             photos = Path(tmp) / "photos"
             photos.mkdir()
             for p in expr.photos:
-                image = cv2.imread(str(project.resolve(p.path)))
-                h, w = image.shape[:2]
-                m = cv2.getRotationMatrix2D((w / 2, h / 2), rng.uniform(-DRAW_TURN_DEG, DRAW_TURN_DEG),
-                                            rng.uniform(*DRAW_SCALE))
-                m[:, 2] += rng.uniform(-DRAW_SHIFT_PX, DRAW_SHIFT_PX, 2)
-                cv2.imwrite(str(photos / Path(p.path).name),
-                            cv2.warpAffine(image, m, (w, h), borderMode=cv2.BORDER_REPLICATE))
+                _jittered(project.resolve(p.path), photos / Path(p.path).name, rng)
             path = str(Path(tmp) / "auto.facestudio.json")
             try:
                 made = run_cli("new", path, "--photos", str(photos))
@@ -129,6 +132,62 @@ def auto_fit_draws_section(args, log) -> dict:
         "draws": len(means) + failures, "mesh_mean_mm": means,
         "mean": float(np.mean(means)) if means else -1.0, "worst": float(np.max(means)) if means else -1.0,
         "failures": failures, "over_bar": int(sum(m > AUTO_FIT_BAR_MM for m in means)),
+    }}
+
+
+#: Jittered copies per view in ``one_photo`` (besides the photo itself).
+ONE_PHOTO_DRAWS = 2
+
+
+def one_photo_section(args, log) -> dict:
+    """``one_photo``: each of the sample's five neutral photos alone, and ``ONE_PHOTO_DRAWS``
+    jittered copies of it, through ``facestudio new`` + ``fit`` from automatic landmarks (the fit
+    from one photo: the camera placed against the generic head, the depth the generic head's).
+    Per view: ``mesh_mean_mm`` per draw, ``mean``, ``worst``, ``failures`` (no face found, or no
+    fit) and ``generic_mm`` — the generic head itself, scored the same way (the similarity of the
+    same features onto the truth): what a fit from one photo has to beat. Over all views:
+    ``mean``, ``worst``, ``failures``, ``generic_mean_mm`` and ``better_than_generic`` (fits
+    nearer the scan than the generic head of their draw)."""
+    project = load_project(SAMPLE / "james.facestudio.json")
+    rng = np.random.default_rng(11)
+    views, all_means, all_generic, failures, better = [], [], [], 0, 0
+    for p in project.expression("neutral").photos:
+        means, generic, failed = [], [], 0
+        for draw in range(1 + ONE_PHOTO_DRAWS):
+            with tempfile.TemporaryDirectory(prefix="onephoto-") as tmp:
+                photos = Path(tmp) / "photos"
+                photos.mkdir()
+                if draw == 0:
+                    shutil.copy(project.resolve(p.path), photos / Path(p.path).name)
+                else:
+                    _jittered(project.resolve(p.path), photos / Path(p.path).name, rng)
+                path = str(Path(tmp) / "one.facestudio.json")
+                try:
+                    made = run_cli("new", path, "--photos", str(photos))
+                    fit = run_cli("fit", path)["expressions"][0]
+                except RuntimeError as exc:
+                    failed += 1
+                    log(f"one photo {p.id} draw {draw}: failed ({str(exc)[:120]})")
+                    continue
+                out = _scored(path, fit, made, 0.0, 1)
+                means.append(out["mesh_mean_mm"])
+                generic.append(out["generic_mm"])
+                better += out["mesh_mean_mm"] < out["generic_mm"]
+        log(f"one photo {p.id}: {len(means)}/{1 + ONE_PHOTO_DRAWS} fitted, mesh → scan "
+            + ", ".join(f"{m:.2f}" for m in means) + " mm (the generic head "
+            + ", ".join(f"{g:.2f}" for g in generic) + ")")
+        views.append({"photo": p.id, "draws": 1 + ONE_PHOTO_DRAWS, "failures": failed, "mesh_mean_mm": means,
+                      "mean": float(np.mean(means)) if means else -1.0,
+                      "worst": float(np.max(means)) if means else -1.0,
+                      "generic_mm": float(np.mean(generic)) if generic else -1.0})
+        all_means += means
+        all_generic += generic
+        failures += failed
+    return {"one_photo": {
+        "views": views, "mean": float(np.mean(all_means)) if all_means else -1.0,
+        "worst": float(np.max(all_means)) if all_means else -1.0, "failures": failures,
+        "generic_mean_mm": float(np.mean(all_generic)) if all_generic else -1.0,
+        "better_than_generic": int(better),
     }}
 
 
@@ -149,9 +208,13 @@ def _scored(path: str, fit: dict, made: dict, seconds: float, photos: int) -> di
     X = np.array([result.points_3d[n] for n in names])
     s, R, t = similarity_transform(X, truth.true_points(names))
     d = synthetic.surface_distance((vertices @ (s * R).T + t)[mesh.face_mask], scan)
+    # the generic head moved onto the truth by the same features: what the fit improves on
+    vertex = {f.name: f.vertex for f in fitted.features}
+    sg, Rg, tg = similarity_transform(mesh.vertices[[vertex[n] for n in names]], truth.true_points(names))
+    dg = synthetic.surface_distance((mesh.vertices @ (sg * Rg).T + tg)[mesh.face_mask], scan)
     return {"rms_px": float(fit["rms_px"]), "mesh_mean_mm": float(d.mean()), "mesh_p95_mm": float(np.percentile(d, 95)),
             "clicks_auto": int(made["clicks_auto"]), "seconds": seconds,
-            "photos_used": len(result.cameras), "photos": photos}  # fmt: skip
+            "photos_used": len(result.cameras), "photos": photos, "generic_mm": float(dg.mean())}  # fmt: skip
 
 
 def depth_ratio(vertices: np.ndarray, mesh) -> float:

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from photomodel.alignment import align_to_truth, camera_errors, similarity_transform
+from photomodel.camera import rotation_angle_deg
 from photomodel.errors import FitError
 from photomodel.modeling.fit import Cancelled, FitOptions, click_weights, fit_expression, weigh_auto_clicks
 from photomodel.project import load_project
@@ -121,11 +122,52 @@ def test_too_few_clicks_is_a_fit_error(mesh):
         fit_expression(project, "neutral", mesh)
 
 
-def test_one_photo_is_a_fit_error(mesh):
+def _one_photo(photo_id: str):
     project = load_project(PROJECT)
     expr = project.expression("neutral")
-    expr.photos = expr.photos[:1]
-    with pytest.raises(FitError, match="at least 2"):
+    expr.photos = [p for p in expr.photos if p.id == photo_id]
+    return project
+
+
+@pytest.mark.parametrize("photo_id", ["front", "three_quarter_right", "left"])
+def test_one_photo_fits_against_the_generic_head(photo_id, mesh, scan, sample_truth):
+    """One photo (beyond the paper): its camera placed against the generic head with the lens guess,
+    the face's depth the generic head's. Scored against the scan: the camera within 6° of the true
+    one (measured 2.7–5.0° over the five views — the generic head is not james, and the lens guess
+    is 50 mm for lenses of 35–100 mm), the face region nearer the scan than the generic head (2.31
+    mm; measured front 2.14, three-quarters 1.39/1.73, profiles 1.70/2.67 mm: a profile's far
+    side is the generic head's, so its mesh is held below 3.5 mm — without the far side held it
+    came out 6 mm, sheared), and the clicks met (RMS ~0 px: one view has no redundancy)."""
+    result = fit_expression(_one_photo(photo_id), "neutral", mesh)
+    assert "one photo" in result.report["camera_solve"]["start"]
+    assert result.report["rms_px"] < 0.5
+    _, _, _, (s, R, t) = _aligned(result, sample_truth)
+    cam = result.cameras[0]
+    true = sample_truth.cameras["neutral"][photo_id]
+    assert rotation_angle_deg(cam.R @ R.T, true.R) < 6.0
+    face = mesh.face_mask
+    d = surface_distance(result.vertices[face] @ (s * R).T + t, scan).mean()
+    if photo_id == "left":
+        assert d < 3.5
+    else:
+        generic = surface_distance(_generic_aligned(mesh, sample_truth)[face], scan).mean()
+        assert d < generic
+
+
+def _generic_aligned(mesh, truth):
+    """The generic mesh moved onto the truth by the similarity of its feature vertices."""
+    project = load_project(PROJECT)
+    names = [f.name for f in project.features if f.name in truth.features_3d]
+    vertex = {f.name: f.vertex for f in project.features}
+    s, R, t = similarity_transform(mesh.vertices[[vertex[n] for n in names]], truth.true_points(names))
+    return mesh.vertices @ (s * R).T + t
+
+
+def test_one_photo_needs_six_clicks(mesh):
+    project = _one_photo("front")
+    photo = project.expression("neutral").photos[0]
+    photo.points = dict(list(photo.points.items())[:5])
+    with pytest.raises(FitError, match="in the photo"):
         fit_expression(project, "neutral", mesh)
 
 

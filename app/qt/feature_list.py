@@ -189,7 +189,7 @@ class FeaturePanel(QWidget):
                     n = m.click_count(name) if m.expression is not None else 0
                     r = rms.get(name)
                     item = QTreeWidgetItem([name, f"{n}/{k}", "" if r is None else f"{r:.2f}"])
-                    if n < 2:
+                    if n < min(2, k):
                         item.setForeground(1, QBrush(QColor(220, 120, 0)))
                         item.setToolTip(1, "a feature needs clicks in at least two photos")
                     groups["pose" if pose else "other"].addChild(item)
@@ -292,11 +292,13 @@ class FeaturePanel(QWidget):
     def refresh_checklist(self):
         """The fit's checklist, one line per missing feature or photo."""
         self.todo.clear()
-        if self.model.expression is None or len(self.model.photos) < 2:
+        if self.model.expression is None or not self.model.photos:
             return
         items = self.model.checklist()
+        one = len(self.model.photos) == 1
         if not items:
-            done = QListWidgetItem("✓ every pose feature is clicked in 2+ photos")
+            done = QListWidgetItem("✓ enough clicks in the photo (one photo: depth from the generic head)" if one
+                                   else "✓ every pose feature is clicked in 2+ photos")
             done.setFlags(Qt.ItemFlag.ItemIsEnabled)
             done.setForeground(QBrush(QColor(60, 160, 60)))
             self.todo.addItem(done)
@@ -305,7 +307,7 @@ class FeaturePanel(QWidget):
                 text = f"● {it.feature} — {it.photos_clicked}/{it.needed} photos"
                 data = ("feature", it.feature)
             else:
-                text = f"▣ {it.photo} — {it.photos_clicked}/{it.needed} shared clicks"
+                text = f"▣ {it.photo} — {it.photos_clicked}/{it.needed} {'clicks' if one else 'shared clicks'}"
                 data = ("photo", it.photo)
             item = QListWidgetItem(text)
             item.setData(_NAME_ROLE, data)

@@ -1030,8 +1030,8 @@ class MainWindow(QMainWindow):
     # ------------------------------------------------------------------ fitting
     def run_fit(self) -> bool:
         """Fit the current expression from scratch in the worker, with a cancellable progress dialog."""
-        if self.model.expression is None or len(self.model.photos) < 2:
-            self.show_error("Cannot fit", "a fit needs an expression with at least two photos; add photos first")
+        if self.model.expression is None or not self.model.photos:
+            self.show_error("Cannot fit", "a fit needs an expression with a photo; add photos first")
             return False
         if self.fits.busy:
             self.fits.cancel()

@@ -96,7 +96,7 @@ from photomodel.alignment import similarity_transform
 from photomodel.camera import Camera, focal_px_to_mm, rotation_angle_deg
 from photomodel.errors import FitError
 from photomodel.modeling.bundle import BundleProblem
-from photomodel.modeling.pose import MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate, project_all
+from photomodel.modeling.pose import MIN_POINTS, MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate, project_all
 from photomodel.modeling.refine import triangulate
 
 #: BLAS thread control: the polish's matrices are small (≤ ~70 × 70), where a multi-threaded
@@ -140,6 +140,11 @@ FOCAL_MM_RANGE = (6.0, 2000.0)
 #: The start label's part saying that the last resort held the depth (:func:`_generic_depth_attempts`):
 #: the views measure none, so the refinement keeps the pose features' depth too.
 DEPTH_HELD = "generic-head depth prior"
+#: The click noise (px) a fit from one photo assumes: with no second view it cannot be measured.
+#: It sets how far the features may leave the generic head's shape to meet their clicks
+#: (``β = (σ / PRIOR_SIGMA_MM)²``); any value well below the generic head's misfit (10–35 px)
+#: gives nearly the same face.
+ONE_VIEW_CLICK_SIGMA_PX = 1.0
 
 
 @dataclass
@@ -432,6 +437,8 @@ def _solve(observations, initial_cameras, points, groups, fixed_focal, robust, p
     if obs.ndim != 3 or obs.shape[2] != 2:
         raise FitError(f"observations must be an array (photos, features, 2); got shape {obs.shape}")
     k, n, _ = obs.shape
+    if k == 1:
+        return _solve_one_view(obs, initial_cameras, points, prior, names, view_names, weights)
     cams = list(initial_cameras)
     pts0 = np.asarray(points, float)
     vname = [str(v) for v in view_names] if view_names is not None else [f"#{j}" for j in range(k)]
@@ -492,6 +499,54 @@ def _solve(observations, initial_cameras, points, groups, fixed_focal, robust, p
             fcams, final, used, sigma, tag, sweeps, its = found
             return _solution(obs, valid, outside, fidx, fcams, final.m, used, sigma, tag, sweeps, its,
                              vname, pname, weights)
+    raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
+
+
+def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, weights) -> CameraSolution:
+    """One photo (beyond the paper, which needs two or more): its camera and the features placed
+    against the generic head. One view measures where each feature lies across the line of sight,
+    never how deep: the polish of :func:`_polish_generic_depth` runs with the lens guess held
+    (focal length and depth trade freely in one view) and the click noise taken as
+    :data:`ONE_VIEW_CLICK_SIGMA_PX` (no second view to measure it, nor to tell a wrong click from a
+    face unlike the generic head's: least squares, no suspects). The start is labelled with
+    :data:`DEPTH_HELD`, so the fit places the other features at the generic head's depth too."""
+    cams = list(initial_cameras)
+    p0_all = np.asarray(points, float)
+    n = obs.shape[1]
+    vname = [str(v) for v in view_names] if view_names is not None else ["#0"]
+    pname = [str(v) for v in names] if names is not None else [f"#{i}" for i in range(n)]
+    if not prior:
+        raise FitError(f"photo {vname[0]!r} is the only photo: one view needs the generic head's depth (prior)")
+    clicked = np.isfinite(obs).all(2)
+    outside = clicked & _outside(obs, cams)
+    valid = clicked & ~outside
+    fidx = np.flatnonzero(valid[0])
+    if len(fidx) < MIN_POINTS:
+        raise FitError(
+            f"photo {vname[0]!r} is the only photo and has {len(fidx)} click(s) inside it; placing its camera "
+            f"against the generic head needs at least {MIN_POINTS}, not all on one line — click more features"
+        )
+    o, v, p0 = obs[:, fidx], valid[:, fidx], p0_all[fidx]
+    wsub = None if weights is None else np.asarray(weights, float)[:, fidx]
+    grp = np.zeros(1, int)
+    prob = BundleProblem(o, v, np.stack([c.principal_point for c in cams]), grp, False, weights=wsub)
+    reg = _registered(o, v, cams, p0, True)
+    pnp = _pnp_cameras(o, v, p0, cams, grp)
+    starts = [("pnp", pnp)] if pnp is not None else []
+    starts.append(("presets", reg))
+    failures = []
+    for label, start in starts:
+        st = prob.state_from_cameras(start, p0)
+        prob.prior, prob.beta = p0, (ONE_VIEW_CLICK_SIGMA_PX / PRIOR_SIGMA_MM) ** 2
+        with _stiff_depth(prob, st):
+            final, its, _ = prob.solve(st, c=np.inf, max_iter=100, tol=1e-9)
+        fcams = prob.cameras(final, cams)
+        why = plausibility_problem(fcams, final.m, p0, [pname[i] for i in fidx], vname)
+        tag = f"one photo: {label} + {DEPTH_HELD} + lens guess"
+        if why is None:
+            return _solution(obs, valid, outside, fidx, fcams, final.m, v, ONE_VIEW_CLICK_SIGMA_PX, tag, 0, its,
+                             vname, pname)
+        failures.append((tag, why, (fcams, final.m)))
     raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
 
 

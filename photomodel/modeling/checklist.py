@@ -12,6 +12,10 @@ attempt. :func:`click_checklist` lists:
 * every **photo** with fewer than :data:`~photomodel.modeling.pose.MIN_POINTS_PER_VIEW` clicks of
   features that another photo also has (a camera needs that many).
 
+An expression of **one photo** is fitted against the generic head
+(:mod:`photomodel.modeling.camera_solve`): a pose feature is then needed in that photo only, and
+the photo needs :data:`~photomodel.modeling.pose.MIN_POINTS` clicks.
+
 :func:`require_clicks` raises :class:`~photomodel.errors.MissingClicks` carrying the whole list
 when the fit cannot go on. Arrays and dataclasses only; no Qt, no files.
 """
@@ -59,29 +63,36 @@ class ChecklistItem:
         return asdict(self)
 
 
-def _feature_hint(name: str, clicked: list[str], hidden: list[str], others: list[str]) -> str:
+def _feature_hint(name: str, clicked: list[str], hidden: list[str], others: list[str],
+                  needed: int = NEEDED_PHOTOS) -> str:
     where = f"clicked only in {', '.join(map(repr, clicked))}" if clicked else "not clicked yet"
     if hidden:
         where += f", hidden in {', '.join(map(repr, hidden))}"
-    todo = (f"click it in {NEEDED_PHOTOS - len(clicked)} more photo(s) where it shows"
+    todo = (f"click it in {needed - len(clicked)} more photo(s) where it shows"
             + (f" ({', '.join(map(repr, others))})" if clicked and others else ""))
     return f"{where}; {todo}, or leave it out of the pose features (unflag it)"
 
 
+def _needed_photos(photos) -> int:
+    """Photos a feature must be clicked in: :data:`NEEDED_PHOTOS`, or 1 in a fit from one photo."""
+    return min(NEEDED_PHOTOS, max(len(photos), 1))
+
+
 def _feature_items(project, expression_name: str) -> list[ChecklistItem]:
     photos = project.expression(expression_name).photos
+    needed = _needed_photos(photos)
     pose = [f.name for f in project.features if f.pose]
     obs = project.observations(expression_name, pose)
     seen = np.isfinite(obs[..., 0])
     items = []
     for i, name in enumerate(pose):
-        if seen[:, i].sum() >= NEEDED_PHOTOS:
+        if seen[:, i].sum() >= needed:
             continue
         clicked = [p.id for p, s in zip(photos, seen[:, i], strict=True) if s]
         hidden = [p.id for p in photos if name in p.hidden]
         others = [p.id for p in photos if p.id not in clicked and p.id not in hidden]
-        items.append(ChecklistItem(name, None, len(clicked), NEEDED_PHOTOS,
-                                   _feature_hint(name, clicked, hidden, others), clicked, hidden))
+        items.append(ChecklistItem(name, None, len(clicked), needed,
+                                   _feature_hint(name, clicked, hidden, others, needed), clicked, hidden))
     return items
 
 
@@ -89,8 +100,15 @@ def _photo_items(project, expression_name: str, pose_only: bool) -> list[Checkli
     photos = project.expression(expression_name).photos
     names = project.feature_names(pose_only=pose_only)
     seen = np.isfinite(project.observations(expression_name, names)[..., 0])
-    shared = seen & (seen.sum(0) >= NEEDED_PHOTOS)[None]
     which = "pose features" if pose_only else "features"
+    if len(photos) == 1:  # its camera is placed against the generic head
+        n = int(seen[0].sum())
+        if n >= MIN_POINTS:
+            return []
+        return [ChecklistItem(None, photos[0].id, n, MIN_POINTS,
+                              f"the only photo: its camera is placed against the generic head from {MIN_POINTS} "
+                              f"clicks of {which}, not all on one line — click more of them here (or add photos)")]
+    shared = seen & (seen.sum(0) >= NEEDED_PHOTOS)[None]
     items = []
     for photo, n in zip(photos, shared.sum(1), strict=True):
         if n < MIN_POINTS_PER_VIEW:
@@ -132,16 +150,16 @@ def require_clicks(project, expression_name: str, *, pose_only: bool = False) ->
     n_pose = len(project.feature_names(pose_only=True))
     short = [it for it in items if it.feature is not None]
     placed = n_pose - len(short)
+    photos = project.expression(expression_name).photos
     fails = (any(it.photo is not None for it in items)
              or placed < (MIN_POINTS if pose_only else MIN_POSE_FEATURES)
              or (pose_only and short))
     if fails:
-        photos = project.expression(expression_name).photos
         note = None
         if photos and not any(p.points for p in photos):
             where = f" (`facestudio studio {project.path}`)" if project.path is not None else ""
             note = (f"no photo has a click yet — in a project `facestudio new` made, no face was found "
                     f"automatically in any photo: click the features by hand in the studio{where}")
         raise MissingClicks(expression_name, [it.to_dict() for it in items], placed=placed, pose_features=n_pose,
-                            note=note)
+                            note=note, needed_photos=_needed_photos(photos))
     return items

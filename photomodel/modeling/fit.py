@@ -296,14 +296,29 @@ class _CameraStage:
     excluded: np.ndarray | None = None  # (k, features) clicks left out, project.features order
     camera_report: dict = field(default_factory=dict)
     bundle_report: dict | None = None
+    #: one photo: vertices of the features it does not show (the far side of a profile), held
+    #: where the generic head has them after the similarity onto the clicked ones — without
+    #: them the deformation extrapolates from one side (a profile's mesh came out 6 mm from the
+    #: scan, the far side sheared)
+    anchor_idx: np.ndarray | None = None
+    anchor_points: np.ndarray | None = None
+
+    def constraints(self, idx=None, points=None) -> tuple[np.ndarray, np.ndarray]:
+        """The deformation's centres and targets: the pose features', then ``idx`` / ``points``
+        (refinement targets), then the anchors no target replaces."""
+        idx_all = self.pose_idx if idx is None else np.concatenate([self.pose_idx, idx])
+        pts_all = self.pose_points if points is None else np.concatenate([self.pose_points, points])
+        if self.anchor_idx is None:
+            return idx_all, pts_all
+        free = ~np.isin(self.anchor_idx, idx_all)
+        return (np.concatenate([idx_all, self.anchor_idx[free]]),
+                np.concatenate([pts_all, self.anchor_points[free]]))
 
 
 def _check_inputs(project, expr, mesh, curve_mesh) -> tuple[dict, np.ndarray | None]:
     """Feature → vertex map and the curve mesh as an array, or a FitError naming the problem."""
-    if len(expr.photos) < 2:
-        raise FitError(
-            f"expression {expr.name!r} has {len(expr.photos)} photo(s); pose recovery needs at least 2 views"
-        )
+    if not expr.photos:
+        raise FitError(f"expression {expr.name!r} has no photo; add photos of it to fit it")
     n_vertices = len(mesh.vertices)
     if curve_mesh is not None:
         curve_mesh = np.asarray(curve_mesh, dtype=float)
@@ -358,6 +373,12 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
         "needs 2 to be placed" for n in pose_names if not solved[col[n]]
     ]
     pose_names = [n for n in pose_names if solved[col[n]]]
+    if len(photos) == 1:
+        # one photo: every clicked feature was placed against the generic head, the pose features
+        # alone may be a handful on one side (5 in a profile), too few to deform the mesh by;
+        # the detector's unsure points (the outline) no more than in the refinement
+        unsure = _unsure(photos[0])
+        pose_names = [n for n in all_names if solved[col[n]] and n not in unsure]
     if len(pose_names) < 4:
         raise FitError(
             f"only {len(pose_names)} pose feature(s) are clicked in at least 2 photos; the first "
@@ -374,8 +395,13 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
         base, cameras=cameras, points=pose_points, per_point_rms_px=base.per_point_rms_px[pose_cols],
         residuals_px=base.residuals_px[:, pose_cols],
     )
+    anchor_idx = anchor_points = None
+    if len(photos) == 1:
+        anchor_idx = np.array(sorted({feat_vertex[n] for n in all_names} - set(pose_idx.tolist())), dtype=int)
+        sa, Ra, ta = similarity_transform(mesh.vertices[pose_idx], pose_points)
+        anchor_points = mesh.vertices[anchor_idx] @ (sa * Ra).T + ta
     return _CameraStage(
-        cameras, pose, pose_names, pose_idx, pose_points, dropped,
+        cameras, pose, pose_names, pose_idx, pose_points, dropped, anchor_idx=anchor_idx, anchor_points=anchor_points,
         suspects=sol.suspects,
         excluded=~sol.used & np.isfinite(obs_all[..., 0]),
         camera_report={"start": sol.start, "sigma_px": sol.sigma_px, "rms_all_px": sol.rms_all_px,
@@ -429,7 +455,7 @@ def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, 
     obs_extra = project.observations(expression_name, extra_names) if extra else None
     if obs_extra is not None and stage.excluded is not None:  # suspect clicks stay out
         obs_extra[stage.excluded[:, [i for i, f in enumerate(project.features) if not f.pose]]] = np.nan
-    curves = [c for c in project.curves if sum(c.name in p.curves for p in photos) >= 2]
+    curves = [c for c in project.curves if sum(c.name in p.curves for p in photos) >= min(2, len(photos))]
     curve_args = [
         (c.vertices, {k: p.curves[c.name] for k, p in enumerate(photos) if c.name in p.curves}) for c in curves
     ]
@@ -448,11 +474,7 @@ def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, 
             depth_reference=None if axis is None else (base, axis),
         )
         keep = np.array([v not in pose_set for v in targets.vertices.tolist()], dtype=bool)
-        vertices = deform(
-            mesh.vertices,
-            np.concatenate([stage.pose_idx, targets.vertices[keep]]),
-            np.concatenate([stage.pose_points, targets.targets[keep]]),
-        )
+        vertices = deform(mesh.vertices, *stage.constraints(targets.vertices[keep], targets.targets[keep]))
         check_cancel()
     vertex_of = {int(v): i for i, v in enumerate(targets.vertices.tolist())}
     got = [(n, vertex_of[int(v)]) for n, v in zip(extra_names, extra_idx, strict=True)
@@ -530,7 +552,7 @@ def fit_expression(
     check_cancel()
     # 3. scattered-data interpolation from the pose features
     progress("deforming the generic mesh", 0.4)
-    initial_vertices = deform(mesh.vertices, stage.pose_idx, stage.pose_points)
+    initial_vertices = deform(mesh.vertices, *stage.constraints())
     check_cancel()
     # 4. refinement with fixed cameras, on the clicks the detector is sure of
     vertices, names, points_3d, dropped, curve_report = initial_vertices, [], stage.pose_points, [], {}
@@ -616,7 +638,7 @@ def _fit_input(project, expression_name: str, source) -> tuple[object, list[str]
     Returns the project (the original when nothing is left out) and the ids left out."""
     photos = project.expression(expression_name).photos
     left_out = [p.id for p in photos if not p.points] if source is None else []
-    if not left_out or len(photos) - len(left_out) < 2:  # nothing to fit: the checklist says what to click
+    if not left_out or len(photos) == len(left_out):  # nothing to fit: the checklist says what to click
         return project, []
     return _with_photos(project, expression_name, [p for p in photos if p.id not in left_out]), left_out
 
@@ -627,7 +649,7 @@ def _sure_clicks(project, expression_name: str, least: float = MIN_AUTO_CONFIDEN
     many of its clicks were removed."""
     photos, removed, names = [], 0, {}
     for p in project.expression(expression_name).photos:
-        unsure = {n for n, c in p.confidence.items() if p.sources.get(n) == "auto" and c < least}
+        unsure = _unsure(p, least)
         if unsure:
             p = replace(p, points={n: uv for n, uv in p.points.items() if n not in unsure},
                         sources={n: v for n, v in p.sources.items() if n not in unsure},
@@ -637,6 +659,11 @@ def _sure_clicks(project, expression_name: str, least: float = MIN_AUTO_CONFIDEN
                 names[n] = names.get(n, 0) + 1
         photos.append(p)
     return (_with_photos(project, expression_name, photos) if removed else project), removed, names
+
+
+def _unsure(photo, least: float = MIN_AUTO_CONFIDENCE) -> set[str]:
+    """The features of ``photo`` whose automatic click is less sure than ``least``."""
+    return {n for n, c in photo.confidence.items() if photo.sources.get(n) == "auto" and c < least}
 
 
 def _say_why_unsure(dropped: list[str], unsure: dict) -> list[str]:

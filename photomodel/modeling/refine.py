@@ -405,7 +405,8 @@ def place_at_depth(cameras: Sequence[Camera], observations, reference, axis) -> 
     Returns
     -------
     Triangulation
-        points seen in at least 2 photos (no parallax needed), their RMS reprojection error.
+        points seen in at least 2 photos (no parallax needed; with a single photo, in it), their RMS
+        reprojection error.
     """
     obs = _validate_observations(cameras, observations)
     k, n, _ = obs.shape
@@ -424,8 +425,9 @@ def place_at_depth(cameras: Sequence[Camera], observations, reference, axis) -> 
         X = np.where(ok[..., None], cuts, 0.0).sum(axis=0) / ok.sum(axis=0)[:, None]
     uv, Xc = _project_all(R, t, f, pp, X)
     r2 = np.where(seen, ((uv - obs) ** 2).sum(axis=2), 0.0).sum(axis=0)
-    behind = (n_views >= 2) & ~np.all(~seen | (Xc[..., 2] > 0), axis=0)
-    good = (n_views >= 2) & ~behind & np.all(np.isfinite(X), axis=1)
+    enough = n_views >= min(2, k)  # one photo: one click is all there can be
+    behind = enough & ~np.all(~seen | (Xc[..., 2] > 0), axis=0)
+    good = enough & ~behind & np.all(np.isfinite(X), axis=1)
     X[~good] = np.nan
     return Triangulation(
         points=X,
