@@ -135,59 +135,61 @@ def auto_fit_draws_section(args, log) -> dict:
     }}
 
 
-#: Jittered copies per view in ``one_photo`` (besides the photo itself).
-ONE_PHOTO_DRAWS = 2
+#: Yaws (degrees) of the scan's renders in ``one_photo``, besides the sample's five photos.
+ONE_PHOTO_YAWS = (-60.0, -45.0, -30.0, -15.0, 0.0, 15.0, 30.0, 45.0, 60.0)
+
+
+def _one_photo_images():
+    """``(label, write(path))`` of each single photo ``one_photo`` fits: the sample's five neutral
+    photos, then renders of the scan (1000², a 60 mm lens at 700 mm, as the yaw bins) at
+    :data:`ONE_PHOTO_YAWS`."""
+    project = load_project(SAMPLE / "james.facestudio.json")
+    for p in project.expression("neutral").photos:
+        src = Path(project.resolve(p.path))
+        yield p.id, lambda dst, src=src: shutil.copy(src, dst.with_suffix(src.suffix))
+    _, scan, _ = _truth()
+    for yaw in ONE_PHOTO_YAWS:
+        def render(dst, yaw=yaw):
+            cam = orbit_camera(yaw, 1000, 1000, distance_mm=700.0, focal_mm=60.0, target=synthetic.HEAD_CENTRE_MM)
+            color = synthetic.render_scan(cam, scan, background=0.45, supersample=3).color
+            rgb = (np.clip(color, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+            cv2.imwrite(str(dst.with_suffix(".png")), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+        yield f"render yaw {yaw:+.0f}", render
 
 
 def one_photo_section(args, log) -> dict:
-    """``one_photo``: each of the sample's five neutral photos alone, and ``ONE_PHOTO_DRAWS``
-    jittered copies of it, through ``facestudio new`` + ``fit`` from automatic landmarks (the fit
-    from one photo: the camera placed against the generic head, the depth the generic head's).
-    Per view: ``mesh_mean_mm`` per draw, ``mean``, ``worst``, ``failures`` (no face found, or no
-    fit) and ``generic_mm`` — the generic head itself, scored the same way (the similarity of the
-    same features onto the truth): what a fit from one photo has to beat. Over all views:
-    ``mean``, ``worst``, ``failures``, ``generic_mean_mm`` and ``better_than_generic`` (fits
-    nearer the scan than the generic head of their draw)."""
-    project = load_project(SAMPLE / "james.facestudio.json")
-    rng = np.random.default_rng(11)
-    views, all_means, all_generic, failures, better = [], [], [], 0, 0
-    for p in project.expression("neutral").photos:
-        means, generic, failed = [], [], 0
-        for draw in range(1 + ONE_PHOTO_DRAWS):
-            with tempfile.TemporaryDirectory(prefix="onephoto-") as tmp:
-                photos = Path(tmp) / "photos"
-                photos.mkdir()
-                if draw == 0:
-                    shutil.copy(project.resolve(p.path), photos / Path(p.path).name)
-                else:
-                    _jittered(project.resolve(p.path), photos / Path(p.path).name, rng)
-                path = str(Path(tmp) / "one.facestudio.json")
-                try:
-                    made = run_cli("new", path, "--photos", str(photos))
-                    fit = run_cli("fit", path)["expressions"][0]
-                except RuntimeError as exc:
-                    failed += 1
-                    log(f"one photo {p.id} draw {draw}: failed ({str(exc)[:120]})")
-                    continue
-                out = _scored(path, fit, made, 0.0, 1)
-                means.append(out["mesh_mean_mm"])
-                generic.append(out["generic_mm"])
-                better += out["mesh_mean_mm"] < out["generic_mm"]
-        log(f"one photo {p.id}: {len(means)}/{1 + ONE_PHOTO_DRAWS} fitted, mesh → scan "
-            + ", ".join(f"{m:.2f}" for m in means) + " mm (the generic head "
-            + ", ".join(f"{g:.2f}" for g in generic) + ")")
-        views.append({"photo": p.id, "draws": 1 + ONE_PHOTO_DRAWS, "failures": failed, "mesh_mean_mm": means,
-                      "mean": float(np.mean(means)) if means else -1.0,
-                      "worst": float(np.max(means)) if means else -1.0,
-                      "generic_mm": float(np.mean(generic)) if generic else -1.0})
-        all_means += means
-        all_generic += generic
-        failures += failed
+    """``one_photo``: a fit from one photo through ``facestudio new`` + ``fit`` from automatic
+    landmarks (the camera placed against the generic head, the depth the generic head's), for each
+    of :func:`_one_photo_images`. Per photo: ``mesh_mean_mm`` (``-1`` when it failed: no face
+    found, or no fit) and ``generic_mm`` — the generic head itself scored the same way (moved onto
+    the truth by the similarity of the same features): what a fit from one photo should beat.
+    Over all: ``mean``, ``worst``, ``failures``, ``generic_mean_mm`` (over the fitted ones) and
+    ``better_than_generic`` (fits nearer the scan than the generic head)."""
+    rows, means, generic, failures = [], [], [], 0
+    for label, write in _one_photo_images():
+        with tempfile.TemporaryDirectory(prefix="onephoto-") as tmp:
+            photos = Path(tmp) / "photos"
+            photos.mkdir()
+            write(photos / "photo")
+            path = str(Path(tmp) / "one.facestudio.json")
+            try:
+                made = run_cli("new", path, "--photos", str(photos))
+                fit = run_cli("fit", path)["expressions"][0]
+            except RuntimeError as exc:
+                failures += 1
+                rows.append({"photo": label, "mesh_mean_mm": -1.0, "generic_mm": -1.0})
+                log(f"one photo, {label}: failed ({str(exc)[:100]}…)")
+                continue
+            out = _scored(path, fit, made, 0.0, 1)
+        rows.append({"photo": label, "mesh_mean_mm": out["mesh_mean_mm"], "generic_mm": out["generic_mm"]})
+        means.append(out["mesh_mean_mm"])
+        generic.append(out["generic_mm"])
+        log(f"one photo, {label}: mesh → scan {means[-1]:.2f} mm (the generic head {generic[-1]:.2f} mm)")
     return {"one_photo": {
-        "views": views, "mean": float(np.mean(all_means)) if all_means else -1.0,
-        "worst": float(np.max(all_means)) if all_means else -1.0, "failures": failures,
-        "generic_mean_mm": float(np.mean(all_generic)) if all_generic else -1.0,
-        "better_than_generic": int(better),
+        "photos": rows, "mean": float(np.mean(means)) if means else -1.0,
+        "worst": float(np.max(means)) if means else -1.0, "failures": failures,
+        "generic_mean_mm": float(np.mean(generic)) if generic else -1.0,
+        "better_than_generic": int(sum(m < g for m, g in zip(means, generic, strict=True))),
     }}
 
 

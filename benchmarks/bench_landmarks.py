@@ -25,7 +25,8 @@ Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON objec
   ``nme_pct`` is the bin's mean over the renders where a face is found, ``found`` counts
   them; -1 when none is.
 
-* ``auto_fit``, ``auto_fit_draws``, ``one_photo`` and ``real_sample`` — fits from automatic landmarks alone, through the CLI
+* ``auto_fit``, ``auto_fit_draws``, ``one_photo`` and ``real_sample`` — fits from automatic landmarks
+  alone, through the CLI
   (:mod:`benchmarks.autofit`, whose docstring says what they measure).
 
 The mapping's nose line and nostrils were chosen on renders of the same scan at |yaw| ≤ 30°

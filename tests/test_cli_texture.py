@@ -183,3 +183,24 @@ def test_ctrl_c_while_saving_waits_until_everything_is_saved(project_copy, capsy
     tex = load_project(project_copy).expression("neutral").result.texture
     assert tex is not None and (project_copy.parent / tex.exports["glb"]).is_file()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+def test_one_photo_from_a_folder_to_a_textured_face(tmp_path, capsys):
+    """A user with one photo: ``new --photos`` (the real detector), ``fit`` and ``texture``. The
+    camera is placed against the generic head (its depth the face's); the texture is the photo's."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    shutil.copy(SAMPLE / "photos" / "neutral_three_quarter_left.png", photos)
+    project = tmp_path / "me.facestudio.json"
+    assert main(["new", str(project), "--photos", str(photos), "--json"]) == 0
+    capsys.readouterr()
+    assert main(["fit", str(project), "--json"]) == 0
+    fit = json.loads(capsys.readouterr().out)["expressions"][0]
+    assert "one photo" in fit["camera_solve"]["start"]
+    # the clicks the fit used are met: one view has no second ray to disagree with (measured 1.4 px,
+    # the eyelid and lip curves placed on the mesh between the clicks)
+    assert fit["rms_px"] < 3.0
+    assert main(["texture", str(project), "--size", str(SIZE), "--json"]) == 0
+    tex = json.loads(capsys.readouterr().out)["expressions"][0]
+    assert tex["photos"] == ["neutral_three_quarter_left"]
+    assert cv2.imread(str(tmp_path / tex["files"]["texture"])) is not None
