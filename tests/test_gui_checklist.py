@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
-from PySide6.QtCore import Qt  # noqa: E402
+from PySide6.QtCore import QPointF, Qt  # noqa: E402
 
 
 def _without(project_file, feature: str, keep: str) -> None:
@@ -89,3 +89,45 @@ def test_predicted_marker_after_a_fit(qtbot, studio_window, project_copy, messag
     right = studio_window.show_photo("right")
     qtbot.waitUntil(lambda: right.isVisible())
     assert right.predicted_item.isVisible() and right.predicted_item.name == "eye_l_outer"
+
+
+def test_one_photo_checklist_and_fit(qtbot, studio_window, project_copy, messages):
+    """An artist with one photo: the checklist asks for clicks in that photo only, Fit works (the
+    camera placed against the generic head), and the fitted features land on the clicks."""
+    data = json.loads(project_copy.read_text())
+    expr = data["expressions"][0]
+    expr["photos"] = [p for p in expr["photos"] if p["id"] == "three_quarter_left"]
+    data["expressions"] = [expr]
+    photo = expr["photos"][0]
+    kept = dict(list(photo["points"].items())[:5])  # five clicks: one short of a camera
+    rest = {k: v for k, v in photo["points"].items() if k not in kept}
+    photo["points"] = kept
+    project_copy.write_text(json.dumps(data))
+    assert studio_window.open_project(project_copy)
+    studio_window.act_auto.setChecked(False)
+    model, panel = studio_window.model, studio_window.panel
+    assert ("photo", "three_quarter_left") in _todo(panel)
+    assert "5/6 clicks" in "\n".join(panel.todo.item(i).text() for i in range(panel.todo.count()))
+    # the artist clicks ten more features where the sample's clicks put them
+    view = studio_window.show_photo("three_quarter_left")
+    qtbot.waitUntil(lambda: view.isVisible())
+    more = dict(list(rest.items())[:10])
+    for name, uv in more.items():
+        model.set_active_feature(name)
+        pos = view.mapFromScene(QPointF(float(uv[0]), float(uv[1])))
+        qtbot.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, pos=pos)
+        assert name in model.photo("three_quarter_left").points
+    panel.refresh_checklist()
+    # the photo has its clicks; left: the pose features this view hides (far side), which the
+    # fit does without
+    assert all(kind == "feature" for kind, _ in _todo(panel))
+    assert studio_window.run_fit()
+    qtbot.waitUntil(lambda: not studio_window.fits.busy and model.fit() is not None, timeout=60_000)
+    assert not messages, messages
+    assert "one photo" in model.fit().report["camera_solve"]["start"]
+    # a clicked feature's fitted position lands on its click (one view: the clicks are met)
+    name, uv = next(iter(more.items()))
+    model.set_active_feature(name)
+    item = view.predicted_item
+    qtbot.waitUntil(lambda: item.isVisible() and item.name == name)
+    assert np.linalg.norm([item.pos().x() - uv[0], item.pos().y() - uv[1]]) < 2.0
