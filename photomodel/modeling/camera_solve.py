@@ -79,6 +79,8 @@ recovered from. :func:`solve_cameras` keeps the paper's method at its core and a
    and the front camera's lens 34 mm (true 85); weighted 3–4° and 56 mm, and the refined mesh
    2.34 → 2.06 mm from the scan. Without weights (every hand-clicked project)
    nothing changes, to the bit.
+9. **One photo** (:func:`_solve_one_view`): its camera placed against the generic head at the
+   lens guess, the depth the generic head's (docs/modeling.md, "One photo").
 """
 
 from __future__ import annotations

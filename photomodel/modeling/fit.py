@@ -29,6 +29,11 @@ expression's head frame, vertex for vertex comparable with it (what a blend-shap
 §6.1.1, needs). Steps 3–4 are as usual; the cameras stay fixed (no ``bundle_all``).
 :func:`fit_order` sorts expressions so that sources are fitted first.
 
+**One photo** (beyond the paper): steps 1–2 place its camera against the generic head
+(:func:`photomodel.modeling.camera_solve.solve_cameras`), every clicked feature it is sure of
+deforms the mesh at the generic head's depth, and the features the photo does not show are held
+where the generic head has them (:attr:`_CameraStage.anchor_idx`); docs/modeling.md, "One photo".
+
 No file I/O happens here; :func:`photomodel.project.results.store_fit_result` stores a result in a project.
 """
 
