@@ -111,23 +111,18 @@ def auto_fit_draws_section(args, log) -> dict:
     rng = np.random.default_rng(7)
     means, failures = [], 0
     for draw in range(max(0, int(getattr(args, "draws", 8)))):
-        with tempfile.TemporaryDirectory(prefix="autofit-draw-") as tmp:
-            photos = Path(tmp) / "photos"
-            photos.mkdir()
+        def fill(photos):
             for p in expr.photos:
                 _jittered(project.resolve(p.path), photos / Path(p.path).name, rng)
-            path = str(Path(tmp) / "auto.facestudio.json")
-            try:
-                made = run_cli("new", path, "--photos", str(photos))
-                fit = run_cli("fit", path)["expressions"][0]
-            except RuntimeError as exc:
-                failures += 1
-                log(f"auto fit draw {draw}: failed ({exc})")
-                continue
-            out = _scored(path, fit, made, 0.0, len(expr.photos))
-            means.append(out["mesh_mean_mm"])
-            log(f"auto fit draw {draw}: {out['photos_used']}/{out['photos']} photos, mesh → scan "
-                f"{out['mesh_mean_mm']:.2f} mm mean")
+        try:
+            out = _fit_folder(fill, len(expr.photos))
+        except RuntimeError as exc:
+            failures += 1
+            log(f"auto fit draw {draw}: failed ({exc})")
+            continue
+        means.append(out["mesh_mean_mm"])
+        log(f"auto fit draw {draw}: {out['photos_used']}/{out['photos']} photos, mesh → scan "
+            f"{out['mesh_mean_mm']:.2f} mm mean")
     return {"auto_fit_draws": {
         "draws": len(means) + failures, "mesh_mean_mm": means,
         "mean": float(np.mean(means)) if means else -1.0, "worst": float(np.max(means)) if means else -1.0,
@@ -167,20 +162,13 @@ def one_photo_section(args, log) -> dict:
     ``better_than_generic`` (fits nearer the scan than the generic head)."""
     rows, means, generic, failures = [], [], [], 0
     for label, write in _one_photo_images():
-        with tempfile.TemporaryDirectory(prefix="onephoto-") as tmp:
-            photos = Path(tmp) / "photos"
-            photos.mkdir()
-            write(photos / "photo")
-            path = str(Path(tmp) / "one.facestudio.json")
-            try:
-                made = run_cli("new", path, "--photos", str(photos))
-                fit = run_cli("fit", path)["expressions"][0]
-            except RuntimeError as exc:
-                failures += 1
-                rows.append({"photo": label, "mesh_mean_mm": -1.0, "generic_mm": -1.0})
-                log(f"one photo, {label}: failed ({str(exc)[:100]}…)")
-                continue
-            out = _scored(path, fit, made, 0.0, 1)
+        try:
+            out = _fit_folder(lambda photos, write=write: write(photos / "photo"), 1)
+        except RuntimeError as exc:
+            failures += 1
+            rows.append({"photo": label, "mesh_mean_mm": -1.0, "generic_mm": -1.0})
+            log(f"one photo, {label}: failed ({str(exc)[:100]}…)")
+            continue
         rows.append({"photo": label, "mesh_mean_mm": out["mesh_mean_mm"], "generic_mm": out["generic_mm"]})
         means.append(out["mesh_mean_mm"])
         generic.append(out["generic_mm"])
@@ -191,6 +179,19 @@ def one_photo_section(args, log) -> dict:
         "generic_mean_mm": float(np.mean(generic)) if generic else -1.0,
         "better_than_generic": int(sum(m < g for m, g in zip(means, generic, strict=True))),
     }}
+
+
+def _fit_folder(fill, n_photos: int) -> dict:
+    """``facestudio new`` + ``fit`` of the photos ``fill(folder)`` writes into a fresh folder, scored
+    by :func:`_scored`; RuntimeError when either command fails."""
+    with tempfile.TemporaryDirectory(prefix="autofit-") as tmp:
+        photos = Path(tmp) / "photos"
+        photos.mkdir()
+        fill(photos)
+        path = str(Path(tmp) / "auto.facestudio.json")
+        made = run_cli("new", path, "--photos", str(photos))
+        fit = run_cli("fit", path)["expressions"][0]
+        return _scored(path, fit, made, 0.0, n_photos)
 
 
 @cache
