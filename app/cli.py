@@ -73,7 +73,9 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         how = f" (start: {cs['start']}, noise σ̂ {cs['sigma_px']:.2f} px)" if cs else ""
         if len(report.get("views", [])) == 1:
             lines.append(f"  one photo: its camera placed with {b['points']} clicked features against the generic "
-                         f"head, whose depth the face takes (one view cannot measure it){how}")
+                         f"head, whose depth the face takes (one view cannot measure it){how}; automatic clicks "
+                         "move the face off the generic head's shape only as far as the detector is sure of "
+                         "them, so the RMS against them is about its error (drag the ones that are off)")
         else:
             lines.append(f"  cameras placed with all {b['points']} features clicked in 2+ photos: "
                          f"{b['rms_px']:.3f} px{how}")

@@ -197,9 +197,10 @@ def test_one_photo_from_a_folder_to_a_textured_face(tmp_path, capsys):
     assert main(["fit", str(project), "--json"]) == 0
     fit = json.loads(capsys.readouterr().out)["expressions"][0]
     assert "one photo" in fit["camera_solve"]["start"]
-    # the clicks the fit used are met: one view has no second ray to disagree with (measured 1.4 px,
-    # the eyelid and lip curves placed on the mesh between the clicks)
-    assert fit["rms_px"] < 3.0
+    # automatic clicks are less sure (σ 2.7 mm at the face, ~6 px per axis here) than people's faces
+    # differ from the generic head's (1.5 mm): the face keeps near the generic head's shape and the
+    # RMS against the clicks is about the detector's error (measured 11.7 px; 2-D σ ~9–10 px)
+    assert fit["rms_px"] < 20.0
     assert main(["texture", str(project), "--size", str(SIZE), "--json"]) == 0
     tex = json.loads(capsys.readouterr().out)["expressions"][0]
     assert tex["photos"] == ["neutral_three_quarter_left"]

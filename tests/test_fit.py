@@ -133,14 +133,16 @@ def _one_photo(photo_id: str):
 def test_one_photo_fits_against_the_generic_head(photo_id, mesh, scan, sample_truth):
     """One photo (beyond the paper): its camera placed against the generic head with the lens guess,
     the face's depth the generic head's. Scored against the scan: the camera within 6° of the true
-    one (measured 2.7–5.0° over the five views — the generic head is not james, and the lens guess
-    is 50 mm for lenses of 35–100 mm), the face region nearer the scan than the generic head (2.31
-    mm; measured front 2.14, three-quarters 1.39/1.73, profiles 1.70/2.67 mm: a profile's far
-    side is the generic head's, so its mesh is held below 3.5 mm — without the far side held it
-    came out 6 mm, sheared), and the clicks met (RMS ~0 px: one view has no redundancy)."""
+    one (measured 2.8–4.1° over the five views — the generic head is not james, and the lens guess
+    is 50 mm for lenses of 35–100 mm), the face region nearer the scan than the generic head moved
+    there by the same similarity (measured front 2.16 against 2.38 mm, three-quarter right 1.38
+    against 1.49; the left profile's far side is the generic head's, so its mesh is held below
+    3.5 mm — measured 2.77; without the far side held it came out 6 mm, sheared), and the clicks
+    met to within their assumed 1 px noise (RMS 0.43–0.68 px: the face is pulled a little towards
+    the generic head's shape)."""
     result = fit_expression(_one_photo(photo_id), "neutral", mesh)
     assert "one photo" in result.report["camera_solve"]["start"]
-    assert result.report["rms_px"] < 0.5
+    assert result.report["rms_px"] < 1.0
     _, _, _, (s, R, t) = _aligned(result, sample_truth)
     cam = result.cameras[0]
     true = sample_truth.cameras["neutral"][photo_id]
@@ -150,15 +152,14 @@ def test_one_photo_fits_against_the_generic_head(photo_id, mesh, scan, sample_tr
     if photo_id == "left":
         assert d < 3.5
     else:
-        generic = surface_distance(_generic_aligned(mesh, sample_truth)[face], scan).mean()
+        names = [n for n in result.feature_names if n in sample_truth.features_3d]
+        generic = surface_distance(_generic_aligned(mesh, sample_truth, names)[face], scan).mean()
         assert d < generic
 
 
-def _generic_aligned(mesh, truth):
-    """The generic mesh moved onto the truth by the similarity of its feature vertices."""
-    project = load_project(PROJECT)
-    names = [f.name for f in project.features if f.name in truth.features_3d]
-    vertex = {f.name: f.vertex for f in project.features}
+def _generic_aligned(mesh, truth, names):
+    """The generic mesh moved onto the truth by the similarity of the feature vertices ``names``."""
+    vertex = {f.name: f.vertex for f in load_project(PROJECT).features}
     s, R, t = similarity_transform(mesh.vertices[[vertex[n] for n in names]], truth.true_points(names))
     return mesh.vertices @ (s * R).T + t
 

@@ -142,11 +142,20 @@ FOCAL_MM_RANGE = (6.0, 2000.0)
 #: The start label's part saying that the last resort held the depth (:func:`_generic_depth_attempts`):
 #: the views measure none, so the refinement keeps the pose features' depth too.
 DEPTH_HELD = "generic-head depth prior"
-#: The click noise (px) a fit from one photo assumes: with no second view it cannot be measured.
-#: It sets how far the features may leave the generic head's shape to meet their clicks
-#: (``β = (σ / PRIOR_SIGMA_MM)²``); any value well below the generic head's misfit (10–35 px)
-#: gives nearly the same face.
+#: One photo (:func:`_solve_one_view`): an artist's click error per axis (px), the sample's σ
+#: (with no second view it cannot be measured).
 ONE_VIEW_CLICK_SIGMA_PX = 1.0
+#: One photo: how far a person's feature points lie from the mean face's after a similarity, per
+#: axis, across the line of sight and along it (mm) — ICT-FaceKit's 100 identity modes
+#: (``photomodel/rig/ict_facekit.npz``), 400 random identities, its 68 iBUG landmarks aligned
+#: onto its neutral's: RMS 1.39 / 1.58 mm in x / y, 2.14 mm in z. Not measured on the sample.
+PERSON_SIGMA_MM = 1.5
+PERSON_DEPTH_SIGMA_MM = 2.1
+#: One photo: the landmark detector's error per axis at confidence 0.9 (mm at the face): 3 % of
+#: an outer-eye distance of ~90 mm, from its mean error of 4.1–5.7 % over 68 points on nine
+#: faces no benchmark scores (dlib's example photos, docs/landmarks.md; a mean 2-D error is ~1.25
+#: per-axis σ) — not from the sample.
+DETECTOR_SIGMA_MM = 2.7
 
 
 @dataclass
@@ -397,6 +406,7 @@ def solve_cameras(
     names: Sequence[str] | None = None,
     view_names: Sequence[str] | None = None,
     weights: np.ndarray | None = None,
+    confidence: np.ndarray | None = None,
 ) -> CameraSolution:
     """Recover every photo's camera and the features' 3D positions from clicks (see the module).
 
@@ -421,6 +431,9 @@ def solve_cameras(
         noise scale ``σ̂`` and the suspect test are then those of a click of weight 1, on the
         residuals times ``√w`` (see :class:`photomodel.modeling.bundle.BundleProblem`); the starts
         and the reported residuals are unweighted.
+    confidence : (k, n) float or None, with one photo only: the landmark detector's confidence of
+        each automatic click, NaN for the artist's (None: all the artist's); see
+        :func:`_solve_one_view`.
 
     Raises
     ------
@@ -430,6 +443,9 @@ def solve_cameras(
     """
     # a rejected LM step may overflow (a focal length running away); the step is refused, not used
     with _THREADS.limit(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        if np.shape(observations)[0] == 1:
+            return _solve_one_view(np.asarray(observations, float), initial_cameras, points, prior, names,
+                                   view_names, confidence)
         return _solve(observations, initial_cameras, points, groups, fixed_focal, robust, prior, names, view_names,
                       weights)
 
@@ -439,8 +455,6 @@ def _solve(observations, initial_cameras, points, groups, fixed_focal, robust, p
     if obs.ndim != 3 or obs.shape[2] != 2:
         raise FitError(f"observations must be an array (photos, features, 2); got shape {obs.shape}")
     k, n, _ = obs.shape
-    if k == 1:
-        return _solve_one_view(obs, initial_cameras, points, prior, names, view_names, weights)
     cams = list(initial_cameras)
     pts0 = np.asarray(points, float)
     vname = [str(v) for v in view_names] if view_names is not None else [f"#{j}" for j in range(k)]
@@ -504,14 +518,23 @@ def _solve(observations, initial_cameras, points, groups, fixed_focal, robust, p
     raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
 
 
-def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, weights) -> CameraSolution:
+def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, confidence) -> CameraSolution:
     """One photo (beyond the paper, which needs two or more): its camera and the features placed
-    against the generic head. One view measures where each feature lies across the line of sight,
-    never how deep: the polish of :func:`_polish_generic_depth` runs with the lens guess held
-    (focal length and depth trade freely in one view) and the click noise taken as
-    :data:`ONE_VIEW_CLICK_SIGMA_PX` (no second view to measure it, nor to tell a wrong click from a
-    face unlike the generic head's: least squares, no suspects). The start is labelled with
-    :data:`DEPTH_HELD`, so the fit places the other features at the generic head's depth too."""
+    against the generic head, the maximum a posteriori estimate under two independent Gaussians.
+
+    * **The clicks**: an artist's click is off by :data:`ONE_VIEW_CLICK_SIGMA_PX` per axis; an
+      automatic one by :data:`DETECTOR_SIGMA_MM` (at confidence 0.9, inversely proportional to
+      the confidence) times the photo's scale at the face (px per mm, from the start camera).
+    * **The face**: a person's features lie off the generic head's, after a similarity, by
+      :data:`PERSON_SIGMA_MM` across and :data:`PERSON_DEPTH_SIGMA_MM` along the line of sight.
+
+    One view measures where each feature lies across the line of sight, never how deep, so the
+    depth is the generic head's; the focal length is held at the lens guess (one view trades it
+    against depth freely). An artist's clicks (σ 1 px, ~0.4 mm at the face of a 1000-px photo) are
+    nearly met; a detector's (~2.7 mm) barely move the face off the generic head's shape — they
+    are less sure than people differ. Least squares, no suspects: one view cannot tell a wrong
+    click from a face unlike the generic head's. The start is labelled with :data:`DEPTH_HELD`, so
+    the fit places the other features at the generic head's depth too."""
     cams = list(initial_cameras)
     p0_all = np.asarray(points, float)
     n = obs.shape[1]
@@ -529,19 +552,21 @@ def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, weig
             f"against the generic head needs at least {MIN_POINTS}, not all on one line — click more features"
         )
     o, v, p0 = obs[:, fidx], valid[:, fidx], p0_all[fidx]
-    wsub = None if weights is None else np.asarray(weights, float)[:, fidx]
+    conf = None if confidence is None else np.asarray(confidence, float)[:, fidx]
     grp = np.zeros(1, int)
-    prob = BundleProblem(o, v, np.stack([c.principal_point for c in cams]), grp, False, weights=wsub)
     reg = _registered(o, v, cams, p0, True)
     pnp = _pnp_cameras(o, v, p0, cams, grp)
     starts = [("pnp", pnp)] if pnp is not None else []
     starts.append(("presets", reg))
     failures = []
     for label, start in starts:
+        w = _one_view_weights(conf, start[0], p0)
+        prob = BundleProblem(o, v, np.stack([c.principal_point for c in cams]), grp, False, weights=w)
         st = prob.state_from_cameras(start, p0)
-        prob.prior, prob.beta = p0, (ONE_VIEW_CLICK_SIGMA_PX / PRIOR_SIGMA_MM) ** 2
-        with _stiff_depth(prob, st):
-            final, its, _ = prob.solve(st, c=np.inf, max_iter=100, tol=1e-9)
+        prob.prior, prob.beta = p0, (ONE_VIEW_CLICK_SIGMA_PX / PERSON_SIGMA_MM) ** 2
+        prob.depth_axis = st.R[0, 2] / np.linalg.norm(st.R[0, 2])
+        prob.depth_gain = (PERSON_SIGMA_MM / PERSON_DEPTH_SIGMA_MM) ** 2 - 1.0
+        final, its, _ = prob.solve(st, c=np.inf, max_iter=100, tol=1e-9)
         fcams = prob.cameras(final, cams)
         why = plausibility_problem(fcams, final.m, p0, [pname[i] for i in fidx], vname)
         tag = f"one photo: {label} + {DEPTH_HELD} + lens guess"
@@ -550,6 +575,18 @@ def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, weig
                              vname, pname)
         failures.append((tag, why, (fcams, final.m)))
     raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
+
+
+def _one_view_weights(confidence, camera: Camera, points: np.ndarray) -> np.ndarray | None:
+    """(1, n) weights of one photo's clicks (:func:`_solve_one_view`): 1 for the artist's, ``(σ₁ /
+    σ)²`` for an automatic click of σ = :data:`DETECTOR_SIGMA_MM` · 0.9 / confidence mm at the face,
+    in px at the scale ``f / Z`` of ``camera`` at the points' mean depth; None when all are the
+    artist's."""
+    if confidence is None or not np.any(np.isfinite(confidence)):
+        return None
+    px_per_mm = camera.f / float(np.mean(camera.depth(points)))
+    sigma = DETECTOR_SIGMA_MM * 0.9 / np.maximum(confidence, 0.05) * px_per_mm
+    return np.where(np.isfinite(confidence), (ONE_VIEW_CLICK_SIGMA_PX / sigma) ** 2, 1.0)
 
 
 def _generic_depth_attempts(prob, prepared, labels, o, v, p0, robust, cams, fixed_focal, weights, failures, names,

@@ -370,6 +370,7 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
         names=all_names,
         view_names=[p.id for p in photos],
         weights=click_weights(photos, all_names) if weighted else None,
+        confidence=_auto_confidence(photos, all_names) if len(photos) == 1 else None,
     )
     solved = np.isfinite(sol.points[:, 0])
     col = {n: i for i, n in enumerate(all_names)}
@@ -627,6 +628,19 @@ def click_weights(photos, names) -> np.ndarray | None:
             if p.sources.get(n) == "auto" and n in p.confidence:
                 w[j, i] = max(p.confidence[n], 1e-3) ** 2
     return w
+
+
+def _auto_confidence(photos, names) -> np.ndarray | None:
+    """(k, n) the detector's confidence of each automatic click, NaN for the artist's clicks; None
+    when every click is the artist's."""
+    if not any(p.confidence for p in photos):
+        return None
+    out = np.full((len(photos), len(names)), np.nan)
+    for j, p in enumerate(photos):
+        for i, n in enumerate(names):
+            if p.sources.get(n) == "auto" and n in p.confidence:
+                out[j, i] = p.confidence[n]
+    return out
 
 
 def _with_photos(project, expression_name: str, photos):
