@@ -48,7 +48,7 @@ import numpy as np
 from photomodel.alignment import similarity_transform, transform_cameras
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, preset_camera
 from photomodel.errors import FitError, ProjectError
-from photomodel.modeling.camera_solve import DEPTH_HELD, solve_cameras
+from photomodel.modeling.camera_solve import DEPTH_HELD, DETECTOR_SIGMA_MM, PERSON_SIGMA_MM, solve_cameras
 from photomodel.modeling.checklist import require_clicks
 from photomodel.modeling.pose import PoseResult, recover_poses, reprojection_residuals
 from photomodel.modeling.rbf import deform_vertices
@@ -480,7 +480,8 @@ def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, 
             depth_reference=None if axis is None else (base, axis),
         )
         keep = np.array([v not in pose_set for v in targets.vertices.tolist()], dtype=bool)
-        vertices = deform(mesh.vertices, *stage.constraints(targets.vertices[keep], targets.targets[keep]))
+        goals = targets.targets if len(photos) > 1 else _weigh_auto_curves(targets, base, photos[0], curves, extra_idx)
+        vertices = deform(mesh.vertices, *stage.constraints(targets.vertices[keep], goals[keep]))
         check_cancel()
     vertex_of = {int(v): i for i, v in enumerate(targets.vertices.tolist())}
     got = [(n, vertex_of[int(v)]) for n, v in zip(extra_names, extra_idx, strict=True)
@@ -488,6 +489,25 @@ def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, 
     points = np.concatenate([stage.pose_points, targets.targets[[i for _, i in got]].reshape(-1, 3)])
     curve_report = {c.name: {"views": len(d)} for c, (_, d) in zip(curves, curve_args, strict=True)}
     return vertices, [n for n, _ in got], points, list(targets.dropped), curve_report
+
+
+def _weigh_auto_curves(targets, base, photo, curves, point_vertices) -> np.ndarray:
+    """One photo: the targets of the vertices on the detector's curves (the eyelids and lips it
+    draws) moved from where their clicks put them towards ``base`` (the face the pose stage
+    deformed, near the generic head's shape), as the camera solve weighs the detector's clicks:
+    kept by σ²_person / (σ²_person + σ²_detector) (:data:`~photomodel.modeling.camera_solve.PERSON_SIGMA_MM`,
+    :data:`~photomodel.modeling.camera_solve.DETECTOR_SIGMA_MM`). A vertex a clicked feature
+    also targets keeps the click's target."""
+    auto = {int(v) for c in curves if photo.curve_source(c.name) == "auto" for v in c.vertices}
+    auto -= {int(v) for v in np.asarray(point_vertices).tolist()}
+    moved = np.array([int(v) in auto for v in targets.vertices.tolist()], dtype=bool)
+    if not moved.any():
+        return targets.targets
+    kept = PERSON_SIGMA_MM**2 / (PERSON_SIGMA_MM**2 + DETECTOR_SIGMA_MM**2)
+    ref = base[targets.vertices[moved]]
+    out = targets.targets.copy()
+    out[moved] = ref + kept * (out[moved] - ref)
+    return out
 
 
 def fit_expression(
