@@ -431,3 +431,11 @@ def test_one_photo_follows_an_artists_clicks_and_barely_a_detectors(seed):
     assert e_hand < 0.5 * e_gen, (e_hand, e_gen)
     assert 0.65 * e_gen < e_auto < 0.9 * e_gen, (e_auto, e_gen)
     assert hand.rms_px < 2.0  # the artist's clicks are met to about their noise
+
+
+@pytest.mark.parametrize("shape", [(68, 2), (1, 68), (1, 68, 3)])
+def test_observations_of_the_wrong_shape_are_a_fit_error_naming_it(shape):
+    # checked before the one-photo branch too, so a (1, n) slip is named, not an AxisError
+    cams = [preset_camera("front", W, H)]
+    with pytest.raises(FitError, match=r"observations must be an array \(photos, features, 2\)"):
+        solve_cameras(np.zeros(shape), cams, face_points(68, seed=0))

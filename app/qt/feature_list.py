@@ -191,7 +191,8 @@ class FeaturePanel(QWidget):
                     item = QTreeWidgetItem([name, f"{n}/{k}", "" if r is None else f"{r:.2f}"])
                     if n < min(2, k):
                         item.setForeground(1, QBrush(QColor(220, 120, 0)))
-                        item.setToolTip(1, "a feature needs clicks in at least two photos")
+                        item.setToolTip(1, "a feature needs clicks in at least two photos" if k > 1
+                                        else "not clicked in the photo yet")
                     groups["pose" if pose else "other"].addChild(item)
                 else:
                     item = QTreeWidgetItem([name, "", ""])

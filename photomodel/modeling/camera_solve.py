@@ -442,18 +442,16 @@ def solve_cameras(
         collapsed when no start gives a plausible result.
     """
     # a rejected LM step may overflow (a focal length running away); the step is refused, not used
-    with _THREADS.limit(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        if np.shape(observations)[0] == 1:
-            return _solve_one_view(np.asarray(observations, float), initial_cameras, points, prior, names,
-                                   view_names, confidence)
-        return _solve(observations, initial_cameras, points, groups, fixed_focal, robust, prior, names, view_names,
-                      weights)
-
-
-def _solve(observations, initial_cameras, points, groups, fixed_focal, robust, prior, names, view_names, weights):
     obs = np.asarray(observations, dtype=float)
     if obs.ndim != 3 or obs.shape[2] != 2:
         raise FitError(f"observations must be an array (photos, features, 2); got shape {obs.shape}")
+    with _THREADS.limit(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        if obs.shape[0] == 1:
+            return _solve_one_view(obs, initial_cameras, points, prior, names, view_names, confidence)
+        return _solve(obs, initial_cameras, points, groups, fixed_focal, robust, prior, names, view_names, weights)
+
+
+def _solve(obs, initial_cameras, points, groups, fixed_focal, robust, prior, names, view_names, weights):
     k, n, _ = obs.shape
     cams = list(initial_cameras)
     pts0 = np.asarray(points, float)

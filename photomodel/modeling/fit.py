@@ -376,7 +376,7 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
     col = {n: i for i, n in enumerate(all_names)}
     dropped = [
         f"pose feature {n!r}: clicked in {int(np.isfinite(obs_all[:, col[n], 0]).sum())} photo(s), "
-        "needs 2 to be placed" for n in pose_names if not solved[col[n]]
+        f"needs {min(2, len(photos))} to be placed" for n in pose_names if not solved[col[n]]
     ]
     pose_names = [n for n in pose_names if solved[col[n]]]
     if len(photos) == 1:
@@ -640,14 +640,10 @@ def click_weights(photos, names) -> np.ndarray | None:
     """(k, n) weight of each click in the camera solve: 1 for the artist's clicks, the square of
     the detector's confidence for an automatic click (its standard deviation taken as inversely
     proportional to the confidence); None when every click is the artist's (no weighting)."""
-    if not any(p.confidence for p in photos):
+    conf = _auto_confidence(photos, names)
+    if conf is None:
         return None
-    w = np.ones((len(photos), len(names)))
-    for j, p in enumerate(photos):
-        for i, n in enumerate(names):
-            if p.sources.get(n) == "auto" and n in p.confidence:
-                w[j, i] = max(p.confidence[n], 1e-3) ** 2
-    return w
+    return np.where(np.isfinite(conf), np.maximum(conf, 1e-3) ** 2, 1.0)
 
 
 def _auto_confidence(photos, names) -> np.ndarray | None:
