@@ -230,7 +230,8 @@ def cmd_fit(args) -> int:
     try:
         results = []
         for i, name in enumerate(names):
-            options = FitOptions(refine=not args.no_refine, weigh_auto_clicks=args.weigh_auto_clicks)
+            options = FitOptions(refine=not args.no_refine, weigh_auto_clicks=args.weigh_auto_clicks,
+                                 person_prior=not args.no_person_prior)
 
             def stage(label, frac, i=i, name=name):  # which expression, and the whole run's fraction
                 progress(f"{name} ({i + 1}/{len(names)}): {label}", (i + frac) / len(names))
@@ -541,6 +542,10 @@ def build_parser() -> argparse.ArgumentParser:
                             "front and a three-quarter view; near-frontal video frames do better without)")
     weigh.add_argument("--no-weigh-auto-clicks", dest="weigh_auto_clicks", action="store_const", const=False,
                        help="never weigh automatic clicks (every click counts alike)")
+    f.add_argument("--no-person-prior", action="store_true",
+                   help="fit weighed automatic clicks as they are instead of the most probable face under the "
+                        "person prior (with several photos; one photo always uses it): the mesh then follows "
+                        "the detector's error")
     f.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     f.add_argument("--dry-run", action="store_true", help="report only; do not write into the project")
     f.set_defaults(func=cmd_fit)

@@ -12,7 +12,15 @@
   (:attr:`photomodel.modeling.fit.FitOptions.weigh_auto_clicks`); ``auto_fit_weighted``: the same
   project fitted again with ``facestudio fit --weigh-auto-clicks`` (always weighed: here the same
   as the default), ``auto_fit_unweighted`` with ``--no-weigh-auto-clicks`` (every click alike);
-  their ``seconds`` are the fit's.
+  their ``seconds`` are the fit's. ``auto_fit_no_prior``: weighed but fitted as they are
+  (``facestudio fit --no-person-prior``), the peer of the default's most probable face under the
+  person prior (:func:`photomodel.modeling.camera_solve._map_estimate`), in the same run.
+* ``auto_fit_rigs`` — beyond the sample's five photos: renders of the scan (as ``one_photo``'s)
+  from other sets of views, :data:`RIGS` (2 to 4 views, 30–120° apart), each fitted from
+  automatic landmarks with and without the person prior and scored against the generic head
+  moved onto the truth by the same features: per rig ``yaws``, ``mesh_mean_mm``,
+  ``no_prior_mm``, ``generic_mm`` (-1 where the fit failed); over all ``mean``, ``no_prior_mean``,
+  ``generic_mean``, ``worst``, ``failures`` and ``better_than_generic``.
 * ``auto_fit_draws`` — the same, over ``--draws`` jittered copies of the five photos (each photo
   scaled 0.92–1.08, turned ±4°, shifted ±30 px, edges replicated; seed 7, so the draws are the
   same every run): ``mesh_mean_mm`` per draw, their ``mean`` and ``worst``; ``failures``: draws
@@ -79,7 +87,8 @@ def auto_fit_section(args, log) -> dict:
         made = run_cli("new", path, "--photos", str(photos))
         sections = {}
         for key, flags in (("auto_fit", ()), ("auto_fit_weighted", ("--weigh-auto-clicks",)),
-                           ("auto_fit_unweighted", ("--no-weigh-auto-clicks",))):
+                           ("auto_fit_unweighted", ("--no-weigh-auto-clicks",)),
+                           ("auto_fit_no_prior", ("--no-person-prior",))):
             t1 = time.perf_counter()
             fit = run_cli("fit", path, *flags)["expressions"][0]
             seconds = (t1 - t0 if key == "auto_fit" else 0.0) + time.perf_counter() - t1  # new + fit
@@ -88,6 +97,51 @@ def auto_fit_section(args, log) -> dict:
                 f"{out['clicks_auto']} automatic clicks, RMS {out['rms_px']:.2f} px, mesh → scan "
                 f"{out['mesh_mean_mm']:.2f} mm mean (p95 {out['mesh_p95_mm']:.2f}), {seconds:.1f} s")
     return sections
+
+
+#: ``auto_fit_rigs``' sets of views (yaw, degrees) of the scan.
+RIGS = ((-30.0, 0.0, 30.0), (-45.0, 0.0, 45.0), (-60.0, -20.0, 20.0, 60.0), (0.0, 30.0, 60.0),
+        (-60.0, -30.0, 0.0), (-15.0, 15.0), (-40.0, -10.0, 20.0, 50.0), (-45.0, 45.0))
+
+
+def auto_fit_rigs_section(args, log) -> dict:
+    rows = []
+    for yaws in RIGS:
+        def fill(photos, yaws=yaws):
+            for i, yaw in enumerate(yaws):
+                cv2.imwrite(str(photos / f"view{i}.png"), _scan_render(yaw))
+        row = {"yaws": list(yaws), "mesh_mean_mm": -1.0, "no_prior_mm": -1.0, "generic_mm": -1.0}
+        for key, flags in (("mesh_mean_mm", ()), ("no_prior_mm", ("--no-person-prior",))):
+            try:
+                out = _fit_folder(fill, len(yaws), flags)
+            except RuntimeError as exc:
+                log(f"rig {yaws}{' ' + flags[0] if flags else ''}: failed ({str(exc)[:100]}…)")
+                continue
+            row[key] = out["mesh_mean_mm"]
+            row["generic_mm"] = out["generic_mm"]
+        rows.append(row)
+        log(f"rig {yaws}: mesh → scan {row['mesh_mean_mm']:.2f} mm (no prior {row['no_prior_mm']:.2f}, "
+            f"the generic head {row['generic_mm']:.2f})")
+    ok = [r for r in rows if r["mesh_mean_mm"] >= 0 and r["no_prior_mm"] >= 0]
+
+    def mean(key):
+        return float(np.mean([r[key] for r in ok])) if ok else -1.0
+
+    return {"auto_fit_rigs": {
+        "rigs": rows, "mean": mean("mesh_mean_mm"), "no_prior_mean": mean("no_prior_mm"),
+        "generic_mean": mean("generic_mm"), "worst": float(max((r["mesh_mean_mm"] for r in ok), default=-1.0)),
+        "failures": sum(r["mesh_mean_mm"] < 0 for r in rows),
+        "better_than_generic": int(sum(r["mesh_mean_mm"] < r["generic_mm"] for r in ok)),
+    }}
+
+
+def _scan_render(yaw: float) -> np.ndarray:
+    """BGR render of the scan at ``yaw`` (1000², a 60 mm lens at 700 mm, as the yaw bins)."""
+    _, scan, _ = _truth()
+    cam = orbit_camera(yaw, 1000, 1000, distance_mm=700.0, focal_mm=60.0, target=synthetic.HEAD_CENTRE_MM)
+    color = synthetic.render_scan(cam, scan, background=0.45, supersample=3).color
+    rgb = (np.clip(color, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    return cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
 
 
 #: The auto fit's bar (mm, refined mesh to the scan): ``over_bar`` counts the draws above it.
@@ -142,13 +196,9 @@ def _one_photo_images():
     for p in project.expression("neutral").photos:
         src = Path(project.resolve(p.path))
         yield p.id, lambda dst, src=src: shutil.copy(src, dst.with_suffix(src.suffix))
-    _, scan, _ = _truth()
     for yaw in ONE_PHOTO_YAWS:
         def render(dst, yaw=yaw):
-            cam = orbit_camera(yaw, 1000, 1000, distance_mm=700.0, focal_mm=60.0, target=synthetic.HEAD_CENTRE_MM)
-            color = synthetic.render_scan(cam, scan, background=0.45, supersample=3).color
-            rgb = (np.clip(color, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-            cv2.imwrite(str(dst.with_suffix(".png")), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+            cv2.imwrite(str(dst.with_suffix(".png")), _scan_render(yaw))
         yield f"render yaw {yaw:+.0f}", render
 
 
@@ -181,7 +231,7 @@ def one_photo_section(args, log) -> dict:
     }}
 
 
-def _fit_folder(fill, n_photos: int) -> dict:
+def _fit_folder(fill, n_photos: int, flags=()) -> dict:
     """``facestudio new`` + ``fit`` of the photos ``fill(folder)`` writes into a fresh folder, scored
     by :func:`_scored`; RuntimeError when either command fails."""
     with tempfile.TemporaryDirectory(prefix="autofit-") as tmp:
@@ -190,7 +240,7 @@ def _fit_folder(fill, n_photos: int) -> dict:
         fill(photos)
         path = str(Path(tmp) / "auto.facestudio.json")
         made = run_cli("new", path, "--photos", str(photos))
-        fit = run_cli("fit", path)["expressions"][0]
+        fit = run_cli("fit", path, *flags)["expressions"][0]
         return _scored(path, fit, made, 0.0, n_photos)
 
 

@@ -25,7 +25,7 @@ Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON objec
   ``nme_pct`` is the bin's mean over the renders where a face is found, ``found`` counts
   them; -1 when none is.
 
-* ``auto_fit``, ``auto_fit_draws``, ``one_photo`` and ``real_sample`` — fits from automatic landmarks
+* ``auto_fit``, ``auto_fit_draws``, ``auto_fit_rigs``, ``one_photo`` and ``real_sample`` — fits from automatic landmarks
   alone, through the CLI
   (:mod:`benchmarks.autofit`, whose docstring says what they measure).
 
@@ -41,6 +41,7 @@ import time
 import numpy as np
 from autofit import (  # the fit sections (benchmarks/autofit.py)
     auto_fit_draws_section,
+    auto_fit_rigs_section,
     auto_fit_section,
     one_photo_section,
     real_sample_section,
@@ -148,7 +149,8 @@ def yaw_section(args, log) -> dict:
 
 #: Benchmark sections in order; each takes ``(args, log)`` and returns the keys it adds.
 SECTIONS = {"menpo": menpo_section, "yaw_bins": yaw_section, "auto_fit": auto_fit_section,
-            "auto_fit_draws": auto_fit_draws_section, "one_photo": one_photo_section,
+            "auto_fit_draws": auto_fit_draws_section, "auto_fit_rigs": auto_fit_rigs_section,
+            "one_photo": one_photo_section,
             "real_sample": real_sample_section}
 
 
