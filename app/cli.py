@@ -537,9 +537,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--no-refine", action="store_true", help="stop after pose recovery + RBF (no refinement)")
     weigh = f.add_mutually_exclusive_group()
     weigh.add_argument("--weigh-auto-clicks", dest="weigh_auto_clicks", action="store_const", const=True,
-                       help="weigh automatic clicks by the detector's confidence squared in the camera solve "
-                            "(default: when the photos with automatic clicks are of views ≥ 40° apart, e.g. a "
-                            "front and a three-quarter view; near-frontal video frames do better without)")
+                       help="weigh automatic clicks by the detector's confidence squared in the camera solve, "
+                            "and fit the most probable face under the person prior (default: when the photos "
+                            "with automatic clicks are of views ≥ 40° apart, e.g. a front and a three-quarter "
+                            "view; near-frontal video frames keep the clicks' RMS lower without)")
     weigh.add_argument("--no-weigh-auto-clicks", dest="weigh_auto_clicks", action="store_const", const=False,
                        help="never weigh automatic clicks (every click counts alike)")
     f.add_argument("--no-person-prior", action="store_true",

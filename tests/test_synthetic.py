@@ -19,13 +19,26 @@ SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
 # How far regenerated 3D ground truth may be from the committed ground_truth.json. Not the file's
 # rounding (1e-4 mm): the generator (closest points, smoothing, projection onto the scan) runs
-# through numpy/scipy/trimesh, and other versions of those libraries move its output by ~0.01 mm
-# (0.0096 mm seen; 5e-6 mm with the versions in constraints.txt). The truth exists to score fits:
-# their 3D feature errors are ~0.3 mm (1 px of click noise ≈ 0.3 mm; measured median 0.30 mm) and
-# their bounds 1–2 mm. 0.05 mm is 5x that library drift and 6x below the smallest error the truth
-# scores, so regeneration noise cannot change a score, while a real change of the generator is
-# still caught (e.g. skipping the final projection onto the scan moves points by 0.1–0.2 mm).
-GROUND_TRUTH_TOL_MM = 0.05
+# through numpy/scipy/trimesh, and other versions of those libraries, or another CPU's SIMD paths
+# with the same versions, move its output: 0.0096 mm seen with other versions, 5e-6 mm with the
+# versions in constraints.txt on the CPU that wrote the file, and on a CPU with AVX-512 (same
+# versions, 2026-12-02) up to 0.066 mm on 4 of the 168 features (a closest point near a triangle
+# edge of the scan), the median 5e-6 mm. The truth exists to score fits: their 3D feature errors
+# are ~0.3 mm (1 px of click noise ≈ 0.3 mm; measured median 0.30 mm) and their bounds 1–2 mm. So
+# a feature may move by 0.1 mm (3x below the smallest error the truth scores) and the median by
+# 0.01 mm, while a real change of the generator is still caught (e.g. skipping the final
+# projection onto the scan moves every point by 0.1–0.2 mm: the median).
+GROUND_TRUTH_TOL_MM = 0.1
+GROUND_TRUTH_MEDIAN_TOL_MM = 0.01
+
+
+def assert_truth_current(stored: dict, regenerated: np.ndarray, features) -> None:
+    """The committed 3D features ``stored`` (name → xyz) against ``regenerated`` (vertex rows)
+    within the tolerances above."""
+    d = np.array([np.linalg.norm(np.asarray(stored[f.name]) - regenerated[f.vertex]) for f in features])
+    worst = features[int(np.argmax(d))].name
+    assert d.max() <= GROUND_TRUTH_TOL_MM, f"{worst} moved {d.max():.4f} mm"
+    assert np.median(d) <= GROUND_TRUTH_MEDIAN_TOL_MM, f"the features moved {np.median(d):.4f} mm (median)"
 
 
 @pytest.fixture(scope="module")
@@ -284,8 +297,7 @@ def test_sample_ground_truth_is_current(sample, mesh, scan, truth):
         assert synthetic.preset_for(cam) == pid
         np.testing.assert_allclose(ref.R, cam.R, atol=1e-12)
         np.testing.assert_allclose(ref.t, cam.t, atol=1e-9)
-    for f in project.features:
-        np.testing.assert_allclose(gt["features_3d"][f.name], truth[f.vertex], atol=GROUND_TRUTH_TOL_MM)
+    assert_truth_current(gt["features_3d"], truth, project.features)
     # every expression: the same rig, and the features where the expression field moves them
     geometry = true_expression_geometry(mesh, scan, ("neutral", *EXPRESSIONS))
     for k, expression in enumerate(("neutral", *EXPRESSIONS)):
@@ -293,8 +305,7 @@ def test_sample_ground_truth_is_current(sample, mesh, scan, truth):
         for cam, (pid, p) in zip(synthetic.rig("sample"), g["photos"].items(), strict=True):
             assert synthetic.preset_for(cam) == pid
             np.testing.assert_allclose(Camera.from_dict(p["camera"]).R, cam.R, atol=1e-12)
-        for f in project.features:
-            np.testing.assert_allclose(g["features_3d"][f.name], geometry[k, f.vertex], atol=GROUND_TRUTH_TOL_MM)
+        assert_truth_current(g["features_3d"], geometry[k], project.features)
 
 
 @pytest.mark.parametrize("expression", ["neutral", "open_mouth"])

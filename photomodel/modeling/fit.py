@@ -102,7 +102,8 @@ class FitOptions:
     #: lose. With the automatic eyelid and lip curves (2026-12) the same: the sample 2.10 → 1.76 mm
     #: (8 jittered draws 2.18 → 1.89 mean, every draw better), the real clip's tracking 3.98 →
     #: 4.07 px, jitter 0.41° → 0.48°. ``facestudio fit --weigh-auto-clicks`` /
-    #: ``--no-weigh-auto-clicks`` overrule the rule.
+    #: ``--no-weigh-auto-clicks`` overrule the rule. Weighed, the answer is also the most probable
+    #: face under the person prior (:attr:`person_prior`).
     weigh_auto_clicks: bool | None = None
     #: Where the automatic clicks are weighed (and always with one photo), the answer is the most
     #: probable face under the person prior: the camera solve's
