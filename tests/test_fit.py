@@ -16,6 +16,7 @@ import pytest
 from photomodel.alignment import align_to_truth, camera_errors, similarity_transform
 from photomodel.camera import rotation_angle_deg
 from photomodel.errors import FitError
+from photomodel.modeling.camera_solve import DETECTOR_SIGMA_MM, PERSON_PRIOR
 from photomodel.modeling.fit import Cancelled, FitOptions, click_weights, fit_expression, weigh_auto_clicks
 from photomodel.project import load_project
 from photomodel.samples.synthetic import surface_distance, true_correspondence
@@ -263,3 +264,41 @@ def test_weighing_automatic_clicks_keeps_biased_unsure_ones_from_pulling_the_cam
         true = [sample_truth.cameras["neutral"][pid] for pid in result.photo_ids]
         errors[weigh] = camera_errors(cams, true)["rot_err_deg"].mean()
     assert errors[True] < errors[False], errors
+
+
+def test_a_detectors_clicks_give_the_most_probable_face_not_its_error(mesh, scan, sample_truth):
+    # A simulated detector on the sample's photos: every click is the true feature's projection
+    # after a 3-D offset drawn once per feature (σ 2.7 mm per axis, camera_solve.DETECTOR_SIGMA_MM:
+    # the same in every view, as a detector's convention is), marked automatic at confidence 0.9.
+    # Fitted as they are (FitOptions.person_prior=False) the offsets become the face's shape; the
+    # most probable face under the person prior (the default where the clicks are weighed, as in
+    # these views 35–70° apart) keeps about 60 % of them. Measured, refined mesh to the scan over
+    # seeds 0–4: 1.17–1.54 mm (mean 1.35) with the prior, 1.48–1.68 mm (mean 1.56) without; the
+    # one seed where they tie (1.54 / 1.53) is why the test takes the mean. (The sample's 168
+    # features average much of the offsets away: with the detector's 68 points on the real photos
+    # the prior gives 1.31 against 1.69 mm, bench_landmarks.py auto_fit.)
+    face = mesh.face_mask
+    scores = {True: [], False: []}
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        offsets = {}
+
+        def detected(rng=rng, offsets=offsets):
+            project = load_project(PROJECT)
+            for p in project.expression("neutral").photos:
+                cam = sample_truth.cameras["neutral"][p.id]
+                for name in list(p.points):
+                    if name not in offsets:
+                        offsets[name] = rng.normal(0.0, DETECTOR_SIGMA_MM, 3)
+                    uv = cam.project((sample_truth.true_points([name])[0] + offsets[name])[None])[0]
+                    p.set_click(name, uv, source="auto", confidence=0.9)
+            return project
+
+        for prior in (True, False):
+            result = fit_expression(detected(), "neutral", mesh, FitOptions(person_prior=prior))
+            assert (PERSON_PRIOR in result.report["camera_solve"]["start"]) is prior
+            _, _, _, (s, R, t) = _aligned(result, sample_truth)
+            scores[prior].append(surface_distance(result.vertices[face] @ (s * R).T + t, scan).mean())
+    with_prior, without = np.mean(scores[True]), np.mean(scores[False])
+    assert with_prior < 0.93 * without, scores
+    assert max(np.subtract(scores[True], scores[False])) < 0.1, scores  # never clearly worse
