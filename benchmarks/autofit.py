@@ -18,9 +18,11 @@
 * ``auto_fit_rigs`` — beyond the sample's five photos: renders of the scan (as ``one_photo``'s)
   from other sets of views, :data:`RIGS` (2 to 4 views, 30–120° apart), each fitted from
   automatic landmarks with and without the person prior and scored against the generic head
-  moved onto the truth by the same features: per rig ``yaws``, ``mesh_mean_mm``,
-  ``no_prior_mm``, ``generic_mm`` (-1 where the fit failed); over all ``mean``, ``no_prior_mean``,
-  ``generic_mean``, ``worst``, ``failures`` and ``better_than_generic``.
+  moved onto the truth by the same features: per rig ``yaws``, ``photos_used``, ``mesh_mean_mm``,
+  ``no_prior_mm``, ``generic_mm``, and the worst fitted camera's rotation error
+  ``camera_worst_deg`` / ``no_prior_camera_worst_deg`` (-1 where the fit failed); over all
+  ``mean``, ``no_prior_mean``, ``generic_mean``, ``worst``, ``camera_worst_deg`` (the largest of
+  any rig), ``failures`` and ``better_than_generic``.
 * ``auto_fit_draws`` — the same, over ``--draws`` jittered copies of the five photos (each photo
   scaled 0.92–1.08, turned ±4°, shifted ±30 px, edges replicated; seed 7, so the draws are the
   same every run): ``mesh_mean_mm`` per draw, their ``mean`` and ``worst``; ``failures``: draws
@@ -49,7 +51,7 @@ import cv2
 import numpy as np
 
 from app.cli import main as facestudio
-from photomodel.alignment import similarity_transform
+from photomodel.alignment import align_to_truth, camera_errors, similarity_transform
 from photomodel.camera import orbit_camera
 from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.generic_mesh import load_generic_mesh
@@ -101,7 +103,8 @@ def auto_fit_section(args, log) -> dict:
 
 #: ``auto_fit_rigs``' sets of views (yaw, degrees) of the scan.
 RIGS = ((-30.0, 0.0, 30.0), (-45.0, 0.0, 45.0), (-60.0, -20.0, 20.0, 60.0), (0.0, 30.0, 60.0),
-        (-60.0, -30.0, 0.0), (-15.0, 15.0), (-40.0, -10.0, 20.0, 50.0), (-45.0, 45.0))
+        (-60.0, -30.0, 0.0), (-15.0, 15.0), (-40.0, -10.0, 20.0, 50.0), (-45.0, 45.0),
+        (-70.0, -35.0, 0.0, 35.0, 70.0))
 
 
 def auto_fit_rigs_section(args, log) -> dict:
@@ -110,18 +113,23 @@ def auto_fit_rigs_section(args, log) -> dict:
         def fill(photos, yaws=yaws):
             for i, yaw in enumerate(yaws):
                 cv2.imwrite(str(photos / f"view{i}.png"), _scan_render(yaw))
-        row = {"yaws": list(yaws), "mesh_mean_mm": -1.0, "no_prior_mm": -1.0, "generic_mm": -1.0}
-        for key, flags in (("mesh_mean_mm", ()), ("no_prior_mm", ("--no-person-prior",))):
+        row = {"yaws": list(yaws), "mesh_mean_mm": -1.0, "no_prior_mm": -1.0, "generic_mm": -1.0,
+               "photos_used": 0, "camera_worst_deg": -1.0, "no_prior_camera_worst_deg": -1.0}
+        true = {f"view{i}": _scan_camera(yaw) for i, yaw in enumerate(yaws)}
+        for key, flags in (("", ()), ("no_prior_", ("--no-person-prior",))):
             try:
-                out = _fit_folder(fill, len(yaws), flags)
+                out = _fit_folder(fill, len(yaws), flags, true)
             except RuntimeError as exc:
                 log(f"rig {yaws}{' ' + flags[0] if flags else ''}: failed ({str(exc)[:100]}…)")
                 continue
-            row[key] = out["mesh_mean_mm"]
+            row["no_prior_mm" if key else "mesh_mean_mm"] = out["mesh_mean_mm"]
+            row[key + "camera_worst_deg"] = out["camera_worst_deg"]
             row["generic_mm"] = out["generic_mm"]
+            row["photos_used"] = row["photos_used"] or out["photos_used"]
         rows.append(row)
-        log(f"rig {yaws}: mesh → scan {row['mesh_mean_mm']:.2f} mm (no prior {row['no_prior_mm']:.2f}, "
-            f"the generic head {row['generic_mm']:.2f})")
+        log(f"rig {yaws}: {row['photos_used']} photos used, mesh → scan {row['mesh_mean_mm']:.2f} mm, worst camera "
+            f"{row['camera_worst_deg']:.1f}° off (no prior {row['no_prior_mm']:.2f} mm, "
+            f"{row['no_prior_camera_worst_deg']:.1f}°; the generic head {row['generic_mm']:.2f} mm)")
     ok = [r for r in rows if r["mesh_mean_mm"] >= 0 and r["no_prior_mm"] >= 0]
 
     def mean(key):
@@ -130,15 +138,21 @@ def auto_fit_rigs_section(args, log) -> dict:
     return {"auto_fit_rigs": {
         "rigs": rows, "mean": mean("mesh_mean_mm"), "no_prior_mean": mean("no_prior_mm"),
         "generic_mean": mean("generic_mm"), "worst": float(max((r["mesh_mean_mm"] for r in ok), default=-1.0)),
+        "camera_worst_deg": float(max((r["camera_worst_deg"] for r in ok), default=-1.0)),
         "failures": sum(r["mesh_mean_mm"] < 0 for r in rows),
         "better_than_generic": int(sum(r["mesh_mean_mm"] < r["generic_mm"] for r in ok)),
     }}
 
 
+def _scan_camera(yaw: float):
+    """The camera of :func:`_scan_render` at ``yaw``."""
+    return orbit_camera(yaw, 1000, 1000, distance_mm=700.0, focal_mm=60.0, target=synthetic.HEAD_CENTRE_MM)
+
+
 def _scan_render(yaw: float) -> np.ndarray:
     """BGR render of the scan at ``yaw`` (1000², a 60 mm lens at 700 mm, as the yaw bins)."""
     _, scan, _ = _truth()
-    cam = orbit_camera(yaw, 1000, 1000, distance_mm=700.0, focal_mm=60.0, target=synthetic.HEAD_CENTRE_MM)
+    cam = _scan_camera(yaw)
     color = synthetic.render_scan(cam, scan, background=0.45, supersample=3).color
     rgb = (np.clip(color, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
     return cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
@@ -231,7 +245,7 @@ def one_photo_section(args, log) -> dict:
     }}
 
 
-def _fit_folder(fill, n_photos: int, flags=()) -> dict:
+def _fit_folder(fill, n_photos: int, flags=(), true_cameras=None) -> dict:
     """``facestudio new`` + ``fit`` of the photos ``fill(folder)`` writes into a fresh folder, scored
     by :func:`_scored`; RuntimeError when either command fails."""
     with tempfile.TemporaryDirectory(prefix="autofit-") as tmp:
@@ -241,7 +255,7 @@ def _fit_folder(fill, n_photos: int, flags=()) -> dict:
         path = str(Path(tmp) / "auto.facestudio.json")
         made = run_cli("new", path, "--photos", str(photos))
         fit = run_cli("fit", path, *flags)["expressions"][0]
-        return _scored(path, fit, made, 0.0, n_photos)
+        return _scored(path, fit, made, 0.0, n_photos, true_cameras)
 
 
 @cache
@@ -250,9 +264,11 @@ def _truth():
     return load_generic_mesh(), load_james_scan(), synthetic.load_ground_truth(SAMPLE / "ground_truth.json")
 
 
-def _scored(path: str, fit: dict, made: dict, seconds: float, photos: int) -> dict:
+def _scored(path: str, fit: dict, made: dict, seconds: float, photos: int, true_cameras=None) -> dict:
     """The auto fit's figures (module docstring) of the fitted project at ``path`` against the
-    sample's ground truth (``fit``, ``made``: the fit's and ``new``'s JSON)."""
+    sample's ground truth (``fit``, ``made``: the fit's and ``new``'s JSON); with ``true_cameras``
+    (photo id → Camera) also ``camera_worst_deg``, the largest rotation error of a fitted camera
+    after the similarity that maps the fit's 3-D features onto their true positions."""
     fitted = load_project(path)
     result = fitted.expression("neutral").result
     vertices = read_mesh(fitted.resolve(result.mesh_obj))[0]
@@ -265,7 +281,13 @@ def _scored(path: str, fit: dict, made: dict, seconds: float, photos: int) -> di
     vertex = {f.name: f.vertex for f in fitted.features}
     sg, Rg, tg = similarity_transform(mesh.vertices[[vertex[n] for n in names]], truth.true_points(names))
     dg = synthetic.surface_distance((mesh.vertices @ (sg * Rg).T + tg)[mesh.face_mask], scan)
-    return {"rms_px": float(fit["rms_px"]), "mesh_mean_mm": float(d.mean()), "mesh_p95_mm": float(np.percentile(d, 95)),
+    out = {}
+    if true_cameras is not None:
+        ids = list(result.cameras)
+        cams, _ = align_to_truth([result.cameras[i] for i in ids], X, truth.true_points(names))
+        out["camera_worst_deg"] = float(camera_errors(cams, [true_cameras[i] for i in ids])["rot_err_deg"].max())
+    return out | {"rms_px": float(fit["rms_px"]), "mesh_mean_mm": float(d.mean()),
+            "mesh_p95_mm": float(np.percentile(d, 95)),
             "clicks_auto": int(made["clicks_auto"]), "seconds": seconds,
             "photos_used": len(result.cameras), "photos": photos, "generic_mm": float(dg.mean())}  # fmt: skip
 
