@@ -16,7 +16,7 @@
   (``facestudio fit --no-person-prior``), the peer of the default's most probable face under the
   person prior (:func:`photomodel.modeling.camera_solve._map_estimate`), in the same run.
 * ``auto_fit_rigs`` — beyond the sample's five photos: renders of the scan (as ``one_photo``'s)
-  from other sets of views, :data:`RIGS` (2 to 4 views, 30–120° apart), each fitted from
+  from other sets of views, :data:`RIGS` (2 to 5 views, 30–140° apart), each fitted from
   automatic landmarks with and without the person prior and scored against the generic head
   moved onto the truth by the same features: per rig ``yaws``, ``photos_used``, ``mesh_mean_mm``,
   ``no_prior_mm``, ``generic_mm``, and the worst fitted camera's rotation error

@@ -475,3 +475,15 @@ def test_several_photos_of_a_detector_give_the_most_probable_face(seed):
     assert error(probable.points) < 2.0  # below the 1.75 mm bound plus the seeds' spread
     assert np.array_equal(by_hand.points, alone.points, equal_nan=True)
     assert probable.suspects == alone.suspects  # a click the prior keeps off is not a wrong click
+
+
+def test_a_feature_clicked_in_one_photo_is_not_a_suspect():
+    # it takes no part (no second view to place it): not solved, not a wrong click — the studio
+    # listed such clicks as "0.0 px suspects" before (2026-12-02)
+    rig = make_rig(TRUTH, AZ5, seed=0)
+    obs = rig.observations.copy()
+    seen = np.flatnonzero(np.isfinite(obs[:, 30, 0]))
+    obs[seen[1:], 30] = np.nan  # feature 30 now clicked in one photo only
+    sol = solve_cameras(obs, rig.init_cameras, GENERIC, names=FEATURES, view_names=VIEWS5)
+    assert np.isnan(sol.points[30]).all()
+    assert FEATURES[30] not in {s["feature"] for s in sol.suspects}

@@ -131,3 +131,26 @@ def test_one_photo_checklist_and_fit(qtbot, studio_window, project_copy, message
     item = view.predicted_item
     qtbot.waitUntil(lambda: item.isVisible() and item.name == name)
     assert np.linalg.norm([item.pos().x() - uv[0], item.pos().y() - uv[1]]) < 2.0
+
+
+def test_a_profile_left_out_of_the_fit_is_named_in_the_panel(qtbot, studio_window, project_copy, messages):
+    # the detector's clicks in a profile (fit._without_profile_detections) are not fitted while
+    # other photos place the cameras: the panel names the photo and why, and activating the line
+    # shows that photo, where the artist drags them
+    data = json.loads(project_copy.read_text())
+    left = next(p for p in data["expressions"][0]["photos"] if p["id"] == "left")
+    left["click_sources"] = {n: {"source": "auto", "confidence": 0.9} for n in left["points"]}
+    data["version"] = max(data.get("version", 1), 3)
+    project_copy.write_text(json.dumps(data))
+    assert studio_window.open_project(project_copy)
+    studio_window.act_auto.setChecked(False)
+    model, panel = studio_window.model, studio_window.panel
+    assert studio_window.run_fit()
+    qtbot.waitUntil(lambda: not studio_window.fits.busy and model.fit() is not None, timeout=60_000)
+    assert not messages, messages
+    assert "left" not in model.fit().cameras
+    lines = [panel.worst.item(i) for i in range(panel.worst.count())]
+    named = [it for it in lines if it.text().startswith("⚠ left: left out of the fit")]
+    assert len(named) == 1 and "a profile" in named[0].toolTip()
+    panel.worst.itemActivated.emit(named[0])
+    qtbot.waitUntil(lambda: getattr(studio_window.current_view(), "photo_id", None) == "left")

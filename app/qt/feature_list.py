@@ -20,6 +20,8 @@
 
 from __future__ import annotations
 
+import re
+
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import (
@@ -387,6 +389,16 @@ class FeaturePanel(QWidget):
                             "Drag it to the right place (or hide it) and refit.")
             self.worst.addItem(item)
             suspect.add((c["photo"], c["feature"]))
+        for why in rep.get("dropped") or []:
+            # a photo the fit left out (no face found, a profile's automatic clicks): says why
+            photo = re.match(r"photo '([^']+)': ", why)
+            if photo is None:
+                continue
+            item = QListWidgetItem(f"⚠ {photo.group(1)}: left out of the fit (no camera)")
+            item.setData(_NAME_ROLE, (photo.group(1), ""))
+            item.setForeground(QBrush(QColor(200, 120, 0)))
+            item.setToolTip(why[photo.end():])
+            self.worst.addItem(item)
         for px, pid, name in self.model.worst_clicks(25):
             if (pid, name) in suspect:
                 continue
