@@ -50,5 +50,11 @@ def test_auto_clicks_shown_dragged_undone_refit(qtbot, studio_window, project_co
     assert studio_window.run_fit()
     qtbot.waitUntil(lambda: not studio_window.fits.busy and model.fit() is not None, timeout=60_000)
     assert not messages, messages
+    # views 45-90° apart: the most probable face under the person prior, and the panel says why
+    # its RMS is the detector's; the profiles' automatic clicks are left out, each photo named
+    panel = studio_window.panel
+    assert "the most probable face" in panel.summary.text()
+    lines = [panel.worst.item(i).text() for i in range(panel.worst.count())]
+    assert {"⚠ left: left out of the fit (no camera)", "⚠ right: left out of the fit (no camera)"} <= set(lines)
     model.set_active_feature("chin")
     assert view.predicted_item.isVisible()

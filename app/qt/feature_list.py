@@ -41,6 +41,7 @@ from PySide6.QtWidgets import (
 from app.model import StudioModel
 from app.qt.commands import SetHiddenCommand, SetPoseCommand
 from app.qt.photo_view import residual_color
+from photomodel.modeling.camera_solve import PERSON_PRIOR
 
 _NAME_ROLE = Qt.ItemDataRole.UserRole
 
@@ -373,8 +374,11 @@ class FeaturePanel(QWidget):
             return
         rep = fit.report
         when = "" if fit.elapsed_s is None else f" in {fit.elapsed_s * 1000:.0f} ms"
+        prior = PERSON_PRIOR in str((rep.get("camera_solve") or {}).get("start", ""))
         self.summary.setText(f"reprojection RMS <b>{rep.get('rms_px', float('nan')):.2f} px</b> "
-                             f"(pose features {rep.get('pose', {}).get('rms_px', float('nan')):.2f} px){when}")
+                             f"(pose features {rep.get('pose', {}).get('rms_px', float('nan')):.2f} px){when}"
+                             + ("<br>the most probable face: automatic clicks count as far as the detector is "
+                                "sure of them, so the RMS against them is about its error" if prior else ""))
         for v in rep.get("views", []):
             rms = "–" if v.get("rms_px") is None else f"{v['rms_px']:.2f}"
             item = QTreeWidgetItem([v["photo"], rms, str(v.get("points", "")), f"{v.get('focal_mm', 0):.0f} mm"])
