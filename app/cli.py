@@ -37,8 +37,7 @@ from app.progress import StageProgress
 from app.rig_command import add_rig_parsers
 from photomodel.errors import FaceStudioError, MissingClicks, ProjectError
 from photomodel.landmarks import place_landmarks
-from photomodel.modeling.camera_solve import PERSON_PRIOR
-from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
+from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, uses_person_prior
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.intake import add_photos, default_features, new_project_from_photos, photo_files
 from photomodel.photos.reading import PHOTO_SUFFIXES
@@ -61,6 +60,11 @@ def _progress_bar(enabled: bool, task: str):
     return progress, progress
 
 
+#: What a fit under the person prior does with automatic clicks (one photo, or weighed ones).
+_PRIOR_NOTE = ("automatic clicks move the face off the generic head's shape only as far as the detector is sure "
+               "of them, so the RMS against them is about its error")
+
+
 def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
     lines = [
         f"expression {expr_name!r}: reprojection RMS {report['rms_px']:.3f} px "
@@ -74,17 +78,14 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         how = f" (start: {cs['start']}, noise σ̂ {cs['sigma_px']:.2f} px)" if cs else ""
         if len(report.get("views", [])) == 1:
             lines.append(f"  one photo: its camera placed with {b['points']} clicked features against the generic "
-                         f"head, whose depth the face takes (one view cannot measure it){how}; automatic clicks "
-                         "move the face off the generic head's shape only as far as the detector is sure of "
-                         "them, so the RMS against them is about its error (drag the ones that are off)")
+                         f"head, whose depth the face takes (one view cannot measure it){how}; {_PRIOR_NOTE} "
+                         "(drag the ones that are off)")
         else:
             lines.append(f"  cameras placed with all {b['points']} features clicked in 2+ photos: "
                          f"{b['rms_px']:.3f} px{how}")
-            if PERSON_PRIOR in str(cs.get("start", "")):
-                lines.append("  the most probable face under the person prior: automatic clicks move the face off the "
-                             "generic head's shape only as far as the detector is sure of them, so the RMS against "
-                             "them is about its error (drag the ones that are off; --no-person-prior fits them as "
-                             "they are)")
+            if uses_person_prior(cs):
+                lines.append(f"  the most probable face under the person prior: {_PRIOR_NOTE} (drag the ones that "
+                             "are off; --no-person-prior fits them as they are)")
     suspects = report.get("suspect_clicks") or []
     if suspects:
         lines.append(f"  suspect clicks ({len(suspects)}, left out of the fit; check them):")

@@ -149,8 +149,10 @@ def _scan_camera(yaw: float):
     return orbit_camera(yaw, 1000, 1000, distance_mm=700.0, focal_mm=60.0, target=synthetic.HEAD_CENTRE_MM)
 
 
+@cache
 def _scan_render(yaw: float) -> np.ndarray:
-    """BGR render of the scan at ``yaw`` (1000², a 60 mm lens at 700 mm, as the yaw bins)."""
+    """BGR render of the scan at ``yaw`` (1000², a 60 mm lens at 700 mm, as the yaw bins); each yaw
+    rendered once a run (a rig is fitted twice, and rigs share views). Read-only."""
     _, scan, _ = _truth()
     cam = _scan_camera(yaw)
     color = synthetic.render_scan(cam, scan, background=0.45, supersample=3).color

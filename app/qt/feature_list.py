@@ -20,8 +20,6 @@
 
 from __future__ import annotations
 
-import re
-
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import (
@@ -41,7 +39,7 @@ from PySide6.QtWidgets import (
 from app.model import StudioModel
 from app.qt.commands import SetHiddenCommand, SetPoseCommand
 from app.qt.photo_view import residual_color
-from photomodel.modeling.camera_solve import PERSON_PRIOR
+from photomodel.modeling.fit import uses_person_prior
 
 _NAME_ROLE = Qt.ItemDataRole.UserRole
 
@@ -374,7 +372,7 @@ class FeaturePanel(QWidget):
             return
         rep = fit.report
         when = "" if fit.elapsed_s is None else f" in {fit.elapsed_s * 1000:.0f} ms"
-        prior = PERSON_PRIOR in str((rep.get("camera_solve") or {}).get("start", ""))
+        prior = uses_person_prior(rep.get("camera_solve"))
         self.summary.setText(f"reprojection RMS <b>{rep.get('rms_px', float('nan')):.2f} px</b> "
                              f"(pose features {rep.get('pose', {}).get('rms_px', float('nan')):.2f} px){when}"
                              + ("<br>the most probable face: automatic clicks count as far as the detector is "
@@ -393,15 +391,12 @@ class FeaturePanel(QWidget):
                             "Drag it to the right place (or hide it) and refit.")
             self.worst.addItem(item)
             suspect.add((c["photo"], c["feature"]))
-        for why in rep.get("dropped") or []:
+        for photo_id, why in (rep.get("photos_left_out") or {}).items():
             # a photo the fit left out (no face found, a profile's automatic clicks): says why
-            photo = re.match(r"photo '([^']+)': ", why)
-            if photo is None:
-                continue
-            item = QListWidgetItem(f"⚠ {photo.group(1)}: left out of the fit (no camera)")
-            item.setData(_NAME_ROLE, (photo.group(1), ""))
+            item = QListWidgetItem(f"⚠ {photo_id}: left out of the fit (no camera)")
+            item.setData(_NAME_ROLE, (photo_id, ""))
             item.setForeground(QBrush(QColor(200, 120, 0)))
-            item.setToolTip(why[photo.end():])
+            item.setToolTip(why)
             self.worst.addItem(item)
         for px, pid, name in self.model.worst_clicks(25):
             if (pid, name) in suspect:

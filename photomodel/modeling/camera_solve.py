@@ -463,12 +463,9 @@ def _solve(obs, initial_cameras, points, groups, fixed_focal, robust, prior, nam
     k, n, _ = obs.shape
     cams = list(initial_cameras)
     pts0 = np.asarray(points, float)
-    vname = [str(v) for v in view_names] if view_names is not None else [f"#{j}" for j in range(k)]
-    pname = [str(v) for v in names] if names is not None else [f"#{i}" for i in range(n)]
-    grp = np.arange(k) if groups is None else np.unique(np.asarray(groups), return_inverse=True)[1].reshape(k)
-    clicked = np.isfinite(obs).all(2)
-    outside = clicked & _outside(obs, cams)
-    valid = clicked & ~outside
+    vname, pname = _labels(view_names, names, k, n)
+    grp = _group_index(groups, k)
+    clicked, outside, valid = _clicks_inside(obs, cams)
     use_pt = valid.sum(0) >= 2
     _check_views(valid, use_pt, clicked, vname)
     fidx = np.flatnonzero(use_pt)
@@ -543,14 +540,10 @@ def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, conf
     the fit places the other features at the generic head's depth too."""
     cams = list(initial_cameras)
     p0_all = np.asarray(points, float)
-    n = obs.shape[1]
-    vname = [str(v) for v in view_names] if view_names is not None else ["#0"]
-    pname = [str(v) for v in names] if names is not None else [f"#{i}" for i in range(n)]
+    vname, pname = _labels(view_names, names, *obs.shape[:2])
     if not prior:
         raise FitError(f"photo {vname[0]!r} is the only photo: one view needs the generic head's depth (prior)")
-    clicked = np.isfinite(obs).all(2)
-    outside = clicked & _outside(obs, cams)
-    valid = clicked & ~outside
+    _, outside, valid = _clicks_inside(obs, cams)
     fidx = np.flatnonzero(valid[0])
     if len(fidx) < MIN_POINTS:
         raise FitError(
@@ -566,7 +559,7 @@ def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, conf
     starts.append(("presets", reg))
     failures = []
     for label, start in starts:
-        w = _one_view_weights(conf, start[0], p0)
+        w = _detector_weights(conf, start[0], p0)
         prob = BundleProblem(o, v, np.stack([c.principal_point for c in cams]), grp, False, weights=w)
         st = prob.state_from_cameras(start, p0)
         _person_prior(prob, p0, st.R[0, 2])
@@ -595,7 +588,7 @@ def _map_estimate(obs, sol: CameraSolution, initial_cameras, points, groups, fix
                   view_names) -> CameraSolution:
     """Several photos with automatic clicks (*beyond the paper*): from the solve's answer ``sol``,
     the most probable face and cameras under the same two Gaussians as :func:`_solve_one_view` —
-    each automatic click off by the detector's error (:func:`_one_view_weights`, per photo at its
+    each automatic click off by the detector's error (:func:`_detector_weights`, per photo at its
     scale), the artist's by :data:`ONE_VIEW_CLICK_SIGMA_PX`, the face off the generic head's by
     :data:`PERSON_SIGMA_MM` / :data:`PERSON_DEPTH_SIGMA_MM` (depth: the generic head's front axis,
     +z). Over the clicks the solve used (its suspects stay out), least squares, the focal lengths
@@ -623,33 +616,50 @@ def _map_estimate(obs, sol: CameraSolution, initial_cameras, points, groups, fix
     m0 = sol.points[fidx]
     w = np.ones(used.shape)
     for j, cam in enumerate(sol.cameras):
-        wj = _one_view_weights(conf[j:j + 1], cam, m0)
+        wj = _detector_weights(conf[j:j + 1], cam, m0)
         if wj is not None:
             w[j] = wj[0]
-    grp = np.arange(k) if groups is None else np.unique(np.asarray(groups), return_inverse=True)[1].reshape(k)
-    prob = BundleProblem(o, used, np.stack([c.principal_point for c in cams]), grp, not fixed_focal, weights=w)
+    prob = BundleProblem(o, used, np.stack([c.principal_point for c in cams]), _group_index(groups, k),
+                         not fixed_focal, weights=w)
     st = prob.state_from_cameras(sol.cameras, m0)
     _, R, _ = similarity_transform(m0, p0)
     _person_prior(prob, p0, R.T @ np.array([0.0, 0.0, 1.0]))
     final, its, _ = prob.solve(st, c=np.inf, max_iter=100, tol=1e-9)
     fcams = prob.cameras(final, cams)
-    vname = [str(x) for x in view_names] if view_names is not None else [f"#{j}" for j in range(k)]
-    pname = [str(x) for x in names] if names is not None else [f"#{i}" for i in range(n)]
+    vname, pname = _labels(view_names, names, k, n)
     if plausibility_problem(fcams, final.m, p0, [pname[i] for i in fidx], vname) is not None:
         return sol
-    clicked = np.isfinite(obs).all(2)
-    outside = clicked & _outside(obs, cams)
-    out = _solution(obs, clicked & ~outside, outside, fidx, fcams, final.m, used, sol.sigma_px,
+    _, outside, valid = _clicks_inside(obs, cams)
+    out = _solution(obs, valid, outside, fidx, fcams, final.m, used, sol.sigma_px,
                     f"{sol.start} + {PERSON_PRIOR}", sol.sweeps, sol.iterations + its, vname, pname)
     # the suspects are the solve's: a click the prior keeps off is not a wrong click
     return replace(out, suspects=sol.suspects)
 
 
-def _one_view_weights(confidence, camera: Camera, points: np.ndarray) -> np.ndarray | None:
-    """(1, n) weights of one photo's clicks (:func:`_solve_one_view`): 1 for the artist's, ``(σ₁ /
-    σ)²`` for an automatic click of σ = :data:`DETECTOR_SIGMA_MM` · 0.9 / confidence mm at the face,
-    in px at the scale ``f / Z`` of ``camera`` at the points' mean depth; None when all are the
-    artist's."""
+def _labels(view_names, names, k: int, n: int) -> tuple[list[str], list[str]]:
+    """Photo and feature names for messages (``#j`` / ``#i`` where none are given)."""
+    vname = [str(v) for v in view_names] if view_names is not None else [f"#{j}" for j in range(k)]
+    pname = [str(v) for v in names] if names is not None else [f"#{i}" for i in range(n)]
+    return vname, pname
+
+
+def _group_index(groups, k: int) -> np.ndarray:
+    """(k,) camera-group index 0..G-1 of each photo (default: a group each)."""
+    return np.arange(k) if groups is None else np.unique(np.asarray(groups), return_inverse=True)[1].reshape(k)
+
+
+def _clicks_inside(obs, cams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(k, n) bool each: clicked, clicked outside its photo, and clicked inside it (valid)."""
+    clicked = np.isfinite(obs).all(2)
+    outside = clicked & _outside(obs, cams)
+    return clicked, outside, clicked & ~outside
+
+
+def _detector_weights(confidence, camera: Camera, points: np.ndarray) -> np.ndarray | None:
+    """(1, n) weights of one photo's clicks (:func:`_solve_one_view`, :func:`_map_estimate`): 1 for
+    the artist's, ``(σ₁ / σ)²`` for an automatic click of σ = :data:`DETECTOR_SIGMA_MM` · 0.9 /
+    confidence mm at the face, in px at the scale ``f / Z`` of ``camera`` at the points' mean
+    depth; None when all are the artist's."""
     if confidence is None or not np.any(np.isfinite(confidence)):
         return None
     px_per_mm = camera.f / float(np.mean(camera.depth(points)))

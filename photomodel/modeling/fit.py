@@ -482,7 +482,7 @@ def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, 
     ]
     pose_set = set(stage.pose_idx.tolist())
     axis = _depth_unmeasured(stage)
-    prior = len(photos) == 1 or PERSON_PRIOR in str(stage.camera_report.get("start", ""))
+    prior = len(photos) == 1 or uses_person_prior(stage.camera_report)
     base = vertices  # the pose features' deformation: its depth where the views measure none
     n_passes = max(1, opt.curve_passes if curves else 1)
     for n_pass in range(n_passes):
@@ -622,12 +622,12 @@ def fit_expression(
     names = list(stage.pose_names) + names
     photo_ids = [p.id for p in expr.photos]
     report = build_report(photo_ids, stage.cameras, stage.pose, project, expression_name, names, points_3d)
+    photos_left_out = {i: "no click (no face found?), left out of the fit" for i in left_out} | {
+        i: "a profile, whose automatic clicks place its camera tens of degrees off (the detector sees a profile "
+           "turned less than it is); they are left out — click or drag them by hand to fit it" for i in profiles}
     report.update(
-        dropped=[f"photo {i!r}: no click (no face found?), left out of the fit" for i in left_out]
-        + [f"photo {i!r}: a profile, whose automatic clicks place its camera tens of degrees off (the "
-           "detector sees a profile turned less than it is); they are left out — click or drag them by hand "
-           "to fit it" for i in profiles]
-        + stage.dropped + dropped, bundle=stage.bundle_report, suspect_clicks=stage.suspects,
+        dropped=[f"photo {i!r}: {why}" for i, why in photos_left_out.items()] + stage.dropped + dropped,
+        photos_left_out=photos_left_out, bundle=stage.bundle_report, suspect_clicks=stage.suspects,
         camera_solve=stage.camera_report, curves=curve_report, cameras_from=source,
         auto_clicks_left_out=unsure,
     )
@@ -658,6 +658,12 @@ MIN_AUTO_CONFIDENCE = 0.5
 #: 7–9° too near the front); frames of footage near the front (presets all "front") see nearly
 #: the same silhouette, which there holds the depth.
 WEIGH_FROM_SPREAD_DEG = 40.0
+
+
+def uses_person_prior(camera_solve: dict | None) -> bool:
+    """Whether a fit's camera solve (``report["camera_solve"]``) found the most probable face under
+    the person prior (its start label says so, :data:`~photomodel.modeling.camera_solve.PERSON_PRIOR`)."""
+    return PERSON_PRIOR in str((camera_solve or {}).get("start", ""))
 
 
 def weigh_auto_clicks(photos, option: bool | None = None) -> bool:
@@ -711,12 +717,9 @@ def _fit_input(project, expression_name: str, source) -> tuple[object, list[str]
         return project, [], []
     kept, profiles = _without_profile_detections(photos)
     left_out = [p.id for p in kept if not p.points and p.id not in profiles]
-    if len(kept) == len([p for p in kept if not p.points]):  # nothing to fit: the checklist says what to click
-        return project, [], []
-    if not left_out and not profiles:
-        return project, [], []
-    fitted = [p for p in kept if p.points]
-    return _with_photos(project, expression_name, fitted), left_out, profiles
+    if not any(p.points for p in kept) or not (left_out or profiles):  # nothing to fit: the checklist says
+        return project, [], []                                            # what to click; or nothing changed
+    return _with_photos(project, expression_name, [p for p in kept if p.points]), left_out, profiles
 
 
 #: Presets of a profile. The landmark detector sees a profile as a face turned about 55° (its yaw
@@ -741,14 +744,20 @@ def _without_profile_detections(photos) -> tuple[list, list[str]]:
         auto = set(p.auto_clicks())
         auto_curves = {c for c in p.curves if p.curve_source(c) == "auto"}
         if p.preset in PROFILE_PRESETS and (auto or auto_curves):
-            p = replace(p, points={n: uv for n, uv in p.points.items() if n not in auto},
-                        sources={n: v for n, v in p.sources.items() if n not in auto},
-                        confidence={n: c for n, c in p.confidence.items() if n not in auto},
-                        curves={c: line for c, line in p.curves.items() if c not in auto_curves},
-                        curve_sources={c: v for c, v in p.curve_sources.items() if c not in auto_curves})
+            p = _photo_without(p, auto, auto_curves)
             profiles.append(p.id)
         out.append(p)
     return out, profiles
+
+
+def _photo_without(photo, clicks, curves=()):
+    """A copy of ``photo`` without the clicks of the features ``clicks`` (with their sources and
+    confidences) and the curves ``curves``; the project's photo is left as it is."""
+    return replace(photo, points={n: uv for n, uv in photo.points.items() if n not in clicks},
+                   sources={n: v for n, v in photo.sources.items() if n not in clicks},
+                   confidence={n: c for n, c in photo.confidence.items() if n not in clicks},
+                   curves={c: line for c, line in photo.curves.items() if c not in curves},
+                   curve_sources={c: v for c, v in photo.curve_sources.items() if c not in curves})
 
 
 def _sure_clicks(project, expression_name: str, least: float = MIN_AUTO_CONFIDENCE) -> tuple[object, int, dict]:
@@ -759,9 +768,7 @@ def _sure_clicks(project, expression_name: str, least: float = MIN_AUTO_CONFIDEN
     for p in project.expression(expression_name).photos:
         unsure = _unsure(p, least)
         if unsure:
-            p = replace(p, points={n: uv for n, uv in p.points.items() if n not in unsure},
-                        sources={n: v for n, v in p.sources.items() if n not in unsure},
-                        confidence={n: c for n, c in p.confidence.items() if n not in unsure})
+            p = _photo_without(p, unsure)
             removed += len(unsure)
             for n in unsure:
                 names[n] = names.get(n, 0) + 1
