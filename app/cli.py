@@ -1,7 +1,7 @@
 """The ``facestudio`` command.
 
-    facestudio new PROJECT --photos DIR [--expression neutral] [--camera-group NAME]
-                   [--features-from PROJECT] [--json]
+    facestudio new PROJECT (--photos DIR | --video CLIP [--stills 5] [--stills-dir DIR])
+                   [--expression neutral] [--camera-group NAME] [--features-from PROJECT] [--json]
     facestudio add-photos PROJECT --photos PATH... [--expression neutral] [--camera-group NAME] [--json]
     facestudio fit PROJECT [--expression NAME] [--no-refine] [--json] [--dry-run]
     facestudio texture PROJECT [--expression NAME] [--size 1024] [--json]
@@ -46,6 +46,8 @@ from photomodel.samples.sample_data import sample_data_dir
 from photomodel.texturing.job import TEXTURE_SIZES, encode_texture_outputs, fitted_expressions, texture_expression
 from tracking.results import default_out_dir, load_track_results
 from tracking.run import track_video
+from tracking.stills import StillsError, choose_stills, look_at_clip, occlusion_scores, remove_stills, write_stills
+from tracking.video import VideoFrames
 
 if TYPE_CHECKING:  # the batch module loads Dask: imported where track-many runs
     from tracking.many_shots import BatchProgress, BatchResult
@@ -130,7 +132,8 @@ def _grouped_reasons(reasons: list[str]) -> list[str]:
 
 
 def cmd_new(args) -> int:
-    """``facestudio new``: a project from a folder of photos, with automatic landmarks."""
+    """``facestudio new``: a project from a folder of photos, or from stills a clip's frames give
+    (:mod:`tracking.stills`), with automatic landmarks."""
     target = Path(args.project)
     if target.exists():
         raise ProjectError(f"{target}: already exists; `facestudio new` does not overwrite a project "
@@ -141,16 +144,51 @@ def cmd_new(args) -> int:
     else:
         features, curves = default_features(load_generic_mesh())
     bar, progress = _progress_bar(not args.json or sys.stderr.isatty(), "new")
+    written: list[Path] = []
     try:
+        photos, camera_group, from_video = args.photos, args.camera_group, None
+        if args.video is not None:
+            photos, from_video = _stills_from_video(args, target, progress, written)
+            camera_group = camera_group or VideoFrames(args.video).path.stem
         project, warnings = new_project_from_photos(
-            args.photos, target, features=features, curves=curves, expression=args.expression,
-            camera_group=args.camera_group, placer=place_landmarks, progress=progress)
+            photos, target, features=features, curves=curves, expression=args.expression,
+            camera_group=camera_group, placer=place_landmarks, progress=progress)
+        save_project(project, target)
+    except BaseException:  # cancelled or failed: the stills written for it go too
+        remove_stills(written)
+        raise
     finally:
         if bar is not None:
             bar.close()
-    save_project(project, target)
     out = _intake_summary(target, args.expression, project.expression(args.expression).photos, warnings)
+    if from_video is not None:
+        out["video"] = from_video
     return _print_intake(args, out, f"created {target}", len(project.features))
+
+
+def _stills_from_video(args, target: Path, progress, written: list[Path]) -> tuple[list[Path], dict]:
+    """The stills of ``args.video`` written for ``new`` (their paths appended to ``written`` as
+    they are made) and what the clip showed, for the summary."""
+    video = VideoFrames(args.video)
+    looks, looked_at = look_at_clip(video, every=args.every, progress=lambda stage, f: progress(stage, 0.8 * f))
+    if not looks:
+        raise StillsError(f"no face found in the frames looked at in {video.path} "
+                          f"(every {args.every or 'n-th'} frame); pick frames by hand: facestudio new --photos DIR")
+    chosen, occluded = choose_stills(looks, args.stills, video.fps)
+    if not chosen:
+        raise StillsError(f"every frame with a face in {video.path} looks occluded ({len(occluded)} frames); "
+                          "pick frames by hand: facestudio new --photos DIR")
+    stem = target.name.removesuffix(".json").removesuffix(".facestudio")
+    folder = args.stills_dir or target.parent / f"{stem}_stills"
+    written += write_stills(video, [lk.frame for lk in chosen], folder)
+    scores = dict(zip((lk.frame for lk in looks), occlusion_scores(looks), strict=True))
+    summary = {"path": str(video.path), "frames": video.count or 0, "fps": video.fps,
+               "frames_looked_at": looked_at, "frames_with_face": len(looks),
+               "frames_occluded": len(occluded),
+               "stills": [{"frame": lk.frame, "file": p.name, "yaw_deg": round(lk.yaw_deg, 2),
+                           "expression": round(lk.expression, 4), "occlusion": round(float(scores[lk.frame]), 3)}
+                          for lk, p in zip(chosen, written, strict=True)]}
+    return list(written), summary
 
 
 def cmd_add_photos(args) -> int:
@@ -209,6 +247,11 @@ def _format_intake(out: dict, done: str, n_features: int) -> str:
     lines = [f"{done}: expression {out['expression']!r}, {out['photos']} photos, "
              f"{out['clicks_auto']} automatic clicks and {out['curves_auto']} automatic curves (source \"auto\"; "
              "check them in the studio)"]
+    if "video" in out:
+        v = out["video"]
+        lines.append(f"  stills of {Path(v['path']).name}: frames {', '.join(str(st['frame']) for st in v['stills'])} "
+                     f"(of {v['frames_looked_at']} frames looked at: {v['frames_with_face']} with a face, "
+                     f"{v['frames_occluded']} occluded; the least expressive clear frames across the head's turn)")
     wid = max([len("photo")] + [len(v["id"]) for v in out["views"]])
     lines.append(f"  {'photo':<{wid}} {'view':<19} {'auto clicks':>11} {'focal mm':>9}  camera group")
     for v in out["views"]:
@@ -508,15 +551,38 @@ def cmd_studio(args) -> int:
     return run_studio(args.project)
 
 
+def _positive_int(text: str) -> int:
+    """An argument that must be a whole number of at least 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is not at least 1")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="facestudio", description="Face Studio: faces from photographs.")
     sub = p.add_subparsers(dest="command", required=True)
     n = sub.add_parser("new", help="start a project from a folder of photos: photos checked, focal lengths "
                                    "from EXIF, landmarks placed automatically")
     n.add_argument("project", type=Path, help="the project file to create (*.facestudio.json); never overwritten")
-    n.add_argument("--photos", type=Path, required=True, metavar="DIR",
-                   help=f"folder of photos ({', '.join(x.lstrip('.') for x in PHOTO_SUFFIXES)}), added in name order; "
-                        "HEIC, camera raw and GIF files in it are named in a warning, not added")
+    source = n.add_mutually_exclusive_group(required=True)
+    source.add_argument("--photos", type=Path, metavar="DIR",
+                        help=f"folder of photos ({', '.join(x.lstrip('.') for x in PHOTO_SUFFIXES)}), added in name "
+                             "order; HEIC, camera raw and GIF files in it are named in a warning, not added")
+    source.add_argument("--video", type=Path, metavar="CLIP",
+                        help="a video file or a folder of frames of the person: stills are picked where the face is "
+                             "clear and least expressive, spread over the head's turn, written as PNG and added as "
+                             "the photos (one camera group, the clip's name)")
+    n.add_argument("--stills", type=_positive_int, default=5, metavar="N",
+                   help="with --video: at most N stills, fewer where the head turns less than 10 degrees "
+                        "between them (default 5)")
+    n.add_argument("--every", type=_positive_int, metavar="K",
+                   help="with --video: look at every K-th frame (default: about 150 frames over the clip)")
+    n.add_argument("--stills-dir", type=Path, metavar="DIR",
+                   help="with --video: where the stills are written (default: PROJECT_stills beside the project)")
     n.add_argument("--expression", default="neutral", help="the expression the photos show (default: neutral)")
     n.add_argument("--camera-group", metavar="NAME", help="one camera group for every photo (frames of one "
                                                           "video); default: by camera and lens from EXIF")

@@ -107,12 +107,18 @@ class Face468:
     faces_found : int
         number of faces found (detector boxes whose face mesh scores at least
         :data:`MIN_FACE_SCORE`); the largest was used.
+    spread : (468,) float or None
+        how far each point moves between the :data:`SHIFT_AVERAGE` crops: the RMS distance of its
+        nine positions from their mean, photo pixels. The face mesh guesses where it cannot see
+        (a hand over the mouth), and a guess moves with the crop: ``tracking.stills`` tells
+        occluded frames by it. None from one crop (:func:`detect_468_near`).
     """
 
     points: np.ndarray
     score: float
     box: tuple[float, float, float, float]
     faces_found: int
+    spread: np.ndarray | None = None
 
 
 # ----------------------------------------------------------------------------- the nets
@@ -380,12 +386,14 @@ def _roi_from_detection(box: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndar
     return centre, float(np.max(box[2:] - box[:2]) * CROP_SCALE), angle
 
 
-def _face_mesh(image: np.ndarray, box: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndarray, float]:
-    """(468, 3) points and face score from one detector box, after the refining passes and
-    averaged over the :data:`SHIFT_AVERAGE` crops (the score is the unshifted crop's)."""
+def _face_mesh(image: np.ndarray, box: np.ndarray, keypoints: np.ndarray):
+    """(468, 3) points, face score and the points' spread over the crops (:attr:`Face468.spread`;
+    None with one crop) from one detector box, after the refining passes and averaged over the
+    :data:`SHIFT_AVERAGE` crops (the score is the unshifted crop's)."""
     points, score = _mesh_pass(image, *_roi_from_detection(box, keypoints))
     for _ in range(REFINE_PASSES):
         points, score = _mesh_pass(image, *_roi_from_points(points))
+    spread = None
     if score >= MIN_FACE_SCORE and SHIFT_AVERAGE:
         centre, size, angle = _roi_from_points(points)
         along = np.array([np.cos(angle), np.sin(angle)])  # the eye line
@@ -393,7 +401,8 @@ def _face_mesh(image: np.ndarray, box: np.ndarray, keypoints: np.ndarray) -> tup
         runs = [points] + [_mesh_pass(image, centre + (dx * along + dy * across) * size, size, angle)[0]
                            for dx, dy in SHIFT_AVERAGE]
         points = np.mean(runs, axis=0)
-    return points, score
+        spread = np.sqrt(np.mean(np.sum((np.asarray(runs)[:, :, :2] - points[:, :2]) ** 2, axis=-1), axis=0))
+    return points, score, spread
 
 
 def detect_468_near(image: np.ndarray, box: tuple, angle: float) -> Face468 | None:
@@ -445,14 +454,14 @@ def detect_468(image: np.ndarray, *, name: str = "the photo") -> Face468:
     for level in range(DETECTION_LEVELS):  # smaller tiles only when the larger find no face
         boxes, keypoints, _ = detect_faces(image, level)
         faces = [_face_mesh(image, b, k) for b, k in zip(boxes[:MAX_FACES], keypoints[:MAX_FACES], strict=True)]
-        best = max([best] + [score for _, score in faces])
-        faces = [(points, score) for points, score in faces if score >= MIN_FACE_SCORE]
+        best = max([best] + [score for _, score, _ in faces])
+        faces = [face for face in faces if face[1] >= MIN_FACE_SCORE]
         if faces:
-            sizes = [np.prod(np.ptp(points[:, :2], axis=0)) for points, _ in faces]
-            points, score = faces[int(np.argmax(sizes))]
+            sizes = [np.prod(np.ptp(points[:, :2], axis=0)) for points, _, _ in faces]
+            points, score, spread = faces[int(np.argmax(sizes))]
             lo, hi = points[:, :2].min(0), points[:, :2].max(0)
             box = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
-            return Face468(points=points, score=score, box=box, faces_found=len(faces))
+            return Face468(points=points, score=score, box=box, faces_found=len(faces), spread=spread)
     raise NoFaceFound(
         f"no face found in {name} (best face-mesh score {best:.2f}, needs {MIN_FACE_SCORE}): "
         "click its landmarks by hand"
