@@ -172,8 +172,8 @@ def _stills_from_video(args, target: Path, progress, written: list[Path]) -> tup
     video = VideoFrames(args.video)
     looks, looked_at = look_at_clip(video, every=args.every, progress=lambda stage, f: progress(stage, 0.8 * f))
     if not looks:
-        raise StillsError(f"no face found in the frames looked at in {video.path} "
-                          f"(every {args.every or 'n-th'} frame); pick frames by hand: facestudio new --photos DIR")
+        raise StillsError(f"no face found in any of the {looked_at} frames looked at in {video.path}; "
+                          "pick frames by hand: facestudio new --photos DIR")
     chosen, occluded = choose_stills(looks, args.stills, video.fps)
     if not chosen:
         raise StillsError(f"every frame with a face in {video.path} looks occluded ({len(occluded)} frames); "
