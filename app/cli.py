@@ -577,7 +577,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "clear and least expressive, spread over the head's turn, written as PNG and added as "
                              "the photos (one camera group, the clip's name)")
     n.add_argument("--stills", type=_positive_int, default=5, metavar="N",
-                   help="with --video: at most N stills, fewer where the head turns less than 10 degrees "
+                   help="with --video: at most N stills, fewer where the head turns less than 7.5 degrees "
                         "between them (default 5)")
     n.add_argument("--every", type=_positive_int, metavar="K",
                    help="with --video: look at every K-th frame (default: about 150 frames over the clip)")

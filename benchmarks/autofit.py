@@ -33,6 +33,15 @@
   fitted face region's depth extent after the similarity onto the generic mesh, over the generic
   head's (1 = as deep as the generic head scaled to this face). The texture is made too
   (``facestudio texture``) and a picture written to ``<out>/real_sample.png``.
+* ``stills`` — the real clip as a user with only footage would start: ``facestudio new P --video
+  CLIP`` (:mod:`tracking.stills` picks the stills) + ``fit``, looking at every 3rd … 7th frame
+  (five draws: which frames are looked at moves what is picked). Per draw ``every``, ``frames``
+  (the stills), ``rms_px``, ``depth_ratio``, ``hand_stills`` (stills in the frames where a hand is
+  over her mouth or nose, 60 and 69–226, labelled by looking); over the draws ``rms_mean_px``, ``rms_worst_px``,
+  ``depth_ratio_min`` / ``_max``, ``hand_stills`` (total), ``failures``. Peers in the same run, the
+  same fit of other frames: ``hand_picked`` (the real sample's frames, chosen by looking) and
+  ``evenly_spaced`` (five frames evenly over the clip, what one gets without looking), each
+  ``{"frames", "rms_px", "depth_ratio", "hand_stills"}``.
 """
 
 from __future__ import annotations
@@ -58,9 +67,11 @@ from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.reading import read_photo
 from photomodel.project import load_project
 from photomodel.samples import synthetic
-from photomodel.samples.real_clip import real_sample_project
+from photomodel.samples.real_clip import FRAMES, clip_path, real_sample_project
 from photomodel.samples.sample_data import load_james_scan
 from photomodel.texturing.view_dependent import ViewDependentTexture
+from tracking.stills import write_stills
+from tracking.video import VideoFrames
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
@@ -349,6 +360,61 @@ def real_sample_section(args, log) -> dict:
     log(f"real sample: {out['photos']} frames, RMS {out['rms_px']:.2f} px, depth ratio {ratio:.2f} "
         f"({out['start']})")
     return {"real_sample": out}
+
+
+#: The real clip's frames with a hand over the mouth or nose, looked at frame by frame (61–68:
+#: the hand under the lips, which are seen).
+REAL_HAND_FRAMES = frozenset({60, *range(69, 227)})
+
+
+def _fit_stills(folder: Path, photos: Path | None, video: Path | None, every: int | None = None) -> dict:
+    """``new`` (from ``photos`` or ``video``) + ``fit`` in ``folder``: the fit's figures."""
+    project = folder / "p.facestudio.json"
+    source = ["--photos", str(photos)] if photos is not None else ["--video", str(video)]
+    if every is not None:
+        source += ["--every", str(every)]
+    new = run_cli("new", str(project), *source, "--camera-group", "clip")
+    fit = run_cli("fit", str(project))["expressions"][0]
+    result = load_project(project).expression("neutral").result
+    vertices = read_mesh(load_project(project).resolve(result.mesh_obj))[0]
+    frames = [s["frame"] for s in new["video"]["stills"]] if "video" in new else []
+    return {"frames": frames, "photos": len(result.cameras), "rms_px": round(float(fit["rms_px"]), 3),
+            "depth_ratio": round(depth_ratio(vertices, load_generic_mesh()), 3),
+            "hand_stills": sum(f in REAL_HAND_FRAMES for f in frames)}
+
+
+def _fit_frames(frames: list[int]) -> dict:
+    """The real clip's ``frames`` written as PNG and fitted as ``_fit_stills`` fits a folder."""
+    with tempfile.TemporaryDirectory(prefix="stills-") as tmp:
+        write_stills(VideoFrames(clip_path()), frames, Path(tmp) / "frames")
+        out = _fit_stills(Path(tmp), Path(tmp) / "frames", None)
+    return {**out, "frames": frames, "hand_stills": sum(f in REAL_HAND_FRAMES for f in frames)}
+
+
+def stills_section(args, log) -> dict:
+    draws, failures = [], 0
+    for every in (3, 4, 5, 6, 7):
+        with tempfile.TemporaryDirectory(prefix="stills-") as tmp:
+            try:
+                draws.append({"every": every, **_fit_stills(Path(tmp), None, clip_path(), every)})
+            except (RuntimeError, KeyError) as exc:
+                failures += 1
+                log(f"stills every {every}: failed ({exc})")
+                continue
+        d = draws[-1]
+        log(f"stills every {every}: frames {d['frames']}, RMS {d['rms_px']:.2f} px, depth {d['depth_ratio']:.2f}, "
+            f"{d['hand_stills']} with the hand")
+    hand = _fit_frames(list(FRAMES))
+    even = _fit_frames([int(round(x)) for x in np.linspace(0, 471, 5)])
+    log(f"peers: hand-picked RMS {hand['rms_px']:.2f} px, depth {hand['depth_ratio']:.2f}; evenly spaced "
+        f"{even['frames']} RMS {even['rms_px']:.2f} px, depth {even['depth_ratio']:.2f}, "
+        f"{even['hand_stills']} with the hand")
+    rms = [d["rms_px"] for d in draws] or [-1.0]
+    depth = [d["depth_ratio"] for d in draws] or [-1.0]
+    return {"stills": {"draws": draws, "rms_mean_px": round(float(np.mean(rms)), 3), "rms_worst_px": max(rms),
+                       "depth_ratio_min": min(depth), "depth_ratio_max": max(depth),
+                       "hand_stills": sum(d["hand_stills"] for d in draws), "failures": failures,
+                       "hand_picked": hand, "evenly_spaced": even}}
 
 
 if __name__ == "__main__":

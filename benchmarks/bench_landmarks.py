@@ -25,8 +25,8 @@ Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON objec
   ``nme_pct`` is the bin's mean over the renders where a face is found, ``found`` counts
   them; -1 when none is.
 
-* ``auto_fit``, ``auto_fit_draws``, ``auto_fit_rigs``, ``one_photo`` and ``real_sample`` — fits from automatic landmarks
-  alone, through the CLI
+* ``auto_fit``, ``auto_fit_draws``, ``auto_fit_rigs``, ``one_photo``, ``real_sample`` and ``stills``
+  — fits from automatic landmarks alone, through the CLI
   (:mod:`benchmarks.autofit`, whose docstring says what they measure).
 
 The mapping's nose line and nostrils were chosen on renders of the same scan at |yaw| ≤ 30°
@@ -45,6 +45,7 @@ from autofit import (  # the fit sections (benchmarks/autofit.py)
     auto_fit_section,
     one_photo_section,
     real_sample_section,
+    stills_section,
 )
 from sections import run_sections, section_parser  # benchmarks/sections.py
 
@@ -151,7 +152,7 @@ def yaw_section(args, log) -> dict:
 SECTIONS = {"menpo": menpo_section, "yaw_bins": yaw_section, "auto_fit": auto_fit_section,
             "auto_fit_draws": auto_fit_draws_section, "auto_fit_rigs": auto_fit_rigs_section,
             "one_photo": one_photo_section,
-            "real_sample": real_sample_section}
+            "real_sample": real_sample_section, "stills": stills_section}
 
 
 def main(argv=None) -> int:

@@ -33,9 +33,10 @@ from tracking.stills import (
 from tracking.video import VideoFrames
 
 SAMPLE_VIDEO = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "video" / "james_track.mp4"
-#: The real clip's frames with a hand over the mouth or nose (looked at frame by frame: the hand
-#: comes up at 60 and is gone after 226).
-REAL_HAND_FRAMES = range(60, 227)
+#: The real clip's frames with a hand over the mouth or nose, looked at frame by frame: the hand
+#: covers the mouth at 60, is under the lips from 61 to 68 (the lips seen), over them from 69 and
+#: gone after 226.
+REAL_HAND_FRAMES = frozenset({60, *range(69, 227)})
 
 
 def _look(frame, yaw, expression=0.0, spread=1.0, lips=4.0) -> FrameLook:
@@ -85,7 +86,7 @@ def test_the_stills_spread_over_the_turn_least_expressive_first():
     looks = [_look(i, yaw=-20.0 + i, expression=0.3 if i % 5 else 0.05) for i in range(41)]  # -20..20°
     chosen, occluded = choose_stills(looks, 5, fps=1.0)
     assert occluded == []
-    assert len(chosen) == 5  # 40° of turn: 1 + 40 // MIN_YAW_STEP_DEG = 5 parts
+    assert len(chosen) == 5  # 40° of turn: up to 1 + 40 // MIN_YAW_STEP_DEG = 6 parts, 5 asked
     assert [lk.expression for lk in chosen] == [0.05] * 5
     yaws = [lk.yaw_deg for lk in chosen]
     assert yaws == sorted(yaws) and min(np.diff(yaws)) >= 5.0
@@ -95,10 +96,10 @@ def test_a_clip_that_hardly_turns_gives_one_still_and_stills_are_moments_apart()
     looks = [_look(i, yaw=3.0 + 0.01 * i, expression=abs(i - 30) / 100.0) for i in range(60)]
     chosen, _ = choose_stills(looks, 5, fps=24.0)
     assert [lk.frame for lk in chosen] == [30]  # 0.6° of turn: one view, its most neutral frame
-    # 25° of turn: 1 + 25 // MIN_YAW_STEP_DEG = 3 parts. The best frame of the middle part (1) is
+    # 20° of turn: 1 + 20 // MIN_YAW_STEP_DEG = 3 parts. The best frame of the middle part (1) is
     # 0.1 s after the first part's (0), under MIN_SECONDS_APART: the middle part's next best is taken
-    assert 1 + int(25.0 // MIN_YAW_STEP_DEG) == 3
-    looks = [_look(0, -12.5), _look(1, 0.0), _look(5, 12.5)] + [_look(10 + i, -12.0 + 0.5 * i, 0.5) for i in range(48)]
+    assert 1 + int(20.0 // MIN_YAW_STEP_DEG) == 3
+    looks = [_look(0, -10.0), _look(1, 0.0), _look(5, 10.0)] + [_look(10 + i, -9.5 + 0.5 * i, 0.5) for i in range(39)]
     chosen = [lk.frame for lk in choose_stills(looks, 5, fps=10.0)[0]]
     assert len(chosen) == 3 and chosen[:2] == [0, 5] and 1 not in chosen
 

@@ -33,11 +33,16 @@ are stated here, not learned.
    footage's resolution, noise and grading rather than fixed numbers. Measured on the real
    sample's clip (the only real footage with an occlusion we have; the frames labelled by
    looking): the spread of clear frames is 0.60–1.59× its 10th percentile, of frames with a hand
-   over the mouth or nose 1.64–3.6×, of a hand under the lips 1.2–2.0× — which the lips' colour
-   tells (clear frames 3.3–4.0 in a*, hand-covered −1.0–2.7). Frames with no face are skipped.
+   over the mouth or nose 1.64–3.6× — and lips under a hand lose their colour (clear frames
+   3.3–4.0 in a*, hand-covered −1.0–2.7). The score divides the one by the other's share: clear
+   frames score up to 1.86, frames with a hand over the mouth or nose 1.96 and more (all but 3
+   of 57 over :data:`OCCLUSION_LIMIT`); in the sample video (a render: nothing covers the face)
+   every frame scores under 1.61, and fingers painted over its mouth score 7 and more. Frames
+   where the hand is under the lips (61–68: the lips seen, the chin covered) are not told.
+   Frames with no face are skipped.
 
 3. **Spread over the turn**: the clear frames' yaw range is cut into equal parts, ``count`` of
-   them (default 5) or fewer so that they are :data:`MIN_YAW_STEP_DEG` apart, and each part gives
+   them (default 5) or fewer so that they are at least :data:`MIN_YAW_STEP_DEG` apart, and each part gives
    its frame of least ``expression`` (a part with no clear frame gives none; a frame within
    :data:`MIN_SECONDS_APART` of a chosen one is not taken, so that two stills are two moments).
    A clip that hardly turns gives one still: a fit from one photo takes the generic head's depth
@@ -86,9 +91,11 @@ MIN_LIP_SHARE = 0.05
 EYES_WEIGHT = 2.0
 #: Stills are at least about this far apart in yaw (degrees): the clear frames' yaw range is
 #: cut into at most ``1 + range // MIN_YAW_STEP_DEG`` parts. Measured on the real sample's clip
-#: (24° of turn): 3 stills fit at 2.33 px with a depth 0.96× the generic head's, 4 at 2.48 px /
-#: 0.96×, 5 (5° apart, the middle ones crying with closed eyes) at 2.46 px / 0.87×.
-MIN_YAW_STEP_DEG = 10.0
+#: (24° of turn; ``bench_landmarks.py --only stills``, five draws of the frames looked at each):
+#: 10° (3 stills) fit at 2.34–2.49 px but the depth came out 1.29–1.33× the generic head's in 3
+#: draws (over the ±25 % bar); 5° (5 stills) 0.88–1.08× but 3.35 px in 2 draws (over 3 px:
+#: closed-eye smiles); 7.5° (4 stills) 2.38–2.88 px and 0.96–1.13×, all within both bars.
+MIN_YAW_STEP_DEG = 7.5
 #: Chosen stills are at least this many seconds of the clip apart.
 MIN_SECONDS_APART = 0.5
 
