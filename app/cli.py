@@ -46,8 +46,7 @@ from photomodel.samples.sample_data import sample_data_dir
 from photomodel.texturing.job import TEXTURE_SIZES, encode_texture_outputs, fitted_expressions, texture_expression
 from tracking.results import default_out_dir, load_track_results
 from tracking.run import track_video
-from tracking.stills import StillsError, choose_stills, look_at_clip, occlusion_scores, remove_stills, write_stills
-from tracking.video import VideoFrames
+from tracking.stills import new_project_from_video
 
 if TYPE_CHECKING:  # the batch module loads Dask: imported where track-many runs
     from tracking.many_shots import BatchProgress, BatchResult
@@ -144,51 +143,24 @@ def cmd_new(args) -> int:
     else:
         features, curves = default_features(load_generic_mesh())
     bar, progress = _progress_bar(not args.json or sys.stderr.isatty(), "new")
-    written: list[Path] = []
     try:
-        photos, camera_group, from_video = args.photos, args.camera_group, None
         if args.video is not None:
-            photos, from_video = _stills_from_video(args, target, progress, written)
-            camera_group = camera_group or VideoFrames(args.video).path.stem
-        project, warnings = new_project_from_photos(
-            photos, target, features=features, curves=curves, expression=args.expression,
-            camera_group=camera_group, placer=place_landmarks, progress=progress)
-        save_project(project, target)
-    except BaseException:  # cancelled or failed: the stills written for it go too
-        remove_stills(written)
-        raise
+            project, warnings, from_video = new_project_from_video(
+                args.video, target, features=features, curves=curves, count=args.stills, every=args.every,
+                folder=args.stills_dir, expression=args.expression, camera_group=args.camera_group,
+                progress=progress)
+        else:
+            project, warnings = new_project_from_photos(
+                args.photos, target, features=features, curves=curves, expression=args.expression,
+                camera_group=args.camera_group, placer=place_landmarks, progress=progress)
+            save_project(project, target)
     finally:
         if bar is not None:
             bar.close()
     out = _intake_summary(target, args.expression, project.expression(args.expression).photos, warnings)
-    if from_video is not None:
+    if args.video is not None:
         out["video"] = from_video
     return _print_intake(args, out, f"created {target}", len(project.features))
-
-
-def _stills_from_video(args, target: Path, progress, written: list[Path]) -> tuple[list[Path], dict]:
-    """The stills of ``args.video`` written for ``new`` (their paths appended to ``written`` as
-    they are made) and what the clip showed, for the summary."""
-    video = VideoFrames(args.video)
-    looks, looked_at = look_at_clip(video, every=args.every, progress=lambda stage, f: progress(stage, 0.8 * f))
-    if not looks:
-        raise StillsError(f"no face found in any of the {looked_at} frames looked at in {video.path}; "
-                          "pick frames by hand: facestudio new --photos DIR")
-    chosen, occluded = choose_stills(looks, args.stills, video.fps)
-    if not chosen:
-        raise StillsError(f"every frame with a face in {video.path} looks occluded ({len(occluded)} frames); "
-                          "pick frames by hand: facestudio new --photos DIR")
-    stem = target.name.removesuffix(".json").removesuffix(".facestudio")
-    folder = args.stills_dir or target.parent / f"{stem}_stills"
-    written += write_stills(video, [lk.frame for lk in chosen], folder)
-    scores = dict(zip((lk.frame for lk in looks), occlusion_scores(looks), strict=True))
-    summary = {"path": str(video.path), "frames": video.count or 0, "fps": video.fps,
-               "frames_looked_at": looked_at, "frames_with_face": len(looks),
-               "frames_occluded": len(occluded),
-               "stills": [{"frame": lk.frame, "file": p.name, "yaw_deg": round(lk.yaw_deg, 2),
-                           "expression": round(lk.expression, 4), "occlusion": round(float(scores[lk.frame]), 3)}
-                          for lk, p in zip(chosen, written, strict=True)]}
-    return list(written), summary
 
 
 def cmd_add_photos(args) -> int:

@@ -195,3 +195,27 @@ def test_dropped_photos_get_automatic_landmarks(qtbot, studio_window, tmp_path, 
     _drop(w, (tmp_path / "cut.png",))  # nothing readable: a message, not silence
     qtbot.waitUntil(lambda: not w.importer.busy and len(messages) == 2, timeout=60_000)
     assert messages[-1][1] == "No photo added" and "cut.png: truncated PNG" in messages[-1][2]
+
+
+def test_new_from_video_opens_a_project_of_its_stills(qtbot, studio_window, tmp_path, messages):
+    """*File → New from video…* (the dialogs answered): the sample video's stills picked, written
+    beside the project, given automatic landmarks and opened; a cancelled one leaves nothing."""
+    clip = ROOT / "sample_projects" / "james" / "video" / "james_track.mp4"
+    w, model = studio_window, studio_window.model
+    w.act_auto.setChecked(False)
+    assert w.act_new_from_video in w.menuBar().actions()[0].menu().actions()
+    target = tmp_path / "me.facestudio.json"
+    assert w.importer.new_from_video(clip, target, count=3)
+    qtbot.waitUntil(lambda: not w.importer.busy and model.path == target, timeout=60_000)
+    assert not messages, messages
+    stills = sorted((tmp_path / "me_stills").iterdir())
+    assert 1 <= len(stills) <= 3 and [p.id for p in model.photos] == [p.stem for p in stills]
+    assert all(len(p.auto_clicks()) >= 40 and p.camera_group == "james_track" for p in model.photos)
+    assert "stills: frames" in w.statusBar().currentMessage()
+
+    other = tmp_path / "other.facestudio.json"
+    assert w.importer.new_from_video(clip, other)
+    w.importer.jobs.cancel()
+    qtbot.waitUntil(lambda: not w.importer.busy, timeout=60_000)
+    assert not other.exists() and not (tmp_path / "other_stills").exists()
+    assert model.path == target  # the open project is untouched

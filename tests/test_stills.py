@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-import app.cli as cli
+import tracking.stills
 from app.cli import main as facestudio
 from photomodel.landmarks.detect import detect_468
 from photomodel.project import load_project
@@ -188,7 +188,7 @@ def test_looking_can_be_cancelled_and_ctrl_c_after_the_stills_leaves_nothing(tmp
     def interrupted(*args, **kwargs):  # Ctrl-C while the stills' landmarks are being placed
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "new_project_from_photos", interrupted)
+    monkeypatch.setattr(tracking.stills, "new_project_from_photos", interrupted)
     project = tmp_path / "me.facestudio.json"
     assert facestudio(["new", str(project), "--video", str(SAMPLE_VIDEO), "--every", "8"]) == 130
     assert "nothing was written" in capsys.readouterr().err

@@ -58,6 +58,7 @@ clip against the hand-picked frames, and the fits from both.
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -69,10 +70,12 @@ from photomodel.errors import FaceStudioError, NoFaceFound
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.landmarks.detect import EYE_OUTER, Face468, detect_468
 from photomodel.landmarks.mapping import estimate_yaw_deg
+from photomodel.photos.intake import new_project_from_photos
+from photomodel.project import FILE_SUFFIX, CurveDef, Feature, Project, save_project
 from tracking.video import VideoFrames
 
-__all__ = ["FrameLook", "StillsError", "choose_stills", "look_at_clip", "look_at_frame", "occlusion_scores",
-           "remove_stills", "write_stills"]
+__all__ = ["FrameLook", "StillsError", "choose_stills", "look_at_clip", "look_at_frame", "new_project_from_video",
+           "occlusion_scores", "remove_stills", "stills_folder", "write_stills"]
 
 #: Frames looked at over a clip when ``every`` is not given (a 640×360 frame costs ~70 ms).
 FRAMES_LOOKED_AT = 150
@@ -300,3 +303,72 @@ def remove_stills(paths: list[Path]) -> None:
     for folder in {p.parent for p in paths}:
         with contextlib.suppress(OSError):  # not empty: the user's files stay
             folder.rmdir()
+
+
+def stills_folder(project_path: str | os.PathLike) -> Path:
+    """Where ``new --video`` writes the stills by default: ``<name>_stills`` beside the project."""
+    path = Path(project_path)
+    return path.parent / f"{path.name.removesuffix('.json').removesuffix(FILE_SUFFIX.removesuffix('.json'))}_stills"
+
+
+def new_project_from_video(
+    clip: str | os.PathLike,
+    project_path: str | os.PathLike,
+    *,
+    features: list[Feature],
+    curves: list[CurveDef],
+    count: int = 5,
+    every: int | None = None,
+    folder: str | os.PathLike | None = None,
+    expression: str = "neutral",
+    camera_group: str | None = None,
+    progress: Progress | None = None,
+) -> tuple[Project, list[str], dict]:
+    """A new project of the stills of ``clip`` (``facestudio new --video``, the studio's *New from
+    video…*), saved as ``project_path``.
+
+    The clip is looked at (:func:`look_at_clip`; ``progress`` up to 0.8, and a ``progress`` that
+    raises stops it), the stills chosen (:func:`choose_stills`), written as PNG into ``folder``
+    (default :func:`stills_folder`) and taken in as ``facestudio new --photos`` takes photos, in
+    one camera group (default: the clip's name). When anything fails or is cancelled after the
+    stills are written, they are removed again: nothing half-made is left.
+
+    Returns
+    -------
+    (Project, warnings, summary)
+        the saved project, the intake's warnings, and what the clip showed: ``{"path", "frames",
+        "fps", "frames_looked_at", "frames_with_face", "frames_occluded", "stills": [{"frame",
+        "file", "yaw_deg", "expression", "occlusion"}]}``.
+
+    Raises
+    ------
+    StillsError when no face is found in the frames looked at, or every one is occluded;
+    tracking.video.VideoError when the clip cannot be read.
+    """
+    video = VideoFrames(clip)
+    report = None if progress is None else (lambda stage, f: progress(stage, 0.8 * f))
+    looks, looked_at = look_at_clip(video, every=every, progress=report)
+    if not looks:
+        raise StillsError(f"no face found in any of the {looked_at} frames looked at in {video.path}; "
+                          "pick frames by hand: facestudio new --photos DIR")
+    chosen, occluded = choose_stills(looks, count, video.fps)
+    if not chosen:
+        raise StillsError(f"every frame with a face in {video.path} looks occluded ({len(occluded)} frames); "
+                          "pick frames by hand: facestudio new --photos DIR")
+    written: list[Path] = []
+    try:
+        written += write_stills(video, [lk.frame for lk in chosen], Path(folder or stills_folder(project_path)))
+        project, warnings = new_project_from_photos(
+            written, project_path, features=features, curves=curves, expression=expression,
+            camera_group=camera_group or video.path.stem, progress=progress)
+        save_project(project, project_path)
+    except BaseException:  # cancelled or failed: the stills written for it go too
+        remove_stills(written)
+        raise
+    scores = dict(zip((lk.frame for lk in looks), occlusion_scores(looks), strict=True))
+    summary = {"path": str(video.path), "frames": video.count or 0, "fps": video.fps,
+               "frames_looked_at": looked_at, "frames_with_face": len(looks), "frames_occluded": len(occluded),
+               "stills": [{"frame": lk.frame, "file": p.name, "yaw_deg": round(lk.yaw_deg, 2),
+                           "expression": round(lk.expression, 4), "occlusion": round(float(scores[lk.frame]), 3)}
+                          for lk, p in zip(chosen, written, strict=True)]}
+    return project, warnings, summary

@@ -341,6 +341,9 @@ class MainWindow(QMainWindow):
                                 tip="add photographs of the current expression (or drop image files on the window)")
         self.act_new_from_photos = A("New from p&hotos…", lambda: self.importer.new_from_photos_dialog(),
                                      tip="a new project from a folder of photos, with automatic landmarks")
+        self.act_new_from_video = A("New from &video…", lambda: self.importer.new_from_video_dialog(),
+                                    tip="a new project from stills of a video of the person (the clearest, least "
+                                        "expressive frames across the head's turn), with automatic landmarks")
         self.act_add_photos_auto = A("Add photos with automatic &landmarks…", self.add_photos_auto_dialog,
                                      tip="add photographs of the current expression and place their landmarks")
         self.act_remove_photo = A("Remove current photo", self.remove_current_photo)
@@ -399,7 +402,7 @@ class MainWindow(QMainWindow):
     def _build_menus(self):
         mb = self.menuBar()
         f = mb.addMenu("&File")
-        for a in (self.act_new, self.act_new_from_photos, self.act_open):
+        for a in (self.act_new, self.act_new_from_photos, self.act_new_from_video, self.act_open):
             f.addAction(a)
         self.recent_menu = f.addMenu("Open &recent")
         self.recent_menu.aboutToShow.connect(self._fill_recent_menu)

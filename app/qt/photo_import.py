@@ -1,4 +1,5 @@
-"""Photos in with automatic landmarks: *File → New from photos…* and *Add photos…*, in a worker.
+"""Photos in with automatic landmarks: *File → New from photos…*, *New from video…* and *Add
+photos…*, in a worker.
 
 Both call the Qt-free core of ``facestudio new`` (:mod:`photomodel.photos.intake`: photos read and
 checked, a face found in each, landmarks placed, the view estimated) in a
@@ -9,6 +10,11 @@ being read (the core reports progress once a photo); the project is untouched th
 * **New from photos…** asks for a folder and where to save the project, writes the project with
   the core function, then opens it (the clicks it placed are automatic: violet diamonds in the
   photo views, see :mod:`app.qt.photo_view`).
+* **New from video…** asks for a clip (a video file) and where to save the project, and makes it
+  as ``facestudio new --video`` does (:func:`tracking.stills.new_project_from_video`: stills
+  picked where the face is clear and least expressive across the head's turn, written beside the
+  project), then opens it. Cancel while the clip is looked at writes nothing; later, the stills
+  written are removed again.
 * **Add photos…** (and photos dropped on the window) adds the photos to the current expression
   of a snapshot of the project; the new photos — with their automatic clicks — go into the
   studio as one undoable edit (the feature definitions they need, then the photos: one undo
@@ -36,6 +42,10 @@ from app.qt.workers import JobController
 from photomodel.modeling.fit import Cancelled
 from photomodel.photos.intake import add_photos, default_features, new_project_from_photos
 from photomodel.project import FILE_SUFFIX, save_project
+from tracking.stills import new_project_from_video
+
+#: The video files *New from video…* offers (anything OpenCV decodes is read).
+VIDEO_FILTER = "Videos (*.mp4 *.mov *.avi *.mkv *.webm *.m4v);;All files (*)"
 
 
 class PhotoImporter(QObject):
@@ -85,6 +95,35 @@ class PhotoImporter(QObject):
             return warnings
 
         return self._start(work, ("new", path), f"Reading the photos of {folder.name}…")
+
+    def new_from_video_dialog(self) -> bool:
+        w = self.window
+        clip, _ = QFileDialog.getOpenFileName(w, "New project from a video of the person", "", VIDEO_FILTER)
+        if not clip:
+            return False
+        default = str(Path(clip).with_name(Path(clip).stem + FILE_SUFFIX))
+        path, _ = QFileDialog.getSaveFileName(w, "Save the new project as", default,
+                                              f"Face Studio project (*{FILE_SUFFIX})")
+        return bool(path) and self.new_from_video(clip, path)
+
+    def new_from_video(self, clip, path, count: int = 5) -> bool:
+        """Make a project of up to ``count`` stills of ``clip`` with automatic landmarks, save it
+        as ``path`` and open it; in the worker, with progress and cancel."""
+        if self.busy or not self.window.maybe_save():
+            return False
+        clip, path = Path(clip), Path(path)
+        if not path.name.endswith(FILE_SUFFIX):
+            path = path.with_name(path.name + FILE_SUFFIX)
+        features, curves = default_features(self.window.model.mesh)
+
+        def work(progress, cancel):
+            _, warnings, summary = new_project_from_video(clip, path, features=features, curves=curves, count=count,
+                                                          progress=_cancellable(progress, cancel))
+            frames = ", ".join(str(st["frame"]) for st in summary["stills"])
+            return [f"stills: frames {frames} ({summary['frames_occluded']} of {summary['frames_looked_at']} "
+                    "frames looked at were occluded)", *warnings]
+
+        return self._start(work, ("new", path), f"Looking at {clip.name} for stills…")
 
     # ------------------------------------------------------------------ photos added
     def add_photos(self, files) -> bool:
