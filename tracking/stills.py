@@ -35,8 +35,8 @@ are stated here, not learned.
    looking): the spread of clear frames is 0.60–1.59× its 10th percentile, of frames with a hand
    over the mouth or nose 1.64–3.6× — and lips under a hand lose their colour (clear frames
    3.3–4.0 in a*, hand-covered −1.0–2.7). The score divides the one by the other's share: clear
-   frames score up to 1.86, frames with a hand over the mouth or nose 1.96 and more (all but 3
-   of 57 over :data:`OCCLUSION_LIMIT`); in the sample video (a render: nothing covers the face)
+   frames score up to 1.96, frames with a hand over the mouth or nose (60, 69–226) 2.39 and more
+   (every 3rd frame: 54 of 54 over :data:`OCCLUSION_LIMIT`); in the sample video (a render: nothing covers the face)
    every frame scores under 1.61, and fingers painted over its mouth score 7 and more. Frames
    where the hand is under the lips (61–68: the lips seen, the chin covered) are not told.
    Frames with no face are skipped.
