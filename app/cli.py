@@ -1,6 +1,6 @@
 """The ``facestudio`` command.
 
-    facestudio new PROJECT (--photos DIR | --video CLIP [--stills 5] [--stills-dir DIR])
+    facestudio new PROJECT (--photos DIR | --video CLIP [--stills 5] [--every K] [--stills-dir DIR])
                    [--expression neutral] [--camera-group NAME] [--features-from PROJECT] [--json]
     facestudio add-photos PROJECT --photos PATH... [--expression neutral] [--camera-group NAME] [--json]
     facestudio fit PROJECT [--expression NAME] [--no-refine] [--json] [--dry-run]

@@ -375,8 +375,9 @@ def _fit_stills(folder: Path, photos: Path | None, video: Path | None, every: in
         source += ["--every", str(every)]
     new = run_cli("new", str(project), *source, "--camera-group", "clip")
     fit = run_cli("fit", str(project))["expressions"][0]
-    result = load_project(project).expression("neutral").result
-    vertices = read_mesh(load_project(project).resolve(result.mesh_obj))[0]
+    loaded = load_project(project)
+    result = loaded.expression("neutral").result
+    vertices = read_mesh(loaded.resolve(result.mesh_obj))[0]
     frames = [s["frame"] for s in new["video"]["stills"]] if "video" in new else []
     return {"frames": frames, "photos": len(result.cameras), "rms_px": round(float(fit["rms_px"]), 3),
             "depth_ratio": round(depth_ratio(vertices, load_generic_mesh()), 3),

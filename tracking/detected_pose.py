@@ -29,6 +29,7 @@ import numpy as np
 
 from photomodel.errors import NoFaceFound
 from photomodel.landmarks import place_landmarks, place_landmarks_near
+from tracking.video import frame_uint8
 
 __all__ = ["DEFAULT_FOCAL_WIDTHS", "LOST_PX", "MIN_CONFIDENCE", "REDETECT_EVERY", "Redetector", "detected_spec",
            "detected_features", "landmark_error_px", "pose_features", "projected_features", "video_focal_px"]
@@ -71,18 +72,12 @@ def pose_features(project) -> list[str]:
     return project.feature_names(pose_only=True) or project.feature_names()
 
 
-def _uint8(frame: np.ndarray) -> np.ndarray:
-    """A frame as the detector takes it: (H, W, 3) uint8 RGB (float frames are in [0, 1])."""
-    img = np.asarray(frame)
-    return img if img.dtype == np.uint8 else np.round(np.clip(img, 0.0, 1.0) * 255.0).astype(np.uint8)
-
-
 def detected_features(frame: np.ndarray, names, *, name: str = "the frame") -> dict[str, list[float]] | None:
     """The detector's positions of the features ``names`` in ``frame`` (H, W, 3) RGB (uint8, or
     float in [0, 1]), those with confidence ≥ :data:`MIN_CONFIDENCE`: ``{feature: [u, v]}`` px
     (centres at integers, rounded to 1/1000 px so that the JSON is exact); None when no face is
     found."""
-    img = _uint8(frame)
+    img = frame_uint8(frame)
     try:
         placed = place_landmarks(img, list(names), name=name)
     except NoFaceFound:
@@ -177,7 +172,7 @@ class Redetector:
             return False
         d = eyes[1] - eyes[0]
         box, angle = (*uv.min(0), *uv.max(0)), float(np.arctan2(d[1], d[0]))
-        placed = place_landmarks_near(_uint8(frame), self.names, box, angle)
+        placed = place_landmarks_near(frame_uint8(frame), self.names, box, angle)
         if placed is None:
             return False
         seen = {n: p for n, p in placed.points.items() if placed.confidence.get(n, 0.0) >= MIN_CONFIDENCE}

@@ -60,7 +60,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -69,10 +69,10 @@ import numpy as np
 from photomodel.errors import FaceStudioError, NoFaceFound
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.landmarks.detect import EYE_OUTER, Face468, detect_468
-from photomodel.landmarks.mapping import estimate_yaw_deg
+from photomodel.landmarks.mapping import estimate_yaw_deg, level_frame
 from photomodel.photos.intake import new_project_from_photos
 from photomodel.project import FILE_SUFFIX, CurveDef, Feature, Project, save_project
-from tracking.video import VideoFrames
+from tracking.video import VideoFrames, frame_uint8
 
 __all__ = ["FrameLook", "StillsError", "choose_stills", "look_at_clip", "look_at_frame", "new_project_from_video",
            "occlusion_scores", "remove_stills", "stills_folder", "write_stills"]
@@ -130,6 +130,8 @@ class FrameLook:
     lips_apart, corner_offset, eye_opening : the expression's parts (see the module docstring);
     expression : lips_apart + corner_offset + the eyes' closing, set by :func:`choose_stills`
         (the closing needs the clip's open eyes).
+    occlusion : the occlusion score against the clip's clearest frames, set by
+        :func:`choose_stills` (:func:`occlusion_scores`).
     spread_pct : the lower face's spread over the detector's shifted crops, % of the eye distance.
     lip_contrast : the lips' CIELAB a* less the cheeks'.
     eye_px : the outer-eye distance in pixels (the face's size in the frame).
@@ -144,19 +146,15 @@ class FrameLook:
     lip_contrast: float
     eye_px: float
     expression: float = 0.0
-
-    def as_dict(self) -> dict:
-        return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in asdict(self).items()}
+    occlusion: float = 0.0
 
 
 def _eye_frame(points: np.ndarray) -> tuple[np.ndarray, float]:
-    """The points' ``(u, v)`` in the frame of the eye line (origin between the outer eye corners,
-    x along it, y across it and down), in outer-eye distances; and that distance in pixels."""
-    a, b = points[EYE_OUTER[0], :2], points[EYE_OUTER[1], :2]
-    d = float(np.linalg.norm(b - a))
-    ex = (b - a) / d
-    axes = np.stack([ex, np.array([-ex[1], ex[0]])], axis=1)
-    return (points[:, :2] - (a + b) / 2.0) @ axes / d, d
+    """The points' ``(u, v)`` along the eye line and across it (down) in outer-eye distances
+    (:func:`~photomodel.landmarks.mapping.level_frame`), and that distance in pixels."""
+    origin, rot = level_frame(points)
+    d = float(np.linalg.norm(points[EYE_OUTER[1], :2] - points[EYE_OUTER[0], :2]))
+    return (points[:, :2] - origin) @ rot.T / d, d
 
 
 def lip_contrast(image: np.ndarray, points: np.ndarray) -> float:
@@ -224,8 +222,7 @@ def look_at_clip(
         if i % every:
             continue
         looked_at += 1
-        image = (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-        look = look_at_frame(i, image)
+        look = look_at_frame(i, frame_uint8(rgb))
         if look is not None:
             looks.append(look)
         if progress is not None:
@@ -237,7 +234,7 @@ def look_at_clip(
 
 def choose_stills(looks: list[FrameLook], count: int, fps: float) -> tuple[list[FrameLook], list[int]]:
     """The stills (module docstring, steps 2–3) in frame order, and the frames found occluded.
-    Sets each look's ``expression``."""
+    Sets each look's ``expression`` and ``occlusion``."""
     if count < 1:
         raise ValueError(f"count must be at least 1, not {count}")
     if not looks:
@@ -245,8 +242,9 @@ def choose_stills(looks: list[FrameLook], count: int, fps: float) -> tuple[list[
     open_eyes = float(np.percentile([lk.eye_opening for lk in looks], 90))
     for lk in looks:
         lk.expression = lk.lips_apart + lk.corner_offset + EYES_WEIGHT * max(0.0, open_eyes - lk.eye_opening)
-    scores = occlusion_scores(looks)
-    occluded = {lk.frame for lk, score in zip(looks, scores, strict=True) if score > OCCLUSION_LIMIT}
+    for lk, score in zip(looks, occlusion_scores(looks), strict=True):
+        lk.occlusion = float(score)
+    occluded = {lk.frame for lk in looks if lk.occlusion > OCCLUSION_LIMIT}
     steady = [lk for lk in looks if lk.frame not in occluded]
     if not steady:
         return [], sorted(occluded)
@@ -277,21 +275,26 @@ def occlusion_scores(looks: list[FrameLook]) -> np.ndarray:
 
 def write_stills(video: VideoFrames, frames: list[int], folder: Path) -> list[Path]:
     """The ``frames`` of ``video`` as PNG files ``<stem>_frame_<n>.png`` in ``folder`` (made if
-    missing), written atomically; an existing file of that name is an error, not overwritten."""
+    missing), written atomically; an existing file of that name is an error, not overwritten.
+    When a frame fails, the stills already written are removed (:func:`remove_stills`)."""
     folder.mkdir(parents=True, exist_ok=True)
     width = max(4, len(str(max(frames, default=0))))
     paths = {i: folder / f"{video.path.stem}_frame_{i:0{width}d}.png" for i in frames}
     taken = [str(p) for p in paths.values() if p.exists()]
     if taken:
         raise StillsError(f"{taken[0]} already exists; choose another folder for the stills")
-    wanted = set(frames)
-    for i, rgb in video.frames(stop=max(frames) + 1 if frames else 0):
-        if i in wanted:
-            bgr = cv2.cvtColor((np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
-            ok, data = cv2.imencode(".png", bgr)
-            if not ok:
-                raise StillsError(f"frame {i} of {video.path.name} could not be encoded as PNG")
-            atomic_write_bytes(paths[i], data.tobytes())
+    written: list[Path] = []
+    try:
+        for i, rgb in video.frames(stop=max(frames) + 1 if frames else 0):
+            if i in paths:
+                ok, data = cv2.imencode(".png", cv2.cvtColor(frame_uint8(rgb), cv2.COLOR_RGB2BGR))
+                if not ok:
+                    raise StillsError(f"frame {i} of {video.path.name} could not be encoded as PNG")
+                atomic_write_bytes(paths[i], data.tobytes())
+                written.append(paths[i])
+    except BaseException:
+        remove_stills(written)
+        raise
     return [paths[i] for i in sorted(paths)]
 
 
@@ -308,7 +311,7 @@ def remove_stills(paths: list[Path]) -> None:
 def stills_folder(project_path: str | os.PathLike) -> Path:
     """Where ``new --video`` writes the stills by default: ``<name>_stills`` beside the project."""
     path = Path(project_path)
-    return path.parent / f"{path.name.removesuffix('.json').removesuffix(FILE_SUFFIX.removesuffix('.json'))}_stills"
+    return path.parent / f"{path.name.removesuffix(FILE_SUFFIX).removesuffix('.json')}_stills"
 
 
 def new_project_from_video(
@@ -355,9 +358,8 @@ def new_project_from_video(
     if not chosen:
         raise StillsError(f"every frame with a face in {video.path} looks occluded ({len(occluded)} frames); "
                           "pick frames by hand: facestudio new --photos DIR")
-    written: list[Path] = []
+    written = write_stills(video, [lk.frame for lk in chosen], Path(folder or stills_folder(project_path)))
     try:
-        written += write_stills(video, [lk.frame for lk in chosen], Path(folder or stills_folder(project_path)))
         project, warnings = new_project_from_photos(
             written, project_path, features=features, curves=curves, expression=expression,
             camera_group=camera_group or video.path.stem, progress=progress)
@@ -365,10 +367,9 @@ def new_project_from_video(
     except BaseException:  # cancelled or failed: the stills written for it go too
         remove_stills(written)
         raise
-    scores = dict(zip((lk.frame for lk in looks), occlusion_scores(looks), strict=True))
     summary = {"path": str(video.path), "frames": video.count or 0, "fps": video.fps,
                "frames_looked_at": looked_at, "frames_with_face": len(looks), "frames_occluded": len(occluded),
                "stills": [{"frame": lk.frame, "file": p.name, "yaw_deg": round(lk.yaw_deg, 2),
-                           "expression": round(lk.expression, 4), "occlusion": round(float(scores[lk.frame]), 3)}
+                           "expression": round(lk.expression, 4), "occlusion": round(lk.occlusion, 3)}
                           for lk, p in zip(chosen, written, strict=True)]}
     return project, warnings, summary

@@ -26,7 +26,7 @@ import numpy as np
 from photomodel.errors import FaceStudioError
 from photomodel.photos.reading import PHOTO_SUFFIXES, files_in_folder, name_order
 
-__all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "VideoError", "VideoFrames", "frame_files", "frame_pattern"]
+__all__ = ["IMAGE_SUFFIXES", "DEFAULT_FPS", "VideoError", "VideoFrames", "frame_files", "frame_pattern", "frame_uint8"]
 
 #: Frame image suffixes: those of a photo.
 IMAGE_SUFFIXES = PHOTO_SUFFIXES
@@ -152,6 +152,13 @@ class VideoFrames:
                 i += 1
         finally:
             cap.release()
+
+
+def frame_uint8(frame: np.ndarray) -> np.ndarray:
+    """A frame as the detector and an image file take it: (H, W, 3) uint8 RGB (float frames are in
+    [0, 1]; a decoded frame comes back to its own bytes)."""
+    img = np.asarray(frame)
+    return img if img.dtype == np.uint8 else np.round(np.clip(img, 0.0, 1.0) * 255.0).astype(np.uint8)
 
 
 def _to_rgb(bgr: np.ndarray) -> np.ndarray:

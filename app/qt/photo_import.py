@@ -68,24 +68,19 @@ class PhotoImporter(QObject):
 
     # ------------------------------------------------------------------ new project
     def new_from_photos_dialog(self) -> bool:
-        w = self.window
-        folder = QFileDialog.getExistingDirectory(w, "New project from a folder of photos")
+        folder = QFileDialog.getExistingDirectory(self.window, "New project from a folder of photos")
         if not folder:
             return False
-        default = str(Path(folder).parent / (Path(folder).name + FILE_SUFFIX))
-        path, _ = QFileDialog.getSaveFileName(w, "Save the new project as", default,
-                                              f"Face Studio project (*{FILE_SUFFIX})")
-        return bool(path) and self.new_from_photos(folder, path)
+        path = self._ask_project_path(Path(folder).parent / (Path(folder).name + FILE_SUFFIX))
+        return path is not None and self.new_from_photos(folder, path)
 
     def new_from_photos(self, folder, path) -> bool:
         """Make a project of every photo in ``folder`` with automatic landmarks, save it as
         ``path`` and open it; in the worker, with progress and cancel."""
-        if self.busy or not self.window.maybe_save():
+        path = self._new_project_path(path)
+        if path is None:
             return False
-        folder, path = Path(folder), Path(path)
-        if not path.name.endswith(FILE_SUFFIX):
-            path = path.with_name(path.name + FILE_SUFFIX)
-
+        folder = Path(folder)
         features, curves = default_features(self.window.model.mesh)
 
         def work(progress, cancel):
@@ -97,23 +92,19 @@ class PhotoImporter(QObject):
         return self._start(work, ("new", path), f"Reading the photos of {folder.name}…")
 
     def new_from_video_dialog(self) -> bool:
-        w = self.window
-        clip, _ = QFileDialog.getOpenFileName(w, "New project from a video of the person", "", VIDEO_FILTER)
+        clip, _ = QFileDialog.getOpenFileName(self.window, "New project from a video of the person", "", VIDEO_FILTER)
         if not clip:
             return False
-        default = str(Path(clip).with_name(Path(clip).stem + FILE_SUFFIX))
-        path, _ = QFileDialog.getSaveFileName(w, "Save the new project as", default,
-                                              f"Face Studio project (*{FILE_SUFFIX})")
-        return bool(path) and self.new_from_video(clip, path)
+        path = self._ask_project_path(Path(clip).with_name(Path(clip).stem + FILE_SUFFIX))
+        return path is not None and self.new_from_video(clip, path)
 
     def new_from_video(self, clip, path, count: int = 5) -> bool:
         """Make a project of up to ``count`` stills of ``clip`` with automatic landmarks, save it
         as ``path`` and open it; in the worker, with progress and cancel."""
-        if self.busy or not self.window.maybe_save():
+        path = self._new_project_path(path)
+        if path is None:
             return False
-        clip, path = Path(clip), Path(path)
-        if not path.name.endswith(FILE_SUFFIX):
-            path = path.with_name(path.name + FILE_SUFFIX)
+        clip = Path(clip)
         features, curves = default_features(self.window.model.mesh)
 
         def work(progress, cancel):
@@ -124,6 +115,20 @@ class PhotoImporter(QObject):
                     "frames looked at were occluded)", *warnings]
 
         return self._start(work, ("new", path), f"Looking at {clip.name} for stills…")
+
+    def _ask_project_path(self, default: Path) -> Path | None:
+        """Where to save a new project (the save dialog, starting at ``default``); None if cancelled."""
+        path, _ = QFileDialog.getSaveFileName(self.window, "Save the new project as", str(default),
+                                              f"Face Studio project (*{FILE_SUFFIX})")
+        return Path(path) if path else None
+
+    def _new_project_path(self, path) -> Path | None:
+        """``path`` with the project suffix, or None when an import runs or the open project's
+        changes are not settled (saved or discarded)."""
+        if self.busy or not self.window.maybe_save():
+            return None
+        path = Path(path)
+        return path if path.name.endswith(FILE_SUFFIX) else path.with_name(path.name + FILE_SUFFIX)
 
     # ------------------------------------------------------------------ photos added
     def add_photos(self, files) -> bool:

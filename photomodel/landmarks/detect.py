@@ -398,10 +398,10 @@ def _face_mesh(image: np.ndarray, box: np.ndarray, keypoints: np.ndarray):
         centre, size, angle = _roi_from_points(points)
         along = np.array([np.cos(angle), np.sin(angle)])  # the eye line
         across = np.array([-along[1], along[0]])
-        runs = [points] + [_mesh_pass(image, centre + (dx * along + dy * across) * size, size, angle)[0]
-                           for dx, dy in SHIFT_AVERAGE]
-        points = np.mean(runs, axis=0)
-        spread = np.sqrt(np.mean(np.sum((np.asarray(runs)[:, :, :2] - points[:, :2]) ** 2, axis=-1), axis=0))
+        runs = np.array([points] + [_mesh_pass(image, centre + (dx * along + dy * across) * size, size, angle)[0]
+                                    for dx, dy in SHIFT_AVERAGE])
+        points = runs.mean(axis=0)
+        spread = np.sqrt(np.mean(np.sum((runs[:, :, :2] - points[:, :2]) ** 2, axis=-1), axis=0))
     return points, score, spread
 
 

@@ -220,7 +220,7 @@ def placed_ibug(yaw_deg: float) -> np.ndarray:
     return ~_beyond_limit(yaw_deg)
 
 
-def _level_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def level_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(origin, R)``: ``(uv - origin) @ R.T`` is along the eye line (x) and across it (y)."""
     a, b = points[YAW_POINTS_EYES[0], :2], points[YAW_POINTS_EYES[1], :2]
     c, s = (b - a) / np.linalg.norm(b - a)
@@ -248,7 +248,7 @@ def far_jaw_to_outline(points: np.ndarray, uv: np.ndarray, yaw_deg: float) -> np
     moved = np.zeros(68, bool)
     if abs(yaw_deg) < 1.0:
         return moved
-    origin, rot = _level_frame(points)
+    origin, rot = level_frame(points)
     level = (np.asarray(points, float)[:, :2] - origin) @ rot.T
     hull = cv2.convexHull(level.astype(np.float32)).reshape(-1, 2).astype(float)
     for i in np.flatnonzero((_SIDE[:17] != 0) & (-_SIDE[:17] * yaw_deg > 0)):
