@@ -62,8 +62,10 @@ def _progress_bar(enabled: bool, task: str):
 
 
 #: What a fit under the person prior does with automatic clicks (one photo, or weighed ones).
-_PRIOR_NOTE = ("automatic clicks move the face off the generic head's shape only as far as the detector is sure "
-               "of them, so the RMS against them is about its error")
+_PRIOR_NOTE = (
+    "automatic clicks move the face off the generic head's shape only as far as the detector is sure "
+    "of them, so the RMS against them is about its error"
+)
 
 
 def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
@@ -78,15 +80,20 @@ def _format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         cs = report.get("camera_solve") or {}
         how = f" (start: {cs['start']}, noise σ̂ {cs['sigma_px']:.2f} px)" if cs else ""
         if len(report.get("views", [])) == 1:
-            lines.append(f"  one photo: its camera placed with {b['points']} clicked features against the generic "
-                         f"head, whose depth the face takes (one view cannot measure it){how}; {_PRIOR_NOTE} "
-                         "(drag the ones that are off)")
+            lines.append(
+                f"  one photo: its camera placed with {b['points']} clicked features against the generic "
+                f"head, whose depth the face takes (one view cannot measure it){how}; {_PRIOR_NOTE} "
+                "(drag the ones that are off)"
+            )
         else:
-            lines.append(f"  cameras placed with all {b['points']} features clicked in 2+ photos: "
-                         f"{b['rms_px']:.3f} px{how}")
+            lines.append(
+                f"  cameras placed with all {b['points']} features clicked in 2+ photos: {b['rms_px']:.3f} px{how}"
+            )
             if uses_person_prior(cs):
-                lines.append(f"  the most probable face under the person prior: {_PRIOR_NOTE} (drag the ones that "
-                             "are off; --no-person-prior fits them as they are)")
+                lines.append(
+                    f"  the most probable face under the person prior: {_PRIOR_NOTE} (drag the ones that "
+                    "are off; --no-person-prior fits them as they are)"
+                )
     suspects = report.get("suspect_clicks") or []
     if suspects:
         lines.append(f"  suspect clicks ({len(suspects)}, left out of the fit; check them):")
@@ -135,8 +142,10 @@ def cmd_new(args) -> int:
     (:mod:`tracking.stills`), with automatic landmarks."""
     target = Path(args.project)
     if target.exists():
-        raise ProjectError(f"{target}: already exists; `facestudio new` does not overwrite a project "
-                           f"(choose another name, or add photos in the studio)")
+        raise ProjectError(
+            f"{target}: already exists; `facestudio new` does not overwrite a project "
+            f"(choose another name, or add photos in the studio)"
+        )
     if args.features_from is not None:
         source = load_project(args.features_from)
         features, curves = source.features, source.curves
@@ -146,13 +155,28 @@ def cmd_new(args) -> int:
     try:
         if args.video is not None:
             project, warnings, from_video = new_project_from_video(
-                args.video, target, features=features, curves=curves, count=args.stills, every=args.every,
-                folder=args.stills_dir, expression=args.expression, camera_group=args.camera_group,
-                progress=progress)
+                args.video,
+                target,
+                features=features,
+                curves=curves,
+                count=args.stills,
+                every=args.every,
+                folder=args.stills_dir,
+                expression=args.expression,
+                camera_group=args.camera_group,
+                progress=progress,
+            )
         else:
             project, warnings = new_project_from_photos(
-                args.photos, target, features=features, curves=curves, expression=args.expression,
-                camera_group=args.camera_group, placer=place_landmarks, progress=progress)
+                args.photos,
+                target,
+                features=features,
+                curves=curves,
+                expression=args.expression,
+                camera_group=args.camera_group,
+                placer=place_landmarks,
+                progress=progress,
+            )
             save_project(project, target)
     finally:
         if bar is not None:
@@ -172,23 +196,27 @@ def cmd_add_photos(args) -> int:
     dropped = any(e.name == args.expression and e.result is not None for e in project.expressions)
     bar, progress = _progress_bar(not args.json or sys.stderr.isatty(), "add-photos")
     try:
-        warnings = add_photos(project, args.expression, paths, camera_group=args.camera_group,
-                              placer=place_landmarks, progress=progress)
+        warnings = add_photos(
+            project, args.expression, paths, camera_group=args.camera_group, placer=place_landmarks, progress=progress
+        )
     finally:
         if bar is not None:
             bar.close()
     expr = project.expression(args.expression)
     if dropped:  # a fit is of a set of photos (the studio drops it the same way)
         expr.result = None
-        warnings.append(f"expression {args.expression!r}: its fit and texture were of the photos before; "
-                        f"fit it again (facestudio fit {target} --expression {args.expression})")
-        followers = [e.name for e in project.expressions
-                     if e.cameras_from == args.expression and e.result is not None]
+        warnings.append(
+            f"expression {args.expression!r}: its fit and texture were of the photos before; "
+            f"fit it again (facestudio fit {target} --expression {args.expression})"
+        )
+        followers = [e.name for e in project.expressions if e.cameras_from == args.expression and e.result is not None]
         if followers:  # their fits keep the cameras they were made with, until fitted again
-            warnings.append(f"{', '.join(map(repr, followers))} reuse the cameras of {args.expression!r}: "
-                            f"fit them again after it (facestudio fit {target} fits them in order)")
+            warnings.append(
+                f"{', '.join(map(repr, followers))} reuse the cameras of {args.expression!r}: "
+                f"fit them again after it (facestudio fit {target} fits them in order)"
+            )
     save_project(project, target)
-    out = _intake_summary(target, args.expression, expr.photos[len(expr.photos) - len(paths):], warnings + skipped)
+    out = _intake_summary(target, args.expression, expr.photos[len(expr.photos) - len(paths) :], warnings + skipped)
     out["fit_dropped"] = dropped
     out["photos_in_expression"] = len(expr.photos)
     return _print_intake(args, out, f"added to {target}", len(project.features))
@@ -197,12 +225,29 @@ def cmd_add_photos(args) -> int:
 def _intake_summary(target: Path, expression: str, photos, warnings: list[str]) -> dict:
     """The JSON object of ``new`` and ``add-photos``: the photos taken in, with their automatic
     clicks, curves, view, focal guess and camera group."""
-    views = [{"id": p.id, "file": Path(p.path).name, "width": p.width, "height": p.height,
-              "preset": p.preset, "clicks_auto": len(p.auto_clicks()), "curves_auto": p.auto_curves(),
-              "focal_mm_guess": p.focal_mm_guess, "camera_group": p.camera_group} for p in photos]
-    return {"path": str(target), "expression": expression, "photos": len(views),
-            "clicks_auto": sum(v["clicks_auto"] for v in views),
-            "curves_auto": sum(len(v["curves_auto"]) for v in views), "warnings": warnings, "views": views}
+    views = [
+        {
+            "id": p.id,
+            "file": Path(p.path).name,
+            "width": p.width,
+            "height": p.height,
+            "preset": p.preset,
+            "clicks_auto": len(p.auto_clicks()),
+            "curves_auto": p.auto_curves(),
+            "focal_mm_guess": p.focal_mm_guess,
+            "camera_group": p.camera_group,
+        }
+        for p in photos
+    ]
+    return {
+        "path": str(target),
+        "expression": expression,
+        "photos": len(views),
+        "clicks_auto": sum(v["clicks_auto"] for v in views),
+        "curves_auto": sum(len(v["curves_auto"]) for v in views),
+        "warnings": warnings,
+        "views": views,
+    }
 
 
 def _print_intake(args, out: dict, done: str, n_features: int) -> int:
@@ -216,20 +261,26 @@ def _print_intake(args, out: dict, done: str, n_features: int) -> int:
 
 
 def _format_intake(out: dict, done: str, n_features: int) -> str:
-    lines = [f"{done}: expression {out['expression']!r}, {out['photos']} photos, "
-             f"{out['clicks_auto']} automatic clicks and {out['curves_auto']} automatic curves (source \"auto\"; "
-             "check them in the studio)"]
+    lines = [
+        f"{done}: expression {out['expression']!r}, {out['photos']} photos, "
+        f'{out["clicks_auto"]} automatic clicks and {out["curves_auto"]} automatic curves (source "auto"; '
+        "check them in the studio)"
+    ]
     if "video" in out:
         v = out["video"]
-        lines.append(f"  stills of {Path(v['path']).name}: frames {', '.join(str(st['frame']) for st in v['stills'])} "
-                     f"(of {v['frames_looked_at']} frames looked at: {v['frames_with_face']} with a face, "
-                     f"{v['frames_occluded']} occluded; the least expressive clear frames across the head's turn)")
+        lines.append(
+            f"  stills of {Path(v['path']).name}: frames {', '.join(str(st['frame']) for st in v['stills'])} "
+            f"(of {v['frames_looked_at']} frames looked at: {v['frames_with_face']} with a face, "
+            f"{v['frames_occluded']} occluded; the least expressive clear frames across the head's turn)"
+        )
     wid = max([len("photo")] + [len(v["id"]) for v in out["views"]])
     lines.append(f"  {'photo':<{wid}} {'view':<19} {'auto clicks':>11} {'focal mm':>9}  camera group")
     for v in out["views"]:
         focal = "-" if v["focal_mm_guess"] is None else f"{v['focal_mm_guess']:.1f}"
-        lines.append(f"  {v['id']:<{wid}} {v['preset']:<19} {v['clicks_auto']:>4} of {n_features:<4} "
-                     f"{focal:>9}  {v['camera_group'] or '-'}")
+        lines.append(
+            f"  {v['id']:<{wid}} {v['preset']:<19} {v['clicks_auto']:>4} of {n_features:<4} "
+            f"{focal:>9}  {v['camera_group'] or '-'}"
+        )
     lines.append(f"next: facestudio fit {out['path']}")
     return "\n".join(lines)
 
@@ -252,8 +303,11 @@ def cmd_fit(args) -> int:
     try:
         results = []
         for i, name in enumerate(names):
-            options = FitOptions(refine=not args.no_refine, weigh_auto_clicks=args.weigh_auto_clicks,
-                                 person_prior=not args.no_person_prior)
+            options = FitOptions(
+                refine=not args.no_refine,
+                weigh_auto_clicks=args.weigh_auto_clicks,
+                person_prior=not args.no_person_prior,
+            )
 
             def stage(label, frac, i=i, name=name):  # which expression, and the whole run's fraction
                 progress(f"{name} ({i + 1}/{len(names)}): {label}", (i + frac) / len(names))
@@ -307,12 +361,18 @@ def cmd_texture(args) -> int:
     prepared = []
     try:
         for i, name in enumerate(names):
+
             def stage(label, frac, i=i, name=name):
                 progress(f"{name} ({i + 1}/{len(names)}): {label}", (i + frac) / len(names))
 
             # §5.2.4: ears, hair and neck from the single best photo (needs the generic topology)
-            job = texture_expression(project, name, args.size, face_mask=generic.face_mask,
-                                     progress=lambda label, f, stage=stage: stage(label, 0.8 * f))
+            job = texture_expression(
+                project,
+                name,
+                args.size,
+                face_mask=generic.face_mask,
+                progress=lambda label, f, stage=stage: stage(label, 0.8 * f),
+            )
             stage("encoding exports", 0.8)
             files, rel = encode_texture_outputs(project, job)
             prepared.append((name, job, files, rel, job.report))
@@ -329,14 +389,26 @@ def cmd_texture(args) -> int:
 
     out = {"project": str(Path(args.project)), "expressions": []}
     for name, _job, _files, rel, report in prepared:
-        entry = {"name": name, "size": args.size, **report,
-                 "files": {"texture": rel["image"], "weight_maps": rel["weight_maps"], "obj": rel["obj"],
-                           "mtl": rel["mtl"], "glb": rel["glb"], "ply": rel["ply"]}}
+        entry = {
+            "name": name,
+            "size": args.size,
+            **report,
+            "files": {
+                "texture": rel["image"],
+                "weight_maps": rel["weight_maps"],
+                "obj": rel["obj"],
+                "mtl": rel["mtl"],
+                "glb": rel["glb"],
+                "ply": rel["ply"],
+            },
+        }
         out["expressions"].append(entry)
         if not args.json:
-            print(f"expression {name!r}: {args.size}x{args.size} texture from {len(report['photos'])} photos "
-                  f"({', '.join(report['photos'])}), {report['coverage']:.1%} of the surface seen, "
-                  f"{report['extract_s']:.2f} s")
+            print(
+                f"expression {name!r}: {args.size}x{args.size} texture from {len(report['photos'])} photos "
+                f"({', '.join(report['photos'])}), {report['coverage']:.1%} of the surface seen, "
+                f"{report['extract_s']:.2f} s"
+            )
             print(f"  texture  {rel['image']}")
             for pid, path in rel["weight_maps"].items():
                 print(f"  weights  {path}  ({pid})")
@@ -365,8 +437,10 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
     if args.focal_px is not None and not args.focal_px > 0:
         raise FaceStudioError(f"--focal-px {args.focal_px}: the focal length must be a positive number of pixels")
     if (args.correct is None) != (args.pose is None):
-        raise FaceStudioError("--correct FRAME and --pose FILE go together: the frame to correct and its pose "
-                              "(clicks of frame FRAME in the first-pose format)")  # fmt: skip
+        raise FaceStudioError(
+            "--correct FRAME and --pose FILE go together: the frame to correct and its pose "
+            "(clicks of frame FRAME in the first-pose format)"
+        )
     bar, show = _progress_bar(not args.json or sys.stderr.isatty(), "track")
     stop = []
 
@@ -383,17 +457,29 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
     previous = signal.signal(signal.SIGINT, on_sigint)
     try:
         names = None if args.expressions is None else [n.strip() for n in args.expressions.split(",") if n.strip()]
-        result = track_video(args.project, args.video, args.out, expressions=names,
-                             first_pose=args.first_pose, focal_px=args.focal_px,
-                             max_frames=args.frames, restart=args.restart, correct_frame=args.correct,
-                             correct_pose=args.pose, overlay=not args.no_overlay,
-                             progress=progress, cancel=lambda: bool(stop))  # fmt: skip
+        result = track_video(
+            args.project,
+            args.video,
+            args.out,
+            expressions=names,
+            first_pose=args.first_pose,
+            focal_px=args.focal_px,
+            max_frames=args.frames,
+            restart=args.restart,
+            correct_frame=args.correct,
+            correct_pose=args.pose,
+            overlay=not args.no_overlay,
+            progress=progress,
+            cancel=lambda: bool(stop),
+        )
     except KeyboardInterrupt:
         bar.close()
         if out_dir is None:
             out_dir = default_out_dir(args.project, args.video)
-        print(f"facestudio: cancelled; {_frames_saved(out_dir)} frames saved in {out_dir}, rerun to continue",
-              file=sys.stderr)  # fmt: skip
+        print(
+            f"facestudio: cancelled; {_frames_saved(out_dir)} frames saved in {out_dir}, rerun to continue",
+            file=sys.stderr,
+        )
         return 130
     finally:
         signal.signal(signal.SIGINT, previous)
@@ -402,33 +488,49 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
     files = {k: str(v) for k, v in result.files.items()}
     rms = [f["rms"] for f in result.frames]
     summary = {
-        "project": str(Path(args.project)), "video": str(Path(args.video)), "out_dir": str(result.out_dir),
-        "frames": len(result.frames), "tracked": result.tracked, "resumed_from": result.resumed_from,
+        "project": str(Path(args.project)),
+        "video": str(Path(args.video)),
+        "out_dir": str(result.out_dir),
+        "frames": len(result.frames),
+        "tracked": result.tracked,
+        "resumed_from": result.resumed_from,
         "corrected": result.corrected,
-        "complete": result.complete, "cancelled": result.cancelled, "fps": round(result.fps, 3),
-        "diverged_frames": result.diverged, "mean_rms": float(sum(rms) / len(rms)) if rms else None, "files": files,
-        "first_pose": result.first_pose, "redetected": sum(f.get("start") == "detected" for f in result.frames),
+        "complete": result.complete,
+        "cancelled": result.cancelled,
+        "fps": round(result.fps, 3),
+        "diverged_frames": result.diverged,
+        "mean_rms": float(sum(rms) / len(rms)) if rms else None,
+        "files": files,
+        "first_pose": result.first_pose,
+        "redetected": sum(f.get("start") == "detected" for f in result.frames),
         "ignored_files": [str(p) for p in result.ignored],
-    }  # fmt: skip
+    }
     if result.ignored:
         names = ", ".join(p.name for p in result.ignored[:5]) + (" …" if len(result.ignored) > 5 else "")
-        print(f"facestudio: {len(result.ignored)} image(s) in the frame folder do not match its frame names and were "
-              f"ignored: {names}", file=sys.stderr)  # fmt: skip
+        print(
+            f"facestudio: {len(result.ignored)} image(s) in the frame folder do not match its frame names and were "
+            f"ignored: {names}",
+            file=sys.stderr,
+        )
     if args.json:
         print(json.dumps(summary, indent=1))
     else:
         resumed = f" (continuing after frame {result.resumed_from - 1})" if result.resumed_from else ""
         if result.corrected is not None:
             resumed = f" (from frame {result.corrected}, corrected to the given pose)"
-        print(f"tracked {result.tracked} frames{resumed} at {result.fps:.2f} frames/s; {len(result.frames)} frames "
-              f"in the results, {result.diverged} diverged, {summary['redetected']} fitted again from the landmark "
-              f"detector, mean image RMS {summary['mean_rms'] or 0:.4f}")
+        print(
+            f"tracked {result.tracked} frames{resumed} at {result.fps:.2f} frames/s; {len(result.frames)} frames "
+            f"in the results, {result.diverged} diverged, {summary['redetected']} fitted again from the landmark "
+            f"detector, mean image RMS {summary['mean_rms'] or 0:.4f}"
+        )
         print(f"  first pose: {result.first_pose}")
         for name, path in files.items():
             print(f"  {name:<12} {path}")
     if result.cancelled:
-        print(f"facestudio: cancelled; {len(result.frames)} frames saved in {result.out_dir}, rerun to continue",
-              file=sys.stderr)  # fmt: skip
+        print(
+            f"facestudio: cancelled; {len(result.frames)} frames saved in {result.out_dir}, rerun to continue",
+            file=sys.stderr,
+        )
         return 130
     return 0
 
@@ -443,7 +545,7 @@ def _batch_display(show: bool):
         if bar is None:
             return
         bar.total = state.shots
-        for r in state.finished[len(told):]:
+        for r in state.finished[len(told) :]:
             told.append(r)
             if r.status == "failed":
                 tqdm.write(f"facestudio: {r.video} failed: {r.error}", file=sys.stderr)
@@ -456,14 +558,19 @@ def _batch_display(show: bool):
 def _print_batch(result: BatchResult) -> None:
     """The human summary of ``track-many``: one line per shot, then the totals and the summary files."""
     for s in result.shots:
-        what = {"tracked": f"{s.tracked} frames tracked at {s.fps:.2f} frames/s"
-                           + (f" (continuing after frame {s.resumed_from - 1})" if s.resumed_from else ""),
-                "skipped": "already tracked, skipped", "cancelled": f"cancelled after {s.frames} frames",
-                "failed": f"FAILED: {s.error}"}[s.status]  # fmt: skip
+        what = {
+            "tracked": f"{s.tracked} frames tracked at {s.fps:.2f} frames/s"
+            + (f" (continuing after frame {s.resumed_from - 1})" if s.resumed_from else ""),
+            "skipped": "already tracked, skipped",
+            "cancelled": f"cancelled after {s.frames} frames",
+            "failed": f"FAILED: {s.error}",
+        }[s.status]
         print(f"{Path(s.video).name:<24} {what}; {s.frames} frames in {s.out_dir}")
     where = f"{result.workers} workers" + (f" of {result.scheduler}" if result.scheduler else "")
-    print(f"{len(result.shots)} shots ({result.failed} failed), {result.tracked_frames} frames in "
-          f"{result.seconds:.1f} s on {where} (start-up {result.startup_s:.1f} s)")  # fmt: skip
+    print(
+        f"{len(result.shots)} shots ({result.failed} failed), {result.tracked_frames} frames in "
+        f"{result.seconds:.1f} s on {where} (start-up {result.startup_s:.1f} s)"
+    )
     for name, path in result.files.items():
         print(f"  {name:<5} {path}")
 
@@ -484,11 +591,22 @@ def cmd_track_many(args) -> int:
     previous = signal.signal(signal.SIGINT, on_sigint)
     # an optional heavy library (Dask, ~1-2 s to import): only the command that needs it loads it
     from tracking.many_shots import track_many  # noqa: PLC0415
+
     try:
         names = None if args.expressions is None else [n.strip() for n in args.expressions.split(",") if n.strip()]
-        result = track_many(args.project, args.videos, args.out, workers=args.workers, scheduler=args.scheduler,
-                            threads=args.threads, max_frames=args.frames, expressions=names,
-                            overlay=not args.no_overlay, progress=progress, stop=lambda: bool(stop))  # fmt: skip
+        result = track_many(
+            args.project,
+            args.videos,
+            args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            threads=args.threads,
+            max_frames=args.frames,
+            expressions=names,
+            overlay=not args.no_overlay,
+            progress=progress,
+            stop=lambda: bool(stop),
+        )
     except KeyboardInterrupt:
         print("facestudio: cancelled; every shot keeps the frames it saved, rerun to continue", file=sys.stderr)
         return 130
@@ -537,112 +655,222 @@ def _positive_int(text: str) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="facestudio", description="Face Studio: faces from photographs.")
     sub = p.add_subparsers(dest="command", required=True)
-    n = sub.add_parser("new", help="start a project from a folder of photos: photos checked, focal lengths "
-                                   "from EXIF, landmarks placed automatically")
+    n = sub.add_parser(
+        "new",
+        help="start a project from a folder of photos: photos checked, focal lengths "
+        "from EXIF, landmarks placed automatically",
+    )
     n.add_argument("project", type=Path, help="the project file to create (*.facestudio.json); never overwritten")
     source = n.add_mutually_exclusive_group(required=True)
-    source.add_argument("--photos", type=Path, metavar="DIR",
-                        help=f"folder of photos ({', '.join(x.lstrip('.') for x in PHOTO_SUFFIXES)}), added in name "
-                             "order; HEIC, camera raw and GIF files in it are named in a warning, not added")
-    source.add_argument("--video", type=Path, metavar="CLIP",
-                        help="a video file or a folder of frames of the person: stills are picked where the face is "
-                             "clear and least expressive, spread over the head's turn, written as PNG and added as "
-                             "the photos (one camera group, the clip's name)")
-    n.add_argument("--stills", type=_positive_int, default=5, metavar="N",
-                   help="with --video: at most N stills, fewer where the head turns less than 7.5 degrees "
-                        "between them (default 5)")
-    n.add_argument("--every", type=_positive_int, metavar="K",
-                   help="with --video: look at every K-th frame (default: about 150 frames over the clip)")
-    n.add_argument("--stills-dir", type=Path, metavar="DIR",
-                   help="with --video: where the stills are written (default: PROJECT_stills beside the project)")
+    source.add_argument(
+        "--photos",
+        type=Path,
+        metavar="DIR",
+        help=f"folder of photos ({', '.join(x.lstrip('.') for x in PHOTO_SUFFIXES)}), added in name "
+        "order; HEIC, camera raw and GIF files in it are named in a warning, not added",
+    )
+    source.add_argument(
+        "--video",
+        type=Path,
+        metavar="CLIP",
+        help="a video file or a folder of frames of the person: stills are picked where the face is "
+        "clear and least expressive, spread over the head's turn, written as PNG and added as "
+        "the photos (one camera group, the clip's name)",
+    )
+    n.add_argument(
+        "--stills",
+        type=_positive_int,
+        default=5,
+        metavar="N",
+        help="with --video: at most N stills, fewer where the head turns less than 7.5 degrees "
+        "between them (default 5)",
+    )
+    n.add_argument(
+        "--every",
+        type=_positive_int,
+        metavar="K",
+        help="with --video: look at every K-th frame (default: about 150 frames over the clip)",
+    )
+    n.add_argument(
+        "--stills-dir",
+        type=Path,
+        metavar="DIR",
+        help="with --video: where the stills are written (default: PROJECT_stills beside the project)",
+    )
     n.add_argument("--expression", default="neutral", help="the expression the photos show (default: neutral)")
-    n.add_argument("--camera-group", metavar="NAME", help="one camera group for every photo (frames of one "
-                                                          "video); default: by camera and lens from EXIF")
-    n.add_argument("--features-from", type=Path, metavar="PROJECT",
-                   help="copy the features and curves of this project (default: the sample project's "
-                        "13 pose features, the 68 landmarks and the generic mesh's curves)")
+    n.add_argument(
+        "--camera-group",
+        metavar="NAME",
+        help="one camera group for every photo (frames of one video); default: by camera and lens from EXIF",
+    )
+    n.add_argument(
+        "--features-from",
+        type=Path,
+        metavar="PROJECT",
+        help="copy the features and curves of this project (default: the sample project's "
+        "13 pose features, the 68 landmarks and the generic mesh's curves)",
+    )
     n.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     n.set_defaults(func=cmd_new)
-    a = sub.add_parser("add-photos", help="add photos to an expression of a project (a new expression, or more "
-                                          "views of one), with automatic landmarks as `new` places them")
+    a = sub.add_parser(
+        "add-photos",
+        help="add photos to an expression of a project (a new expression, or more "
+        "views of one), with automatic landmarks as `new` places them",
+    )
     a.add_argument("project", type=Path, help="the project file (*.facestudio.json); saved with a backup")
-    a.add_argument("--photos", type=Path, nargs="+", required=True, metavar="PATH",
-                   help="photo files and folders of photos (a folder's in name order)")
-    a.add_argument("--expression", default="neutral",
-                   help="the expression the photos show, created when the project has none of that name "
-                        "(default: neutral); adding photos drops its fit, which is of the photos before")
-    a.add_argument("--camera-group", metavar="NAME", help="one camera group for every new photo; default: by "
-                                                          "camera and lens from EXIF")
+    a.add_argument(
+        "--photos",
+        type=Path,
+        nargs="+",
+        required=True,
+        metavar="PATH",
+        help="photo files and folders of photos (a folder's in name order)",
+    )
+    a.add_argument(
+        "--expression",
+        default="neutral",
+        help="the expression the photos show, created when the project has none of that name "
+        "(default: neutral); adding photos drops its fit, which is of the photos before",
+    )
+    a.add_argument(
+        "--camera-group",
+        metavar="NAME",
+        help="one camera group for every new photo; default: by camera and lens from EXIF",
+    )
     a.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     a.set_defaults(func=cmd_add_photos)
     f = sub.add_parser("fit", help="recover cameras and fit the face mesh to the clicked photos")
     f.add_argument("project", help="project file (*.facestudio.json)")
-    f.add_argument("--expression", help="fit only this expression (default: all; one that reuses another's "
-                                        "cameras, cameras_from, is fitted after it)")
+    f.add_argument(
+        "--expression",
+        help="fit only this expression (default: all; one that reuses another's "
+        "cameras, cameras_from, is fitted after it)",
+    )
     f.add_argument("--no-refine", action="store_true", help="stop after pose recovery + RBF (no refinement)")
     weigh = f.add_mutually_exclusive_group()
-    weigh.add_argument("--weigh-auto-clicks", dest="weigh_auto_clicks", action="store_const", const=True,
-                       help="weigh automatic clicks by the detector's confidence squared in the camera solve, "
-                            "and fit the most probable face under the person prior (default: when the photos "
-                            "with automatic clicks are of views ≥ 40° apart, e.g. a front and a three-quarter "
-                            "view; near-frontal video frames keep the clicks' RMS lower without)")
-    weigh.add_argument("--no-weigh-auto-clicks", dest="weigh_auto_clicks", action="store_const", const=False,
-                       help="never weigh automatic clicks (every click counts alike)")
-    f.add_argument("--no-person-prior", action="store_true",
-                   help="fit weighed automatic clicks as they are instead of the most probable face under the "
-                        "person prior (with several photos; one photo always uses it): the mesh then follows "
-                        "the detector's error")
+    weigh.add_argument(
+        "--weigh-auto-clicks",
+        dest="weigh_auto_clicks",
+        action="store_const",
+        const=True,
+        help="weigh automatic clicks by the detector's confidence squared in the camera solve, "
+        "and fit the most probable face under the person prior (default: when the photos "
+        "with automatic clicks are of views ≥ 40° apart, e.g. a front and a three-quarter "
+        "view; near-frontal video frames keep the clicks' RMS lower without)",
+    )
+    weigh.add_argument(
+        "--no-weigh-auto-clicks",
+        dest="weigh_auto_clicks",
+        action="store_const",
+        const=False,
+        help="never weigh automatic clicks (every click counts alike)",
+    )
+    f.add_argument(
+        "--no-person-prior",
+        action="store_true",
+        help="fit weighed automatic clicks as they are instead of the most probable face under the "
+        "person prior (with several photos; one photo always uses it): the mesh then follows "
+        "the detector's error",
+    )
     f.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     f.add_argument("--dry-run", action="store_true", help="report only; do not write into the project")
     f.set_defaults(func=cmd_fit)
-    t = sub.add_parser("texture", help="extract the texture of the fitted face from the photos and export "
-                                       "it (OBJ+MTL+PNG, glb, coloured PLY)")
+    t = sub.add_parser(
+        "texture",
+        help="extract the texture of the fitted face from the photos and export it (OBJ+MTL+PNG, glb, coloured PLY)",
+    )
     t.add_argument("project", help="project file (*.facestudio.json), fitted with `facestudio fit`")
     t.add_argument("--expression", help="texture only this expression (default: every fitted one)")
     t.add_argument("--size", type=int, default=1024, help="texture size in texels per side (default 1024)")
     t.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     t.set_defaults(func=cmd_texture)
-    k = sub.add_parser("track", help="track head pose and expression through a video: JSON + CSV per frame, "
-                                     "plots, overlay video")
-    k.add_argument("project", help="project file (*.facestudio.json) with its expressions fitted and textured; "
-                                   "a neutral one alone tracks head pose, more expressions add expression")
+    k = sub.add_parser(
+        "track", help="track head pose and expression through a video: JSON + CSV per frame, plots, overlay video"
+    )
+    k.add_argument(
+        "project",
+        help="project file (*.facestudio.json) with its expressions fitted and textured; "
+        "a neutral one alone tracks head pose, more expressions add expression",
+    )
     k.add_argument("--video", required=True, help="video file (anything OpenCV decodes) or folder of PNG/JPG frames")
-    k.add_argument("--out", type=Path, help="output folder (default: <project folder>/results/track_<video name>); "
-                                            "a rerun continues what is there")
-    k.add_argument("--first-pose", type=Path, help="first frame's pose or clicks, JSON (default: <video "
-                                                   "stem>.first_pose.json beside the video if there is one, else "
-                                                   "found by the landmark detector; see docs/tracking.md)")
-    k.add_argument("--focal-px", type=float, help="the video camera's focal length in pixels (overrides the "
-                                                  "first-pose file's; default: the project's cameras of the "
-                                                  "video's size, else 0.9 x the frame width)")
+    k.add_argument(
+        "--out",
+        type=Path,
+        help="output folder (default: <project folder>/results/track_<video name>); a rerun continues what is there",
+    )
+    k.add_argument(
+        "--first-pose",
+        type=Path,
+        help="first frame's pose or clicks, JSON (default: <video "
+        "stem>.first_pose.json beside the video if there is one, else "
+        "found by the landmark detector; see docs/tracking.md)",
+    )
+    k.add_argument(
+        "--focal-px",
+        type=float,
+        help="the video camera's focal length in pixels (overrides the "
+        "first-pose file's; default: the project's cameras of the "
+        "video's size, else 0.9 x the frame width)",
+    )
     k.add_argument("--frames", type=int, help="track only the first N frames (a later run may raise N)")
-    k.add_argument("--expressions", help="comma-separated expressions of the face model, neutral first "
-                                         "(default: every expression of the project)")
+    k.add_argument(
+        "--expressions",
+        help="comma-separated expressions of the face model, neutral first (default: every expression of the project)",
+    )
     k.add_argument("--restart", action="store_true", help="discard earlier results in the output folder")
-    k.add_argument("--correct", type=int, metavar="FRAME", help="correct tracked frame FRAME (e.g. a diverged "
-                                                                "one) with --pose: keep frames 0..FRAME-1, fit "
-                                                                "FRAME from that pose, track on from there")
-    k.add_argument("--pose", type=Path, metavar="FILE", help="frame FRAME's pose for --correct: JSON like the "
-                                                             "first-pose file (clicks of that frame, or R/t_mm)")
+    k.add_argument(
+        "--correct",
+        type=int,
+        metavar="FRAME",
+        help="correct tracked frame FRAME (e.g. a diverged "
+        "one) with --pose: keep frames 0..FRAME-1, fit "
+        "FRAME from that pose, track on from there",
+    )
+    k.add_argument(
+        "--pose",
+        type=Path,
+        metavar="FILE",
+        help="frame FRAME's pose for --correct: JSON like the first-pose file (clicks of that frame, or R/t_mm)",
+    )
     k.add_argument("--no-overlay", action="store_true", help="do not write the overlay video")
     k.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     k.set_defaults(func=cmd_track)
-    m = sub.add_parser("track-many", help="track many shots in parallel on Dask (this machine's cores, or a "
-                                          "cluster): each shot's results where `track` puts them, a summary")
+    m = sub.add_parser(
+        "track-many",
+        help="track many shots in parallel on Dask (this machine's cores, or a "
+        "cluster): each shot's results where `track` puts them, a summary",
+    )
     m.add_argument("project", help="project file (*.facestudio.json); on a cluster, in a folder every worker reads")
-    m.add_argument("videos", nargs="+", help="video files or frame folders, one shot each (first pose of each: "
-                                             "<video stem>.first_pose.json beside it, as for `track`)")
-    m.add_argument("--workers", type=int, help="worker processes on this machine (default: one per core, at "
-                                               "most one per shot)")
-    m.add_argument("--scheduler", metavar="ADDR", help="a running Dask scheduler (tcp://host:8786): track on "
-                                                       "its workers instead of this machine's")
-    m.add_argument("--threads", type=int, help="threads each worker's renderer and OpenCV may use (default: "
-                                               "cores / workers; 1 on a cluster)")
-    m.add_argument("--out", type=Path, help="folder of the shots' results folders and the summary (default: "
-                                            "<project folder>/results); a rerun continues what is there")
+    m.add_argument(
+        "videos",
+        nargs="+",
+        help="video files or frame folders, one shot each (first pose of each: "
+        "<video stem>.first_pose.json beside it, as for `track`)",
+    )
+    m.add_argument(
+        "--workers", type=int, help="worker processes on this machine (default: one per core, at most one per shot)"
+    )
+    m.add_argument(
+        "--scheduler",
+        metavar="ADDR",
+        help="a running Dask scheduler (tcp://host:8786): track on its workers instead of this machine's",
+    )
+    m.add_argument(
+        "--threads",
+        type=int,
+        help="threads each worker's renderer and OpenCV may use (default: cores / workers; 1 on a cluster)",
+    )
+    m.add_argument(
+        "--out",
+        type=Path,
+        help="folder of the shots' results folders and the summary (default: "
+        "<project folder>/results); a rerun continues what is there",
+    )
     m.add_argument("--frames", type=int, help="track only the first N frames of each shot")
-    m.add_argument("--expressions", help="comma-separated expressions of the face model, neutral first "
-                                         "(default: every expression of the project)")
+    m.add_argument(
+        "--expressions",
+        help="comma-separated expressions of the face model, neutral first (default: every expression of the project)",
+    )
     m.add_argument("--no-overlay", action="store_true", help="do not write the shots' overlay videos")
     m.add_argument("--json", action="store_true", help="print one JSON object (the summary) instead of the table")
     m.set_defaults(func=cmd_track_many)
@@ -671,8 +899,10 @@ def permission_message(exc: PermissionError) -> str:
     if where is not None and not where.is_dir():
         where = where.parent
     folder = f"in {where}" if where is not None else "the results"
-    return (f"could not write {folder}: {exc.strerror or exc}; make the folder writable (or copy the "
-            f"project to a folder you can write to) and run the command again")
+    return (
+        f"could not write {folder}: {exc.strerror or exc}; make the folder writable (or copy the "
+        f"project to a folder you can write to) and run the command again"
+    )
 
 
 def _report_error(args, exc: Exception, message: str | None = None) -> int:

@@ -60,8 +60,10 @@ def cmd_edit(args) -> int:
     if not edits:
         stored = load_edits(args.track)
         if stored is None or not stored["edits"]:
-            raise FaceStudioError("nothing to edit: give --scale EXPRESSION=FACTOR or --replace FIRST:LAST@FRAME "
-                                  f"(or store edits in {Path(args.track) / 'edits.json'})")  # fmt: skip
+            raise FaceStudioError(
+                "nothing to edit: give --scale EXPRESSION=FACTOR or --replace FIRST:LAST@FRAME "
+                f"(or store edits in {Path(args.track) / 'edits.json'})"
+            )
         edits = stored["edits"]
     out = Path(args.out)
     video = out if out.suffix.lower() in VIDEO_SUFFIXES else None
@@ -75,8 +77,15 @@ def cmd_edit(args) -> int:
         bar.refresh()
 
     try:
-        report = edit_track(args.track, edits, smooth=smooth, out_video=video, frames_dir=None if video else out,
-                            project=args.project, progress=progress)  # fmt: skip
+        report = edit_track(
+            args.track,
+            edits,
+            smooth=smooth,
+            out_video=video,
+            frames_dir=None if video else out,
+            project=args.project,
+            progress=progress,
+        )
     finally:
         bar.close()
     if args.json:
@@ -86,30 +95,58 @@ def cmd_edit(args) -> int:
     if report.video is not None:
         print(f"video: {report.video} ({'audio copied' if report.audio else 'the footage has no audio'})")
     if report.filled_similar or report.filled_texture:
-        print(f"pixels the clip did not show: {report.filled_similar} from the most similar frame, "
-              f"{report.filled_texture} from the model's texture")  # fmt: skip
+        print(
+            f"pixels the clip did not show: {report.filled_similar} from the most similar frame, "
+            f"{report.filled_texture} from the model's texture"
+        )
     print(f"edits stored in {report.edits_json}")
     return 0
 
 
 def add_edit_parser(sub) -> argparse.ArgumentParser:
     """The ``edit`` subcommand on ``sub`` (the CLI's subparsers)."""
-    e = sub.add_parser("edit", help="edit the expressions of a tracked video (magnify, suppress, replace) and "
-                                    "write the edited frames and video")  # fmt: skip
+    e = sub.add_parser(
+        "edit",
+        help="edit the expressions of a tracked video (magnify, suppress, replace) and "
+        "write the edited frames and video",
+    )
     e.add_argument("project", help="project file (*.facestudio.json) the video was tracked with")
-    e.add_argument("--track", type=Path, required=True, help="the results folder of `facestudio track` "
-                                                             "(holds track.json); edits.json is written there")
-    e.add_argument("--scale", action="append", metavar="EXPRESSION=FACTOR",
-                   help="multiply an expression's weight (0: suppress, >1: magnify); repeatable")
+    e.add_argument(
+        "--track",
+        type=Path,
+        required=True,
+        help="the results folder of `facestudio track` (holds track.json); edits.json is written there",
+    )
+    e.add_argument(
+        "--scale",
+        action="append",
+        metavar="EXPRESSION=FACTOR",
+        help="multiply an expression's weight (0: suppress, >1: magnify); repeatable",
+    )
     e.add_argument("--span", metavar="FIRST:LAST", help="frames the --scale edits apply to (default: all)")
-    e.add_argument("--replace", action="append", metavar="FIRST:LAST@FRAME",
-                   help="replace frames FIRST..LAST by an interpolation through FRAME's expression; repeatable")
-    e.add_argument("--no-smooth", action="store_true", help="edit the per-frame tracked weights (default: "
-                                                            "solve the whole clip smooth first)")
-    e.add_argument("--smoothness", type=float, default=SmoothOptions.second_difference,
-                   help="second-difference weight of the smooth solve, relative to a frame's data term")
-    e.add_argument("--out", type=Path, required=True, help="a video file (.mp4: H.264, the footage's audio "
-                                                           "copied; PNG frames beside it) or a folder of PNGs")
+    e.add_argument(
+        "--replace",
+        action="append",
+        metavar="FIRST:LAST@FRAME",
+        help="replace frames FIRST..LAST by an interpolation through FRAME's expression; repeatable",
+    )
+    e.add_argument(
+        "--no-smooth",
+        action="store_true",
+        help="edit the per-frame tracked weights (default: solve the whole clip smooth first)",
+    )
+    e.add_argument(
+        "--smoothness",
+        type=float,
+        default=SmoothOptions.second_difference,
+        help="second-difference weight of the smooth solve, relative to a frame's data term",
+    )
+    e.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="a video file (.mp4: H.264, the footage's audio copied; PNG frames beside it) or a folder of PNGs",
+    )
     e.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     e.set_defaults(func=cmd_edit)
     return e

@@ -119,15 +119,14 @@ class TextureState:
         A stored texture's photographs are read now (:class:`ProjectError` names a missing one).
         """
         if self._view_dependent is None:
-
             i = self.job.inputs
             if i.photos is None:
-
                 if self.photos_from is None:
                     raise ProjectError(f"the photographs of the texture of {i.expression!r} are not known")
                 load_texture_photos(self.photos_from, i, photo_side_for(self.job.size))
-            self._view_dependent = ViewDependentTexture(i.vertices, i.faces, i.cameras, i.photos,
-                                                        single_view=self.job.single_view)
+            self._view_dependent = ViewDependentTexture(
+                i.vertices, i.faces, i.cameras, i.photos, single_view=self.job.single_view
+            )
         return self._view_dependent
 
 
@@ -269,7 +268,6 @@ class StudioModel:
         """The generic face mesh (:class:`photomodel.modeling.generic_mesh.GenericMesh`), loaded once."""
         if self._mesh is None:
             if self._mesh_loader is None:
-
                 self._mesh_loader = load_generic_mesh
             self._mesh = self._mesh_loader()
         return self._mesh
@@ -278,7 +276,6 @@ class StudioModel:
     def overlay_lines(self):
         """The wireframe overlay's lines on the generic mesh (:func:`photomodel.modeling.overlay.mesh_lines`)."""
         if self._lines is None:
-
             self._lines = mesh_lines(self.mesh.vertices, self.mesh.faces, curves=self.mesh.curves)
         return self._lines
 
@@ -286,7 +283,6 @@ class StudioModel:
     def refitter(self):
         """The :class:`photomodel.modeling.refit.Refitter` shared by every fit of this model."""
         if self._refitter is None:
-
             self._refitter = Refitter(self.mesh)
         return self._refitter
 
@@ -378,8 +374,7 @@ class StudioModel:
         fit = self.fit(expression)
         if fit is None or photo_id not in fit.cameras:
             return None
-        vertex = (self.project.feature(feature).vertex if self.has_feature(feature)
-                  else self.mesh.features.get(feature))
+        vertex = self.project.feature(feature).vertex if self.has_feature(feature) else self.mesh.features.get(feature)
         if fit.vertices is not None and vertex is not None:
             X = np.asarray(fit.vertices)[int(vertex)]
         elif feature in fit.points_3d:
@@ -411,8 +406,9 @@ class StudioModel:
             self.active_curve_changed.emit(name)
 
     # ------------------------------------------------------------------ edit primitives
-    def set_point(self, expression: str, photo_id: str, feature: str, uv, *, source: str = "user",
-                  confidence: float | None = None) -> np.ndarray | None:
+    def set_point(
+        self, expression: str, photo_id: str, feature: str, uv, *, source: str = "user", confidence: float | None = None
+    ) -> np.ndarray | None:
         """Place (``uv`` (2,) px), move, or delete (``uv=None``) a click; returns the old one.
 
         ``source``: ``"user"`` (the artist's edit: an automatic click placed or dragged becomes
@@ -468,8 +464,9 @@ class StudioModel:
         self.features_changed.emit()
         return old
 
-    def set_curve(self, expression: str, photo_id: str, curve: str, polyline,
-                  source: str = "user") -> np.ndarray | None:
+    def set_curve(
+        self, expression: str, photo_id: str, curve: str, polyline, source: str = "user"
+    ) -> np.ndarray | None:
         """Draw (``polyline`` (m, 2) px, m >= 2) or delete (None) a curve in a photo; returns the old.
         ``source``: who drew it — the artist (default; redrawing an automatic curve makes it
         the artist's) or ``"auto"`` (undoing an edit of an automatic curve)."""
@@ -531,8 +528,9 @@ class StudioModel:
         if any(p.id == photo.id for p in e.photos):
             raise ProjectError(f"expression {expression!r} already has a photo {photo.id!r}")
         if photo.preset not in PRESET_AZIMUTH_DEG:
-            raise ProjectError(f"unknown camera preset {photo.preset!r}; choose one of "
-                               f"{', '.join(sorted(PRESET_AZIMUTH_DEG))}")
+            raise ProjectError(
+                f"unknown camera preset {photo.preset!r}; choose one of {', '.join(sorted(PRESET_AZIMUTH_DEG))}"
+            )
         e.photos.insert(len(e.photos) if index is None else index, photo)
         self._drop_fit(expression)
         self._touch()
@@ -550,8 +548,9 @@ class StudioModel:
 
     def set_photo_preset(self, expression: str, photo_id: str, preset: str) -> str:
         if preset not in PRESET_AZIMUTH_DEG:
-            raise ProjectError(f"unknown camera preset {preset!r}; choose one of "
-                               f"{', '.join(sorted(PRESET_AZIMUTH_DEG))}")
+            raise ProjectError(
+                f"unknown camera preset {preset!r}; choose one of {', '.join(sorted(PRESET_AZIMUTH_DEG))}"
+            )
         photo = self.photo(photo_id, expression)
         old, photo.preset = photo.preset, preset
         self._touch()
@@ -595,8 +594,13 @@ class StudioModel:
             self.expression_changed.emit(self.expression_name)
         return e, i
 
-    def photo_from_file(self, path: str | os.PathLike, expression: str | None = None,
-                        preset: str = "front", focal_mm_guess: float | None = None) -> Photo:
+    def photo_from_file(
+        self,
+        path: str | os.PathLike,
+        expression: str | None = None,
+        preset: str = "front",
+        focal_mm_guess: float | None = None,
+    ) -> Photo:
         """A :class:`Photo` for an image file, with an unused id.
 
         The file is checked and its size read by :func:`photomodel.photos.reading.photo_size`
@@ -709,9 +713,9 @@ class StudioModel:
             return None
         found = fit.overlays.get(photo_id)
         if found is None:
-
-            found = fit.overlays[photo_id] = photo_overlay(fit.cameras[photo_id], fit.vertices, self.mesh.faces,
-                                                           self.overlay_lines)
+            found = fit.overlays[photo_id] = photo_overlay(
+                fit.cameras[photo_id], fit.vertices, self.mesh.faces, self.overlay_lines
+            )
         return found
 
     def apply_fit(self, expression: str, result, elapsed_s: float | None = None, overlays: dict | None = None) -> None:
@@ -720,8 +724,16 @@ class StudioModel:
         ``overlays`` (:meth:`compute_overlays` of this result) fill the fit's overlay cache.
         """
         e = record_fit(self.project, self._expr(expression).name, result)
-        self.fits[expression] = FitState(e.cameras, e.points_3d, np.asarray(result.vertices), result.report, result,
-                                         elapsed_s, saved=False, overlays=dict(overlays or {}))
+        self.fits[expression] = FitState(
+            e.cameras,
+            e.points_3d,
+            np.asarray(result.vertices),
+            result.report,
+            result,
+            elapsed_s,
+            saved=False,
+            overlays=dict(overlays or {}),
+        )
         self._drop_texture(expression)  # it was made for the previous mesh
         self._touch()
         self.fit_changed.emit(expression)
@@ -754,8 +766,9 @@ class StudioModel:
         """Extract the texture of :meth:`texture_inputs` (worker thread): a TextureJob."""
 
         snapshot, name, vertices, faces, face_mask = inputs
-        return texture_expression(snapshot, name, size, face_mask=face_mask, vertices=vertices, faces=faces,
-                                  progress=progress, cancel=cancel)
+        return texture_expression(
+            snapshot, name, size, face_mask=face_mask, vertices=vertices, faces=faces, progress=progress, cancel=cancel
+        )
 
     def apply_texture(self, job, vertices: np.ndarray) -> bool:
         """Store a texture (GUI thread) if the expression's fit is still the mesh it was made for.
@@ -804,8 +817,7 @@ class StudioModel:
             if fit.vertices is None:
                 raise ProjectError(f"expression {name!r}: its fitted mesh {e.result.mesh_obj} could not be read")
 
-            job = load_stored_texture(self.project, name, fit.vertices, self.mesh.faces,
-                                      face_mask=self.mesh.face_mask)
+            job = load_stored_texture(self.project, name, fit.vertices, self.mesh.faces, face_mask=self.mesh.face_mask)
         except (FaceStudioError, OSError, ValueError) as exc:
             message = f"the stored texture of {name!r} is not shown: {exc}"
             self.texture_problems[name] = message
@@ -840,8 +852,7 @@ class StudioModel:
             return None
         extra_names, extra = self._photographed_deltas(record.neutral, fit.vertices)
         D = np.concatenate([deltas, np.reshape(extra, (-1, *fit.vertices.shape))])
-        self._rig = RigState(record.neutral, fit.vertices, list(names) + extra_names, D, len(names),
-                             np.zeros(len(D)))
+        self._rig = RigState(record.neutral, fit.vertices, list(names) + extra_names, D, len(names), np.zeros(len(D)))
         return self._rig
 
     def _photographed_deltas(self, neutral: str, N: np.ndarray) -> tuple[list[str], list[np.ndarray]]:
@@ -984,8 +995,7 @@ class StudioModel:
             for photo in e.photos:
                 photo.path = (path.parent / photo.path).absolute().as_posix()
         project.check_vertices(len(self.mesh.vertices))
-        fits = {e.name: self._loaded_fit(project, e, path.parent) for e in project.expressions
-                if e.result is not None}
+        fits = {e.name: self._loaded_fit(project, e, path.parent) for e in project.expressions if e.result is not None}
         self._set_project(project, fits)
         self._touch()
 
@@ -997,15 +1007,21 @@ class StudioModel:
             f = project.resolve(rel) if folder is None else (folder / rel).absolute()
             if f.is_file():
                 try:
-
                     v, _ = read_mesh(f)
                 except Exception:  # a broken result mesh loses the overlay, not the project
                     continue
                 if v.shape == self.mesh.vertices.shape:
                     vertices = v
                     break
-        return FitState(dict(e.result.cameras), dict(e.result.points_3d), vertices, e.result.report,
-                        None, None, saved=vertices is not None)
+        return FitState(
+            dict(e.result.cameras),
+            dict(e.result.points_3d),
+            vertices,
+            e.result.report,
+            None,
+            None,
+            saved=vertices is not None,
+        )
 
     def save(self, path: str | os.PathLike | None = None) -> Path:
         """Save (atomically) to ``path`` (default: the project's file), with the fitted meshes and
@@ -1041,11 +1057,18 @@ class StudioModel:
     def _results_to_write(self, folder: Path, moved: bool) -> tuple[dict, list]:
         """``(fits, textures)`` for :func:`~photomodel.project.results.save_results` into ``folder``:
         the fitted meshes and textures held in memory and not yet saved there."""
-        fits = {name: fit.vertices for name, fit in self.fits.items()
-                if fit.vertices is not None and self.project.expression(name).result is not None
-                and (moved or not fit.saved or not self._meshes_on_disk(name))}
-        textures = [(tex.job, *texture_files(self.project, tex.job, folder))
-                    for tex in self.textures.values() if moved or not tex.saved]
+        fits = {
+            name: fit.vertices
+            for name, fit in self.fits.items()
+            if fit.vertices is not None
+            and self.project.expression(name).result is not None
+            and (moved or not fit.saved or not self._meshes_on_disk(name))
+        }
+        textures = [
+            (tex.job, *texture_files(self.project, tex.job, folder))
+            for tex in self.textures.values()
+            if moved or not tex.saved
+        ]
         return fits, textures
 
     def _meshes_on_disk(self, name: str) -> bool:

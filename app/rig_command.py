@@ -51,16 +51,26 @@ def cmd_rig(args) -> int:
     store_rig(project, neutral=neutral, names=rig.names, deltas=rig.deltas, report=report)
     save_project(project)
     moved = np.linalg.norm(rig.deltas, axis=2).max(axis=1)
-    out = {"project": str(args.project), "neutral": neutral, "shapes": len(rig.names), "file": project.rig.file,
-           "photographed": [e.name for e in project.expressions if e.name != neutral and e.result is not None],
-           "max_displacement_mm": dict(zip(rig.names, np.round(moved, 2).tolist(), strict=True)), **report}  # fmt: skip
+    out = {
+        "project": str(args.project),
+        "neutral": neutral,
+        "shapes": len(rig.names),
+        "file": project.rig.file,
+        "photographed": [e.name for e in project.expressions if e.name != neutral and e.result is not None],
+        "max_displacement_mm": dict(zip(rig.names, np.round(moved, 2).tolist(), strict=True)),
+        **report,
+    }
     if args.json:
         print(json.dumps(out, indent=1))
     else:
-        print(f"rig of {neutral!r}: {len(rig.names)} ARKit shapes (ICT-FaceKit by deformation transfer) in "
-              f"{project.rig.file}, {report['seconds']:.1f} s")  # fmt: skip
-        print(f"  ICT registered onto the generic mesh: landmark RMS {report['landmark_rms_rigid_mm']:.2f} mm "
-              f"(similarity) -> {report['landmark_rms_mm']:.2f} mm (non-rigid)")  # fmt: skip
+        print(
+            f"rig of {neutral!r}: {len(rig.names)} ARKit shapes (ICT-FaceKit by deformation transfer) in "
+            f"{project.rig.file}, {report['seconds']:.1f} s"
+        )
+        print(
+            f"  ICT registered onto the generic mesh: landmark RMS {report['landmark_rms_rigid_mm']:.2f} mm "
+            f"(similarity) -> {report['landmark_rms_mm']:.2f} mm (non-rigid)"
+        )
         print(f"  ICT identity fitted to the neutral: {report['identity_rms_mm']:.2f} mm RMS over the face")
         print(f"  photographed expressions kept beside it: {', '.join(out['photographed']) or 'none'}")
     return 0
@@ -97,11 +107,24 @@ def cmd_export(args) -> int:
         perf = track_performance(doc, shapes.names)
     elif args.livelink:
         perf = _livelink_performance(args.livelink, shapes.names, args.fps)
-    write_rigged_glb(args.glb, shapes.neutral, shapes.faces, shapes.deltas, shapes.names, uv=shapes.uv,
-                     texture=shapes.texture_png, performance=perf)  # fmt: skip
-    out = {"glb": str(args.glb), "targets": len(shapes.names), "rig_shapes": shapes.rig_shapes,
-           "photographed_targets": shapes.photographed, "frames": 0 if perf is None else len(perf.times_s),
-           "pose_frame": "video camera (glTF camera convention: +Y up, looking along -Z)"}  # fmt: skip
+    write_rigged_glb(
+        args.glb,
+        shapes.neutral,
+        shapes.faces,
+        shapes.deltas,
+        shapes.names,
+        uv=shapes.uv,
+        texture=shapes.texture_png,
+        performance=perf,
+    )
+    out = {
+        "glb": str(args.glb),
+        "targets": len(shapes.names),
+        "rig_shapes": shapes.rig_shapes,
+        "photographed_targets": shapes.photographed,
+        "frames": 0 if perf is None else len(perf.times_s),
+        "pose_frame": "video camera (glTF camera convention: +Y up, looking along -Z)",
+    }
     if args.csv:
         arkit = arkit_weights(shapes, perf.weights, model.face_mask)
         full = np.zeros((len(arkit), len(ARKIT_SHAPES)))
@@ -114,8 +137,10 @@ def cmd_export(args) -> int:
     if args.json:
         print(json.dumps(out, indent=1))
     else:
-        print(f"wrote {args.glb}: {out['targets']} morph targets ({shapes.rig_shapes} rig shapes, "
-              f"{shapes.photographed} photographed expression x region), {out['frames']} animated frames")  # fmt: skip
+        print(
+            f"wrote {args.glb}: {out['targets']} morph targets ({shapes.rig_shapes} rig shapes, "
+            f"{shapes.photographed} photographed expression x region), {out['frames']} animated frames"
+        )
         if args.csv:
             print(f"wrote {args.csv}: Live Link Face CSV, {out['frames']} frames")
     return 0
@@ -123,14 +148,20 @@ def cmd_export(args) -> int:
 
 def add_rig_parsers(sub: argparse._SubParsersAction) -> None:
     """The ``rig`` and ``export`` sub-commands."""
-    r = sub.add_parser("rig", help="ARKit-style blend shapes on the fitted neutral (ICT-FaceKit by deformation "
-                                   "transfer), stored in the project")  # fmt: skip
+    r = sub.add_parser(
+        "rig",
+        help="ARKit-style blend shapes on the fitted neutral (ICT-FaceKit by deformation "
+        "transfer), stored in the project",
+    )
     r.add_argument("project", help="project file (*.facestudio.json) with its neutral fitted")
     r.add_argument("--neutral", help="the expression the rig displaces (default: 'neutral', else the first)")
     r.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     r.set_defaults(func=cmd_rig)
-    e = sub.add_parser("export", help="the face with every blend shape as a glTF morph target, animated by a "
-                                      "track or a Live Link take; a track as Live Link CSV")  # fmt: skip
+    e = sub.add_parser(
+        "export",
+        help="the face with every blend shape as a glTF morph target, animated by a "
+        "track or a Live Link take; a track as Live Link CSV",
+    )
     e.add_argument("project", help="project file (*.facestudio.json), fitted and textured")
     e.add_argument("--glb", type=Path, required=True, help="the binary glTF file to write (*.glb)")
     e.add_argument("--track", type=Path, help="a tracking results folder (results/track_<video>/): animate it")

@@ -99,33 +99,55 @@ def auto_fit_section(args, log) -> dict:
         t0 = time.perf_counter()
         made = run_cli("new", path, "--photos", str(photos))
         sections = {}
-        for key, flags in (("auto_fit", ()), ("auto_fit_weighted", ("--weigh-auto-clicks",)),
-                           ("auto_fit_unweighted", ("--no-weigh-auto-clicks",)),
-                           ("auto_fit_no_prior", ("--no-person-prior",))):
+        for key, flags in (
+            ("auto_fit", ()),
+            ("auto_fit_weighted", ("--weigh-auto-clicks",)),
+            ("auto_fit_unweighted", ("--no-weigh-auto-clicks",)),
+            ("auto_fit_no_prior", ("--no-person-prior",)),
+        ):
             t1 = time.perf_counter()
             fit = run_cli("fit", path, *flags)["expressions"][0]
             seconds = (t1 - t0 if key == "auto_fit" else 0.0) + time.perf_counter() - t1  # new + fit
             out = sections[key] = _scored(path, fit, made, seconds, len(expr.photos))
-            log(f"{key.replace('_', ' ')} of the sample: {out['photos_used']}/{out['photos']} photos, "
+            log(
+                f"{key.replace('_', ' ')} of the sample: {out['photos_used']}/{out['photos']} photos, "
                 f"{out['clicks_auto']} automatic clicks, RMS {out['rms_px']:.2f} px, mesh → scan "
-                f"{out['mesh_mean_mm']:.2f} mm mean (p95 {out['mesh_p95_mm']:.2f}), {seconds:.1f} s")
+                f"{out['mesh_mean_mm']:.2f} mm mean (p95 {out['mesh_p95_mm']:.2f}), {seconds:.1f} s"
+            )
     return sections
 
 
 #: ``auto_fit_rigs``' sets of views (yaw, degrees) of the scan.
-RIGS = ((-30.0, 0.0, 30.0), (-45.0, 0.0, 45.0), (-60.0, -20.0, 20.0, 60.0), (0.0, 30.0, 60.0),
-        (-60.0, -30.0, 0.0), (-15.0, 15.0), (-40.0, -10.0, 20.0, 50.0), (-45.0, 45.0),
-        (-70.0, -35.0, 0.0, 35.0, 70.0))
+RIGS = (
+    (-30.0, 0.0, 30.0),
+    (-45.0, 0.0, 45.0),
+    (-60.0, -20.0, 20.0, 60.0),
+    (0.0, 30.0, 60.0),
+    (-60.0, -30.0, 0.0),
+    (-15.0, 15.0),
+    (-40.0, -10.0, 20.0, 50.0),
+    (-45.0, 45.0),
+    (-70.0, -35.0, 0.0, 35.0, 70.0),
+)
 
 
 def auto_fit_rigs_section(args, log) -> dict:
     rows = []
     for yaws in RIGS:
+
         def fill(photos, yaws=yaws):
             for i, yaw in enumerate(yaws):
                 cv2.imwrite(str(photos / f"view{i}.png"), _scan_render(yaw))
-        row = {"yaws": list(yaws), "mesh_mean_mm": -1.0, "no_prior_mm": -1.0, "generic_mm": -1.0,
-               "photos_used": 0, "camera_worst_deg": -1.0, "no_prior_camera_worst_deg": -1.0}
+
+        row = {
+            "yaws": list(yaws),
+            "mesh_mean_mm": -1.0,
+            "no_prior_mm": -1.0,
+            "generic_mm": -1.0,
+            "photos_used": 0,
+            "camera_worst_deg": -1.0,
+            "no_prior_camera_worst_deg": -1.0,
+        }
         true = {f"view{i}": _scan_camera(yaw) for i, yaw in enumerate(yaws)}
         for key, flags in (("", ()), ("no_prior_", ("--no-person-prior",))):
             try:
@@ -138,21 +160,28 @@ def auto_fit_rigs_section(args, log) -> dict:
             row["generic_mm"] = out["generic_mm"]
             row["photos_used"] = row["photos_used"] or out["photos_used"]
         rows.append(row)
-        log(f"rig {yaws}: {row['photos_used']} photos used, mesh → scan {row['mesh_mean_mm']:.2f} mm, worst camera "
+        log(
+            f"rig {yaws}: {row['photos_used']} photos used, mesh → scan {row['mesh_mean_mm']:.2f} mm, worst camera "
             f"{row['camera_worst_deg']:.1f}° off (no prior {row['no_prior_mm']:.2f} mm, "
-            f"{row['no_prior_camera_worst_deg']:.1f}°; the generic head {row['generic_mm']:.2f} mm)")
+            f"{row['no_prior_camera_worst_deg']:.1f}°; the generic head {row['generic_mm']:.2f} mm)"
+        )
     ok = [r for r in rows if r["mesh_mean_mm"] >= 0 and r["no_prior_mm"] >= 0]
 
     def mean(key):
         return float(np.mean([r[key] for r in ok])) if ok else -1.0
 
-    return {"auto_fit_rigs": {
-        "rigs": rows, "mean": mean("mesh_mean_mm"), "no_prior_mean": mean("no_prior_mm"),
-        "generic_mean": mean("generic_mm"), "worst": float(max((r["mesh_mean_mm"] for r in ok), default=-1.0)),
-        "camera_worst_deg": float(max((r["camera_worst_deg"] for r in ok), default=-1.0)),
-        "failures": sum(r["mesh_mean_mm"] < 0 for r in rows),
-        "better_than_generic": int(sum(r["mesh_mean_mm"] < r["generic_mm"] for r in ok)),
-    }}
+    return {
+        "auto_fit_rigs": {
+            "rigs": rows,
+            "mean": mean("mesh_mean_mm"),
+            "no_prior_mean": mean("no_prior_mm"),
+            "generic_mean": mean("generic_mm"),
+            "worst": float(max((r["mesh_mean_mm"] for r in ok), default=-1.0)),
+            "camera_worst_deg": float(max((r["camera_worst_deg"] for r in ok), default=-1.0)),
+            "failures": sum(r["mesh_mean_mm"] < 0 for r in rows),
+            "better_than_generic": int(sum(r["mesh_mean_mm"] < r["generic_mm"] for r in ok)),
+        }
+    }
 
 
 def _scan_camera(yaw: float):
@@ -192,9 +221,11 @@ def auto_fit_draws_section(args, log) -> dict:
     rng = np.random.default_rng(7)
     means, failures = [], 0
     for draw in range(max(0, int(getattr(args, "draws", 8)))):
+
         def fill(photos):
             for p in expr.photos:
                 _jittered(project.resolve(p.path), photos / Path(p.path).name, rng)
+
         try:
             out = _fit_folder(fill, len(expr.photos))
         except RuntimeError as exc:
@@ -202,13 +233,20 @@ def auto_fit_draws_section(args, log) -> dict:
             log(f"auto fit draw {draw}: failed ({exc})")
             continue
         means.append(out["mesh_mean_mm"])
-        log(f"auto fit draw {draw}: {out['photos_used']}/{out['photos']} photos, mesh → scan "
-            f"{out['mesh_mean_mm']:.2f} mm mean")
-    return {"auto_fit_draws": {
-        "draws": len(means) + failures, "mesh_mean_mm": means,
-        "mean": float(np.mean(means)) if means else -1.0, "worst": float(np.max(means)) if means else -1.0,
-        "failures": failures, "over_bar": int(sum(m > AUTO_FIT_BAR_MM for m in means)),
-    }}
+        log(
+            f"auto fit draw {draw}: {out['photos_used']}/{out['photos']} photos, mesh → scan "
+            f"{out['mesh_mean_mm']:.2f} mm mean"
+        )
+    return {
+        "auto_fit_draws": {
+            "draws": len(means) + failures,
+            "mesh_mean_mm": means,
+            "mean": float(np.mean(means)) if means else -1.0,
+            "worst": float(np.max(means)) if means else -1.0,
+            "failures": failures,
+            "over_bar": int(sum(m > AUTO_FIT_BAR_MM for m in means)),
+        }
+    }
 
 
 #: Yaws (degrees) of the scan's renders in ``one_photo``, besides the sample's five photos.
@@ -224,8 +262,10 @@ def _one_photo_images():
         src = Path(project.resolve(p.path))
         yield p.id, lambda dst, src=src: shutil.copy(src, dst.with_suffix(src.suffix))
     for yaw in ONE_PHOTO_YAWS:
+
         def render(dst, yaw=yaw):
             cv2.imwrite(str(dst.with_suffix(".png")), _scan_render(yaw))
+
         yield f"render yaw {yaw:+.0f}", render
 
 
@@ -250,12 +290,16 @@ def one_photo_section(args, log) -> dict:
         means.append(out["mesh_mean_mm"])
         generic.append(out["generic_mm"])
         log(f"one photo, {label}: mesh → scan {means[-1]:.2f} mm (the generic head {generic[-1]:.2f} mm)")
-    return {"one_photo": {
-        "photos": rows, "mean": float(np.mean(means)) if means else -1.0,
-        "worst": float(np.max(means)) if means else -1.0, "failures": failures,
-        "generic_mean_mm": float(np.mean(generic)) if generic else -1.0,
-        "better_than_generic": int(sum(m < g for m, g in zip(means, generic, strict=True))),
-    }}
+    return {
+        "one_photo": {
+            "photos": rows,
+            "mean": float(np.mean(means)) if means else -1.0,
+            "worst": float(np.max(means)) if means else -1.0,
+            "failures": failures,
+            "generic_mean_mm": float(np.mean(generic)) if generic else -1.0,
+            "better_than_generic": int(sum(m < g for m, g in zip(means, generic, strict=True))),
+        }
+    }
 
 
 def _fit_folder(fill, n_photos: int, flags=(), true_cameras=None) -> dict:
@@ -299,10 +343,16 @@ def _scored(path: str, fit: dict, made: dict, seconds: float, photos: int, true_
         ids = list(result.cameras)
         cams, _ = align_to_truth([result.cameras[i] for i in ids], X, truth.true_points(names))
         out["camera_worst_deg"] = float(camera_errors(cams, [true_cameras[i] for i in ids])["rot_err_deg"].max())
-    return out | {"rms_px": float(fit["rms_px"]), "mesh_mean_mm": float(d.mean()),
-            "mesh_p95_mm": float(np.percentile(d, 95)),
-            "clicks_auto": int(made["clicks_auto"]), "seconds": seconds,
-            "photos_used": len(result.cameras), "photos": photos, "generic_mm": float(dg.mean())}  # fmt: skip
+    return out | {
+        "rms_px": float(fit["rms_px"]),
+        "mesh_mean_mm": float(d.mean()),
+        "mesh_p95_mm": float(np.percentile(d, 95)),
+        "clicks_auto": int(made["clicks_auto"]),
+        "seconds": seconds,
+        "photos_used": len(result.cameras),
+        "photos": photos,
+        "generic_mm": float(dg.mean()),
+    }
 
 
 def depth_ratio(vertices: np.ndarray, mesh) -> float:
@@ -326,8 +376,10 @@ def figure(project, vertices: np.ndarray, size: int = 360) -> np.ndarray:
     mesh = load_generic_mesh()
     vdt = ViewDependentTexture(vertices, mesh.faces, cams, photos)
     centre = vertices[mesh.face_mask].mean(0)
-    views = [vdt.render(orbit_camera(a, size, size, distance_mm=300.0, focal_mm=50.0, target=centre),
-                        background=0.85).color for a in (-35.0, 0.0, 35.0)]
+    views = [
+        vdt.render(orbit_camera(a, size, size, distance_mm=300.0, focal_mm=50.0, target=centre), background=0.85).color
+        for a in (-35.0, 0.0, 35.0)
+    ]
     views = [cv2.cvtColor((np.clip(v, 0, 1) * 255).astype(np.uint8), cv2.COLOR_RGB2BGR) for v in views]
     first = expr.photos[0]
     frame = cv2.imread(str(project.resolve(first.path)))
@@ -338,7 +390,7 @@ def figure(project, vertices: np.ndarray, size: int = 360) -> np.ndarray:
     h, w = frame.shape[:2]
     side = min(h, w)
     x0 = int(np.clip(np.mean([uv[0] for uv in first.points.values()]) - side / 2, 0, w - side))
-    frame = cv2.resize(frame[:, x0:x0 + side], (size, size))
+    frame = cv2.resize(frame[:, x0 : x0 + side], (size, size))
     texture = cv2.resize(cv2.imread(str(project.resolve(result.texture.image))), (size, size))
     return np.hstack([frame, *views, texture])
 
@@ -355,10 +407,13 @@ def real_sample_section(args, log) -> dict:
         out_dir = Path(getattr(args, "out", None) or Path(__file__).resolve().parent / "out")
         out_dir.mkdir(parents=True, exist_ok=True)
         cv2.imwrite(str(out_dir / "real_sample.png"), figure(project, vertices))
-    out = {"photos": len(result.cameras), "rms_px": float(fit["rms_px"]), "depth_ratio": ratio,
-           "start": fit.get("camera_solve", {}).get("start", "")}
-    log(f"real sample: {out['photos']} frames, RMS {out['rms_px']:.2f} px, depth ratio {ratio:.2f} "
-        f"({out['start']})")
+    out = {
+        "photos": len(result.cameras),
+        "rms_px": float(fit["rms_px"]),
+        "depth_ratio": ratio,
+        "start": fit.get("camera_solve", {}).get("start", ""),
+    }
+    log(f"real sample: {out['photos']} frames, RMS {out['rms_px']:.2f} px, depth ratio {ratio:.2f} ({out['start']})")
     return {"real_sample": out}
 
 
@@ -379,9 +434,13 @@ def _fit_stills(folder: Path, photos: Path | None, video: Path | None, every: in
     result = loaded.expression("neutral").result
     vertices = read_mesh(loaded.resolve(result.mesh_obj))[0]
     frames = [s["frame"] for s in new["video"]["stills"]] if "video" in new else []
-    return {"frames": frames, "photos": len(result.cameras), "rms_px": round(float(fit["rms_px"]), 3),
-            "depth_ratio": round(depth_ratio(vertices, load_generic_mesh()), 3),
-            "hand_stills": sum(f in REAL_HAND_FRAMES for f in frames)}
+    return {
+        "frames": frames,
+        "photos": len(result.cameras),
+        "rms_px": round(float(fit["rms_px"]), 3),
+        "depth_ratio": round(depth_ratio(vertices, load_generic_mesh()), 3),
+        "hand_stills": sum(f in REAL_HAND_FRAMES for f in frames),
+    }
 
 
 def _fit_frames(frames: list[int]) -> dict:
@@ -403,19 +462,32 @@ def stills_section(args, log) -> dict:
                 log(f"stills every {every}: failed ({exc})")
                 continue
         d = draws[-1]
-        log(f"stills every {every}: frames {d['frames']}, RMS {d['rms_px']:.2f} px, depth {d['depth_ratio']:.2f}, "
-            f"{d['hand_stills']} with the hand")
+        log(
+            f"stills every {every}: frames {d['frames']}, RMS {d['rms_px']:.2f} px, depth {d['depth_ratio']:.2f}, "
+            f"{d['hand_stills']} with the hand"
+        )
     hand = _fit_frames(list(FRAMES))
     even = _fit_frames([int(round(x)) for x in np.linspace(0, 471, 5)])
-    log(f"peers: hand-picked RMS {hand['rms_px']:.2f} px, depth {hand['depth_ratio']:.2f}; evenly spaced "
+    log(
+        f"peers: hand-picked RMS {hand['rms_px']:.2f} px, depth {hand['depth_ratio']:.2f}; evenly spaced "
         f"{even['frames']} RMS {even['rms_px']:.2f} px, depth {even['depth_ratio']:.2f}, "
-        f"{even['hand_stills']} with the hand")
+        f"{even['hand_stills']} with the hand"
+    )
     rms = [d["rms_px"] for d in draws] or [-1.0]
     depth = [d["depth_ratio"] for d in draws] or [-1.0]
-    return {"stills": {"draws": draws, "rms_mean_px": round(float(np.mean(rms)), 3), "rms_worst_px": max(rms),
-                       "depth_ratio_min": min(depth), "depth_ratio_max": max(depth),
-                       "hand_stills": sum(d["hand_stills"] for d in draws), "failures": failures,
-                       "hand_picked": hand, "evenly_spaced": even}}
+    return {
+        "stills": {
+            "draws": draws,
+            "rms_mean_px": round(float(np.mean(rms)), 3),
+            "rms_worst_px": max(rms),
+            "depth_ratio_min": min(depth),
+            "depth_ratio_max": max(depth),
+            "hand_stills": sum(d["hand_stills"] for d in draws),
+            "failures": failures,
+            "hand_picked": hand,
+            "evenly_spaced": even,
+        }
+    }
 
 
 if __name__ == "__main__":

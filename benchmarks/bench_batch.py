@@ -98,11 +98,16 @@ def killed_worker(project: Path, clips: list[Path], clean_root: Path, work: Path
         del os.environ[EXIT_AFTER_ENV]
     killed = Path(flag.read_text()) if flag.is_file() else None
     completed = killed is not None and all(s.status == "tracked" and s.frames == KILL_FRAMES for s in res.shots)
-    identical = completed and frames_without_timing(work / "killed" / f"track_{killed.stem}", KILL_FRAMES) == \
-        frames_without_timing(clean_root / f"track_{killed.stem}", KILL_FRAMES)  # fmt: skip
+    identical = completed and frames_without_timing(
+        work / "killed" / f"track_{killed.stem}", KILL_FRAMES
+    ) == frames_without_timing(clean_root / f"track_{killed.stem}", KILL_FRAMES)
     resumed = next((s.resumed_from for s in res.shots if killed and s.video == str(killed)), None)
-    return {"completed": bool(completed), "identical": bool(identical), "_resumed_from": resumed,
-            "_killed": str(killed)}  # fmt: skip
+    return {
+        "completed": bool(completed),
+        "identical": bool(identical),
+        "_resumed_from": resumed,
+        "_killed": str(killed),
+    }
 
 
 def main() -> int:
@@ -122,22 +127,35 @@ def main() -> int:
         par = track_many(project, clips, work / "parallel", workers=args.workers, threads=threads)
         kill = killed_worker(project, clips, work / "parallel", work, args.workers)
     ok = all(s.status == "tracked" for s in seq.shots + par.shots)
-    out = {"shots": args.shots, "frames_per_shot": args.frames, "workers": args.workers,
-           "sequential_s": round(seq.seconds - seq.startup_s, 2), "parallel_s": round(par.seconds, 2),
-           "startup_s": round(par.startup_s, 2),
-           "killed_worker": {"completed": kill["completed"], "identical": kill["identical"]}}  # fmt: skip
+    out = {
+        "shots": args.shots,
+        "frames_per_shot": args.frames,
+        "workers": args.workers,
+        "sequential_s": round(seq.seconds - seq.startup_s, 2),
+        "parallel_s": round(par.seconds, 2),
+        "startup_s": round(par.startup_s, 2),
+        "killed_worker": {"completed": kill["completed"], "identical": kill["identical"]},
+    }
     if args.json:
         print(json.dumps(out))
         return 0 if ok else 1
     ratio = out["parallel_s"] / out["sequential_s"]
-    print(f"{args.shots} shots x {args.frames} frames, {os.cpu_count()} cores, {threads} thread(s) per worker, "
-          f"load average {load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end")
-    print(f"  sequential (1 worker):      {out['sequential_s']:8.1f} s ({seq.tracked_frames / out['sequential_s']:.2f} "
-          f"frames/s; its start-up {seq.startup_s:.1f} s left out)")
-    print(f"  parallel ({args.workers} workers):       {out['parallel_s']:8.1f} s (start-up {out['startup_s']:.1f} s "
-          f"included) = {ratio:.2f} x sequential (bar 0.80)")
-    print(f"  worker killed mid-shot:     completed {kill['completed']}, identical {kill['identical']} (killed "
-          f"{Path(kill['_killed']).name}, the retry resumed from frame {kill['_resumed_from']})")
+    print(
+        f"{args.shots} shots x {args.frames} frames, {os.cpu_count()} cores, {threads} thread(s) per worker, "
+        f"load average {load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end"
+    )
+    print(
+        f"  sequential (1 worker):      {out['sequential_s']:8.1f} s ({seq.tracked_frames / out['sequential_s']:.2f} "
+        f"frames/s; its start-up {seq.startup_s:.1f} s left out)"
+    )
+    print(
+        f"  parallel ({args.workers} workers):       {out['parallel_s']:8.1f} s (start-up {out['startup_s']:.1f} s "
+        f"included) = {ratio:.2f} x sequential (bar 0.80)"
+    )
+    print(
+        f"  worker killed mid-shot:     completed {kill['completed']}, identical {kill['identical']} (killed "
+        f"{Path(kill['_killed']).name}, the retry resumed from frame {kill['_resumed_from']})"
+    )
     if not ok:
         print("  some shots failed:", [(s.video, s.error) for s in seq.shots + par.shots if s.status != "tracked"])
     return 0 if ok else 1

@@ -108,8 +108,12 @@ def weight_metrics(model, W: np.ndarray, truth) -> dict:
             if top >= 0.3:
                 near = Tc[:, r, k] >= 0.9 * top
                 peaks.append(np.abs(Wc[near, r, k] - Tc[near, r, k]).mean())
-    return {"jitter": jitter(Wc), "rmse": float(np.sqrt(np.mean((Wc - Tc) ** 2))), "peak_err": float(np.mean(peaks)),
-            "jitter_truth": jitter(Tc)}  # fmt: skip
+    return {
+        "jitter": jitter(Wc),
+        "rmse": float(np.sqrt(np.mean((Wc - Tc) ** 2))),
+        "peak_err": float(np.mean(peaks)),
+        "jitter_truth": jitter(Tc),
+    }
 
 
 def smooth_sequence(name: str, frames, truth, options: SmoothOptions) -> dict:
@@ -124,8 +128,16 @@ def smooth_sequence(name: str, frames, truth, options: SmoothOptions) -> dict:
     t2 = time.perf_counter()
     per_frame = weight_metrics(model, weight_curves(model, [s.alpha for s in states]), truth)
     smooth = weight_metrics(model, smoothed.weights, truth)
-    return {"name": name, "frames": len(frames), "track_s": t1 - t0, "smooth_s": t2 - t1,
-            "frame": per_frame, "smooth": smooth, "states": smoothed.states, "fitter": fitter}  # fmt: skip
+    return {
+        "name": name,
+        "frames": len(frames),
+        "track_s": t1 - t0,
+        "smooth_s": t2 - t1,
+        "frame": per_frame,
+        "smooth": smooth,
+        "states": smoothed.states,
+        "fitter": fitter,
+    }
 
 
 def face_masks(renderer, fitter, states, alphas_new, t: int) -> tuple[np.ndarray, np.ndarray]:
@@ -162,16 +174,26 @@ def edit_accuracy(run: dict, frames, truth, png: Path | None = None) -> list[dic
             gt = render_video_frame(edited_truth, t)
             face, outside = face_masks(renderer, fitter, states, new, t)
             Wv = model.vertex_weights(model.region_weights(new[t]))
-            paste = render_model(renderer, fitter.camera(states[t]), model, model.blend_geometry(Wv), Wv,
-                                 background=frames[t]).image  # fmt: skip
+            paste = render_model(
+                renderer, fitter.camera(states[t]), model, model.blend_geometry(Wv), Wv, background=frames[t]
+            ).image
             face_db.append(psnr(images[j], gt, face))
             out_db.append(psnr(images[j], frames[t], outside))
             paste_db.append(psnr(paste, gt, face))
             if j == len(sel) // 2:
                 strip += [images[j], gt, np.minimum(4 * np.abs(images[j] - gt), 1.0)]
-        rows.append({"op": op, "factor": factor, "psnr_face_db": float(np.mean(face_db)),
-                     "psnr_outside_db": float(np.min(out_db)), "psnr_face_paste_db": float(np.mean(paste_db)),
-                     "frames": sel, "psnr_face_min_db": float(np.min(face_db)), **counts})  # fmt: skip
+        rows.append(
+            {
+                "op": op,
+                "factor": factor,
+                "psnr_face_db": float(np.mean(face_db)),
+                "psnr_outside_db": float(np.min(out_db)),
+                "psnr_face_paste_db": float(np.mean(paste_db)),
+                "frames": sel,
+                "psnr_face_min_db": float(np.min(face_db)),
+                **counts,
+            }
+        )
     if png is not None:
         rgb = np.clip(np.rint(np.hstack(strip) * 255), 0, 255).astype(np.uint8)
         cv2.imwrite(str(png), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
@@ -184,8 +206,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sequences", default="bd", help="smoothing sequences among b, d (the edits use b)")
     ap.add_argument("--second-difference", type=float, default=SmoothOptions.second_difference)
     ap.add_argument("--json", action="store_true")
-    ap.add_argument("--png", type=Path, help="write the middle compared frame: input | per edit: written, truth, "
-                                             "4x |difference|")
+    ap.add_argument(
+        "--png", type=Path, help="write the middle compared frame: input | per edit: written, truth, 4x |difference|"
+    )
     args = ap.parse_args(argv)
     truth = video_truth(args.frames)
     seqs = sequence_frames(truth, args.sequences)
@@ -193,29 +216,47 @@ def main(argv: list[str] | None = None) -> int:
     runs = {s: smooth_sequence(s, seqs[s], truth, options) for s in dict.fromkeys("b" + args.sequences) if s in seqs}
     edits = edit_accuracy(runs["b"], seqs["b"], truth, args.png)
     used = [runs[s] for s in args.sequences if s in runs]
-    smooth = {f"{key}_{kind}": float(np.mean([r[kind][key] for r in used]))
-              for key in ("jitter", "rmse", "peak_err") for kind in ("frame", "smooth")}  # fmt: skip
+    smooth = {
+        f"{key}_{kind}": float(np.mean([r[kind][key] for r in used]))
+        for key in ("jitter", "rmse", "peak_err")
+        for kind in ("frame", "smooth")
+    }
     if args.json:
-        print(json.dumps({"smooth": smooth, "edits": [{k: e[k] for k in ("op", "factor", "psnr_face_db",
-                          "psnr_outside_db", "psnr_face_paste_db")} for e in edits]}))  # fmt: skip
+        print(
+            json.dumps(
+                {
+                    "smooth": smooth,
+                    "edits": [
+                        {k: e[k] for k in ("op", "factor", "psnr_face_db", "psnr_outside_db", "psnr_face_paste_db")}
+                        for e in edits
+                    ],
+                }
+            )
+        )
         return 0
     print(f"smooth solve ({options}), {args.frames} frames:")
     print(f"{'seq':4s} {'':7s} {'jitter':>8s} {'rmse':>8s} {'peak':>8s}   (truth jitter)")
     for r in used:
         for kind in ("frame", "smooth"):
             m = r[kind]
-            print(f"{r['name']:4s} {kind:7s} {m['jitter']:8.4f} {m['rmse']:8.4f} {m['peak_err']:8.4f}   "
-                  f"({m['jitter_truth']:.4f})")  # fmt: skip
+            print(
+                f"{r['name']:4s} {kind:7s} {m['jitter']:8.4f} {m['rmse']:8.4f} {m['peak_err']:8.4f}   "
+                f"({m['jitter_truth']:.4f})"
+            )
         print(f"     tracked in {r['track_s']:.0f} s, smoothed in {r['smooth_s']:.0f} s")
     print("mean:", {k: round(v, 4) for k, v in smooth.items()})
-    print(f"bars: jitter_smooth ≤ ½ jitter_frame: {smooth['jitter_smooth'] <= 0.5 * smooth['jitter_frame']}; "
-          f"rmse ≤ 1.02×: {smooth['rmse_smooth'] <= 1.02 * smooth['rmse_frame']}; "
-          f"peaks ≤ 1.1×: {smooth['peak_err_smooth'] <= 1.1 * smooth['peak_err_frame']}")  # fmt: skip
+    print(
+        f"bars: jitter_smooth ≤ ½ jitter_frame: {smooth['jitter_smooth'] <= 0.5 * smooth['jitter_frame']}; "
+        f"rmse ≤ 1.02×: {smooth['rmse_smooth'] <= 1.02 * smooth['rmse_frame']}; "
+        f"peaks ≤ 1.1×: {smooth['peak_err_smooth'] <= 1.1 * smooth['peak_err_frame']}"
+    )
     print("\nedits of the smile on the smoothed (b) track, frames", edits[0]["frames"])
     for e in edits:
-        print(f"{e['op']:9s} ×{e['factor']:<4} face {e['psnr_face_db']:6.2f} dB (min {e['psnr_face_min_db']:.2f}, "
-              f"paste {e['psnr_face_paste_db']:6.2f} dB), outside {e['psnr_outside_db']:6.2f} dB; "
-              f"filled from a similar frame {e['filled_similar']} px, texture {e['filled_texture']} px")  # fmt: skip
+        print(
+            f"{e['op']:9s} ×{e['factor']:<4} face {e['psnr_face_db']:6.2f} dB (min {e['psnr_face_min_db']:.2f}, "
+            f"paste {e['psnr_face_paste_db']:6.2f} dB), outside {e['psnr_outside_db']:6.2f} dB; "
+            f"filled from a similar frame {e['filled_similar']} px, texture {e['filled_texture']} px"
+        )
     return 0
 
 

@@ -64,8 +64,9 @@ def _base():
 
 
 def _settings(n: int):
-    return settings(max_examples=n, database=None, deadline=None, phases=[Phase.generate],
-                    suppress_health_check=list(HealthCheck))
+    return settings(
+        max_examples=n, database=None, deadline=None, phases=[Phase.generate], suppress_health_check=list(HealthCheck)
+    )
 
 
 def _fuzz_task(task: tuple[str, int, int]) -> dict:
@@ -75,6 +76,7 @@ def _fuzz_task(task: tuple[str, int, int]) -> dict:
     counts: Counter = Counter()
     examples: list[str] = []
     with tempfile.TemporaryDirectory(prefix="fuzz") as folder:
+
         @seed(s)
         @_settings(n)
         @given(_strategy(kind))
@@ -84,8 +86,10 @@ def _fuzz_task(task: tuple[str, int, int]) -> dict:
             except Exception as exc:  # the thing being counted: anything but a ProjectError
                 counts["other"] += 1
                 if len(examples) < EXAMPLES:
-                    examples.append(f"{kind} (seed {s}): {type(exc).__name__}: {str(exc)[:300]}\n"
-                                    + "".join(traceback.format_tb(exc.__traceback__)[-3:]))
+                    examples.append(
+                        f"{kind} (seed {s}): {type(exc).__name__}: {str(exc)[:300]}\n"
+                        + "".join(traceback.format_tb(exc.__traceback__)[-3:])
+                    )
 
         run()
     return {"kind": kind, "counts": dict(counts), "examples": examples}
@@ -128,8 +132,10 @@ def fuzz_section(args, log) -> dict:
                 by_kind[r["kind"]].update(r["counts"])
                 examples += r["examples"]
                 if i % 10 == 0 or i == len(tasks):
-                    log(f"fuzz: {_done(by_kind)} mutants, {sum(c['other'] for c in by_kind.values())} other "
-                        f"exceptions, {time.perf_counter() - t0:.0f} s")
+                    log(
+                        f"fuzz: {_done(by_kind)} mutants, {sum(c['other'] for c in by_kind.values())} other "
+                        f"exceptions, {time.perf_counter() - t0:.0f} s"
+                    )
             missing = args.mutants - _done(by_kind)
             if missing <= 0:
                 break
@@ -140,11 +146,19 @@ def fuzz_section(args, log) -> dict:
     total: Counter = Counter()
     for c in by_kind.values():
         total.update(c)
-    return {"fuzz": {"mutants": sum(total.values()), "loaded": total["loaded"],
-                     "project_errors": total["project_error"], "other_exceptions": total["other"],
-                     "seconds": round(time.perf_counter() - t0, 1),
-                     "by_kind": {k: {"mutants": sum(c.values()), "loaded": c["loaded"],
-                                     "other_exceptions": c["other"]} for k, c in by_kind.items()}}}
+    return {
+        "fuzz": {
+            "mutants": sum(total.values()),
+            "loaded": total["loaded"],
+            "project_errors": total["project_error"],
+            "other_exceptions": total["other"],
+            "seconds": round(time.perf_counter() - t0, 1),
+            "by_kind": {
+                k: {"mutants": sum(c.values()), "loaded": c["loaded"], "other_exceptions": c["other"]}
+                for k, c in by_kind.items()
+            },
+        }
+    }
 
 
 def _done(by_kind: dict) -> int:
@@ -180,8 +194,7 @@ def _benign_task(task: tuple[int, int]) -> dict:
 
 def benign_section(args, log) -> dict:
     """``{"benign": {"mutants", "loaded"}}``."""
-    tasks = [(args.seed + 500_000 + i, min(TASK, args.benign - i * TASK))
-             for i in range(math.ceil(args.benign / TASK))]
+    tasks = [(args.seed + 500_000 + i, min(TASK, args.benign - i * TASK)) for i in range(math.ceil(args.benign / TASK))]
     total: Counter = Counter()
     with Pool(args.workers) as pool:
         for r in pool.imap_unordered(_benign_task, tasks):

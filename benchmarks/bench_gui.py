@@ -69,8 +69,9 @@ def main(argv=None) -> int:
     try:
         shutil.copytree(REPO / "sample_projects" / "james", tmp / "james")
         project_file = tmp / "james" / "james.facestudio.json"
-        window = MainWindow(settings=QSettings(str(tmp / "settings.ini"), QSettings.Format.IniFormat),
-                            autosave_interval_ms=0)
+        window = MainWindow(
+            settings=QSettings(str(tmp / "settings.ini"), QSettings.Format.IniFormat), autosave_interval_ms=0
+        )
         window.resize(1400, 900)
         window.show()
         if not window.open_project(project_file):
@@ -129,9 +130,17 @@ def main(argv=None) -> int:
                 # before the overlay moved to the worker, its whole computation was GUI time
                 compute = getattr(view, "overlay_compute_s", None)
                 overlay_ms = overlay_gui if compute is None else compute * 1000
-                rows.append(((t1 - t0) * 1000, fit.elapsed_s * 1000, overlay_ms,
-                             (window.view3d.last_render_s or 0.0) * 1000, gui_ms, overlay_gui,
-                             bool(getattr(view, "overlay_from_cache", False))))
+                rows.append(
+                    (
+                        (t1 - t0) * 1000,
+                        fit.elapsed_s * 1000,
+                        overlay_ms,
+                        (window.view3d.last_render_s or 0.0) * 1000,
+                        gui_ms,
+                        overlay_gui,
+                        bool(getattr(view, "overlay_from_cache", False)),
+                    )
+                )
             return rows
 
         # the first refit after the fit from scratch, measured apart (first use of the warm path)

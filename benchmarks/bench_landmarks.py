@@ -103,9 +103,13 @@ def menpo_section(args, log) -> dict:
 def _render_nme(scan, yaw: float) -> float | None:
     """NME (%) of one render of the scan at ``yaw``; None when no face is found."""
     camera = orbit_camera(
-        yaw, RENDER_SIZE, RENDER_SIZE, distance_mm=RENDER_DISTANCE_MM, focal_mm=RENDER_LENS_MM,
+        yaw,
+        RENDER_SIZE,
+        RENDER_SIZE,
+        distance_mm=RENDER_DISTANCE_MM,
+        focal_mm=RENDER_LENS_MM,
         target=HEAD_CENTRE_MM,
-    )  # fmt: skip
+    )
     result = render_scan(camera, scan, background=0.45, supersample=3)
     image = (np.clip(result.color, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
     uv = _ibug68(image, f"the render at yaw {yaw:.1f}°")
@@ -140,19 +144,30 @@ def yaw_section(args, log) -> dict:
     for k, (lo, hi) in enumerate(zip(BIN_EDGES[:-1], BIN_EDGES[1:], strict=True)):
         inside = [e for e, b in zip(nmes, which, strict=True) if b == k]
         found = [e for e in inside if e is not None]
-        bins.append({
-            "yaw_deg": (lo + hi) / 2.0, "yaw_range": [lo, hi], "renders": len(inside),
-            "found": len(found), "nme_pct": round(float(np.mean(found)), 3) if found else -1.0,
-        })  # fmt: skip
+        bins.append(
+            {
+                "yaw_deg": (lo + hi) / 2.0,
+                "yaw_range": [lo, hi],
+                "renders": len(inside),
+                "found": len(found),
+                "nme_pct": round(float(np.mean(found)), 3) if found else -1.0,
+            }
+        )
         log(f"bin {lo:+d}..{hi:+d}°: {len(found)}/{len(inside)} found, NME {bins[-1]['nme_pct']:.2f} %")
     return {"yaw_bins": bins}
 
 
 #: Benchmark sections in order; each takes ``(args, log)`` and returns the keys it adds.
-SECTIONS = {"menpo": menpo_section, "yaw_bins": yaw_section, "auto_fit": auto_fit_section,
-            "auto_fit_draws": auto_fit_draws_section, "auto_fit_rigs": auto_fit_rigs_section,
-            "one_photo": one_photo_section,
-            "real_sample": real_sample_section, "stills": stills_section}
+SECTIONS = {
+    "menpo": menpo_section,
+    "yaw_bins": yaw_section,
+    "auto_fit": auto_fit_section,
+    "auto_fit_draws": auto_fit_draws_section,
+    "auto_fit_rigs": auto_fit_rigs_section,
+    "one_photo": one_photo_section,
+    "real_sample": real_sample_section,
+    "stills": stills_section,
+}
 
 
 def main(argv=None) -> int:

@@ -90,8 +90,7 @@ def head_draw(true_pts: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 def make_draw(true_pts, k, az_range, sigma, grouped, rng):
     head = head_draw(true_pts, rng)
     lens = (35.0, 100.0)
-    rig = synthetic_rig(k, head, width=1000, rng=rng, noise_px=sigma, azimuth_range_deg=az_range,
-                        focal_mm_range=lens)
+    rig = synthetic_rig(k, head, width=1000, rng=rng, noise_px=sigma, azimuth_range_deg=az_range, focal_mm_range=lens)
     if grouped:  # one camera and lens: every photo gets the first photo's focal length
         f = rig.true_cameras[0].f
         for c in rig.true_cameras:
@@ -252,8 +251,12 @@ def run_outliers(true_pts, generic, draws, rng, log):
         false_total += len(sus - moved)
         if not moved <= sus:
             log(f"  outliers draw {d}: moved {sorted(moved)} suspects {sorted(sus)}")
-    return {"draws": draws, "ours_failures": fails, "culprits_named": named,
-            "false_suspects_per_draw": false_total / max(draws, 1)}
+    return {
+        "draws": draws,
+        "ours_failures": fails,
+        "culprits_named": named,
+        "false_suspects_per_draw": false_total / max(draws, 1),
+    }
 
 
 def mesh_figures(mesh, scan) -> dict:
@@ -287,44 +290,60 @@ def run(draws: int, outlier_draws: int, log) -> dict:
     for spec in RIGS + [NARROW]:
         v = run_variant(spec, true_pts, generic, draws, rng, log)
         variants.append(v)
-        log(f"{v['name']:<9} {v['clicks']:<26} fail {v['ours_failures']}/{v['peer_failures']}  same "
+        log(
+            f"{v['name']:<9} {v['clicks']:<26} fail {v['ours_failures']}/{v['peer_failures']}  same "
             f"{v['same_minimum']}/{draws}  ms {v['ours']['time_ms']:.1f}/{v['peer']['time_ms']:.1f}  "
-            f"[{time.perf_counter() - t0:.0f} s]")
+            f"[{time.perf_counter() - t0:.0f} s]"
+        )
     outliers = run_outliers(true_pts, generic, outlier_draws, rng, log)
-    return {"variants": variants, "outliers": outliers, "mesh": mesh_figures(mesh, scan),
-            "elapsed_s": time.perf_counter() - t0}
+    return {
+        "variants": variants,
+        "outliers": outliers,
+        "mesh": mesh_figures(mesh, scan),
+        "elapsed_s": time.perf_counter() - t0,
+    }
 
 
 def print_table(out: dict) -> None:
-    hdr = (f"{'variant':<10} {'clicks':<26} {'draws':>5} {'fail ours/peer':>14} {'same min':>8} {'degen':>5} "
-           f"{'rot° ours/peer':>15} {'focal % ours/peer':>18} {'3D mm ours/peer':>16} {'ms ours/peer':>14} "
-           f"{'speed-up':>8}")
+    hdr = (
+        f"{'variant':<10} {'clicks':<26} {'draws':>5} {'fail ours/peer':>14} {'same min':>8} {'degen':>5} "
+        f"{'rot° ours/peer':>15} {'focal % ours/peer':>18} {'3D mm ours/peer':>16} {'ms ours/peer':>14} "
+        f"{'speed-up':>8}"
+    )
     print(hdr)
     print("-" * len(hdr))
     for v in out["variants"]:
         o, p = v["ours"], v["peer"]
-        print(f"{v['name']:<10} {v['clicks']:<26} {v['draws']:5d} {v['ours_failures']:>6d}/{v['peer_failures']:<7d} "
-              f"{v['same_minimum']:8d} {v['degenerate']:5d} {o['rot_err_deg']:7.3f}/{p['rot_err_deg']:<7.3f} "
-              f"{o['focal_err_pct']:8.2f}/{p['focal_err_pct']:<9.2f} "
-              f"{o['point_err_mm']:7.2f}/{p['point_err_mm']:<8.2f} "
-              f"{o['time_ms']:6.1f}/{p['time_ms']:<7.1f} {p['time_ms'] / o['time_ms']:8.1f}")
+        print(
+            f"{v['name']:<10} {v['clicks']:<26} {v['draws']:5d} {v['ours_failures']:>6d}/{v['peer_failures']:<7d} "
+            f"{v['same_minimum']:8d} {v['degenerate']:5d} {o['rot_err_deg']:7.3f}/{p['rot_err_deg']:<7.3f} "
+            f"{o['focal_err_pct']:8.2f}/{p['focal_err_pct']:<9.2f} "
+            f"{o['point_err_mm']:7.2f}/{p['point_err_mm']:<8.2f} "
+            f"{o['time_ms']:6.1f}/{p['time_ms']:<7.1f} {p['time_ms'] / o['time_ms']:8.1f}"
+        )
     print("\nthe paper's plain ALS to convergence, first draw of each variant:")
     for v in out["variants"]:
         a = v["ours_als"]
         if a["failed"]:
             print(f"  {v['name']:<10} {v['clicks']:<26} FAILED ({a['why'][:90]}) {a['time_ms']:.0f} ms")
         else:
-            print(f"  {v['name']:<10} {v['clicks']:<26} rot {a['rot_err_deg']:.3f}°  RMS {a['reproj_rms_px']:.3f} px  "
-                  f"{a['sweeps']} sweeps  {a['time_ms']:.0f} ms")
+            print(
+                f"  {v['name']:<10} {v['clicks']:<26} rot {a['rot_err_deg']:.3f}°  RMS {a['reproj_rms_px']:.3f} px  "
+                f"{a['sweeps']} sweeps  {a['time_ms']:.0f} ms"
+            )
     o = out["outliers"]
-    print(f"\noutlier draws (1–3 clicks moved 30–80 px, 5 cameras, σ = 1 px): {o['draws']} draws, "
-          f"{o['ours_failures']} failed, every moved click named in {o['culprits_named']}, "
-          f"{o['false_suspects_per_draw']:.2f} false suspects per draw")
+    print(
+        f"\noutlier draws (1–3 clicks moved 30–80 px, 5 cameras, σ = 1 px): {o['draws']} draws, "
+        f"{o['ours_failures']} failed, every moved click named in {o['culprits_named']}, "
+        f"{o['false_suspects_per_draw']:.2f} false suspects per draw"
+    )
     m = out["mesh"]
-    print(f"\nsample project, fitted mesh → scan surface over the face ({m['face_vertices']} vertices), mm: "
-          f"generic {m['generic_mean_mm']:.2f} (p95 {m['generic_p95_mm']:.2f}), after the pose features "
-          f"{m['initial_mean_mm']:.2f} ({m['initial_p95_mm']:.2f}), refined {m['refined_mean_mm']:.2f} "
-          f"({m['refined_p95_mm']:.2f}); fit RMS {m['fit_rms_px']:.2f} px")
+    print(
+        f"\nsample project, fitted mesh → scan surface over the face ({m['face_vertices']} vertices), mm: "
+        f"generic {m['generic_mean_mm']:.2f} (p95 {m['generic_p95_mm']:.2f}), after the pose features "
+        f"{m['initial_mean_mm']:.2f} ({m['initial_p95_mm']:.2f}), refined {m['refined_mean_mm']:.2f} "
+        f"({m['refined_p95_mm']:.2f}); fit RMS {m['fit_rms_px']:.2f} px"
+    )
     print(f"elapsed {out['elapsed_s']:.0f} s")
 
 

@@ -70,9 +70,13 @@ def rig_section(identities: int, seed: int = 0, log=print) -> dict:
         rel.append(r[moving])
         log(f"identity {i}: rel. error mean {100 * r[moving].mean():.1f} %, max {100 * r[moving].max():.1f} %")
     rel = np.array(rel)
-    return {"identities": identities, "shapes": int(moving.sum()),
-            "rel_err_pct_mean": round(float(100 * rel.mean()), 2), "rel_err_pct_max": round(float(100 * rel.max()), 2),
-            "registration_landmark_mm": round(builder.registration.landmark_rms_mm, 3)}  # fmt: skip
+    return {
+        "identities": identities,
+        "shapes": int(moving.sum()),
+        "rel_err_pct_mean": round(float(100 * rel.mean()), 2),
+        "rel_err_pct_max": round(float(100 * rel.max()), 2),
+        "registration_landmark_mm": round(builder.registration.landmark_rms_mm, 3),
+    }
 
 
 def _cli(*argv) -> dict:
@@ -93,8 +97,17 @@ def glb_and_csv_sections(frames: int, log=print) -> tuple[dict, dict]:
         project_path = folder / src.name
         _cli("rig", project_path)
         track_dir = folder / "results" / "track"
-        _cli("track", project_path, "--video", folder / "video" / "james_track.mp4", "--frames", frames,
-             "--out", track_dir, "--no-overlay")  # fmt: skip
+        _cli(
+            "track",
+            project_path,
+            "--video",
+            folder / "video" / "james_track.mp4",
+            "--frames",
+            frames,
+            "--out",
+            track_dir,
+            "--no-overlay",
+        )
         glb, csv = Path(tmp) / "james.glb", Path(tmp) / "james.csv"
         _cli("export", project_path, "--track", track_dir, "--glb", glb, "--csv", csv)
         log(f"exported {glb.stat().st_size / 1e6:.1f} MB")
@@ -104,11 +117,13 @@ def glb_and_csv_sections(frames: int, log=print) -> tuple[dict, dict]:
         photographed = len(doc["model"]["expressions"]) - 1
         anim = g.animations[0] if g.animations else None
         report = validate_glb(glb)
-        glb_out = {"targets": len(g.meshes[0].primitives[0].targets or []),
-                   "expected_targets": len(project.rig.shapes) + photographed * (len(CONTROL_REGIONS) - 1),
-                   "frames": 0 if anim is None else g.accessors[anim.samplers[0].input].count,
-                   "expected_frames": len(doc["frames"]),
-                   "validator_errors": -1 if report is None else int(report["issues"]["numErrors"])}  # fmt: skip
+        glb_out = {
+            "targets": len(g.meshes[0].primitives[0].targets or []),
+            "expected_targets": len(project.rig.shapes) + photographed * (len(CONTROL_REGIONS) - 1),
+            "frames": 0 if anim is None else g.accessors[anim.samplers[0].input].count,
+            "expected_frames": len(doc["frames"]),
+            "validator_errors": -1 if report is None else int(report["issues"]["numErrors"]),
+        }
         shapes, model = blend_shapes(project, doc["model"]["expressions"])
         written = arkit_weights(shapes, track_performance(doc, shapes.names).weights, model.face_mask)
         _codes, W, _rot = read_livelink_csv(csv)

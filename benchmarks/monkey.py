@@ -60,8 +60,11 @@ def run_child(seed: int, actions: int, empty: bool) -> int:
     windows = []
 
     def make():
-        w = MainWindow(settings=QSettings(str(work / "settings.ini"), QSettings.Format.IniFormat),
-                       autosave_interval_ms=0, recovery_folder=work / "recovery")
+        w = MainWindow(
+            settings=QSettings(str(work / "settings.ini"), QSettings.Format.IniFormat),
+            autosave_interval_ms=0,
+            recovery_folder=work / "recovery",
+        )
         w.resize(1300, 850)
         w.show()
         windows.append(w)
@@ -106,12 +109,15 @@ def _run_seed(seed: int, actions: int, log) -> dict:
         out = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
         err, code = "timed out", "timeout"
     kinds = Counter(line.split()[1] for line in out.splitlines() if line.startswith("step "))
-    results = [json.loads(line[len("result "):]) for line in out.splitlines() if line.startswith("result ")]
+    results = [json.loads(line[len("result ") :]) for line in out.splitlines() if line.startswith("result ")]
     crashed = code != 0 or not results
     unexpected = results[0]["unexpected"] if results else []
-    log(f"seed {seed:3d} ({'empty' if empty else 'sample'}): {sum(kinds.values())} actions, "
+    log(
+        f"seed {seed:3d} ({'empty' if empty else 'sample'}): {sum(kinds.values())} actions, "
         f"{time.perf_counter() - t0:.0f} s, exit {code}, {len(unexpected)} unexpected"
-        + (f"\n  {unexpected}" if unexpected else "") + (f"\n  {err[-2000:]}" if crashed else ""))
+        + (f"\n  {unexpected}" if unexpected else "")
+        + (f"\n  {err[-2000:]}" if crashed else "")
+    )
     return {"kinds": kinds, "crashed": crashed, "unexpected": unexpected}
 
 
@@ -129,8 +135,15 @@ def monkey_section(args, log) -> dict:
             by_kind.update(r["kinds"])
             crashes += r["crashed"]
             unexpected += len(r["unexpected"])
-    return {"monkey": {"actions": sum(by_kind.values()), "seeds": seeds, "crashes": crashes,
-                       "unexpected_exceptions": unexpected, "by_kind": dict(sorted(by_kind.items()))}}
+    return {
+        "monkey": {
+            "actions": sum(by_kind.values()),
+            "seeds": seeds,
+            "crashes": crashes,
+            "unexpected_exceptions": unexpected,
+            "by_kind": dict(sorted(by_kind.items())),
+        }
+    }
 
 
 def main(argv=None) -> int:

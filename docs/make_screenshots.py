@@ -101,8 +101,11 @@ def main(argv=None) -> int:  # noqa: C901 - one optional screenshot after anothe
             shutil.copytree(REPO / "sample_projects" / "james" / "video", tmp / "james" / "video")
         else:
             shutil.copytree(REPO / "sample_projects" / "james", tmp / "james", ignore=shutil.ignore_patterns("results"))
-        window = MainWindow(settings=QSettings(str(tmp / "settings.ini"), QSettings.Format.IniFormat),
-                            autosave_interval_ms=0, recovery_file=tmp / "recovery.facestudio.json")
+        window = MainWindow(
+            settings=QSettings(str(tmp / "settings.ini"), QSettings.Format.IniFormat),
+            autosave_interval_ms=0,
+            recovery_file=tmp / "recovery.facestudio.json",
+        )
         window.resize(1600, 960)
         window.show()
         if not window.open_project(tmp / "james" / "james.facestudio.json"):
@@ -153,8 +156,9 @@ def main(argv=None) -> int:  # noqa: C901 - one optional screenshot after anothe
             halves.append(v3.render_image(560, 640))
         both = QImage(1120, 640, QImage.Format.Format_RGB888)
         painter = QPainter(both)
-        for i, (img, label) in enumerate(zip(halves, ("cylindrical texture (§5.2.2)",
-                                                     "view-dependent, this camera (§5.2.3)"), strict=True)):
+        for i, (img, label) in enumerate(
+            zip(halves, ("cylindrical texture (§5.2.2)", "view-dependent, this camera (§5.2.3)"), strict=True)
+        ):
             painter.drawImage(560 * i, 0, img)
             painter.setPen(QColor(230, 230, 230))
             painter.drawText(560 * i + 12, 24, label)

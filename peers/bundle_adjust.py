@@ -183,8 +183,7 @@ def bundle_adjust(
     if method not in options:
         raise ValueError(f"method must be 'trf', 'lm' or 'trf-dense'; got {method!r}")
     jac, kw = options[method]
-    res = least_squares(ba.fun, ba.x0, jac=jac, x_scale="jac", ftol=tol, xtol=tol, gtol=tol,
-                        max_nfev=max_nfev, **kw)  # fmt: skip
+    res = least_squares(ba.fun, ba.x0, jac=jac, x_scale="jac", ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev, **kw)
     cams, pts = ba.to_cameras(res.x)
     ms = (time.perf_counter() - t0) * 1e3
     return (

@@ -49,14 +49,21 @@ W, H = 1000, 1333  # portrait photos
 # rough facial landmarks in mm, head frame (+y up, +z out of the face): the 13 "pose" features
 LANDMARKS = np.array(
     [
-        [-45.0, 33.0, 86.0], [-18.0, 32.0, 94.0], [18.0, 32.0, 94.0], [45.0, 33.0, 86.0],  # eye corners
-        [0.0, 12.0, 127.0], [0.0, 40.0, 104.0],  # nose tip, bridge
-        [-16.0, 0.0, 108.0], [16.0, 0.0, 108.0],  # nostrils
-        [-24.0, -33.0, 99.0], [24.0, -33.0, 99.0],  # mouth corners
+        [-45.0, 33.0, 86.0],
+        [-18.0, 32.0, 94.0],
+        [18.0, 32.0, 94.0],
+        [45.0, 33.0, 86.0],  # eye corners
+        [0.0, 12.0, 127.0],
+        [0.0, 40.0, 104.0],  # nose tip, bridge
+        [-16.0, 0.0, 108.0],
+        [16.0, 0.0, 108.0],  # nostrils
+        [-24.0, -33.0, 99.0],
+        [24.0, -33.0, 99.0],  # mouth corners
         [0.0, -75.0, 102.0],  # chin
-        [-72.0, 10.0, 30.0], [72.0, 10.0, 30.0],  # jaw below the ears
+        [-72.0, 10.0, 30.0],
+        [72.0, 10.0, 30.0],  # jaw below the ears
     ]
-)  # fmt: skip
+)
 N_POSE = len(LANDMARKS)
 NAMES = [f"f{i:02d}" for i in range(100)]
 
@@ -77,8 +84,9 @@ def face_points(n: int = 68, seed: np.random.Generator | int | None = 0, noise_m
     return np.vstack([LANDMARKS, d + rng.normal(0.0, noise_mm, (m, 3)) if noise_mm else d])
 
 
-def generic_head(points: np.ndarray, seed: np.random.Generator | int | None = 1, mm: float = 4.0,
-                 scale: float = 0.05) -> np.ndarray:  # fmt: skip
+def generic_head(
+    points: np.ndarray, seed: np.random.Generator | int | None = 1, mm: float = 4.0, scale: float = 0.05
+) -> np.ndarray:
     """Another head: up to ±``scale`` other proportions per axis and ±``mm`` per point."""
     rng = np.random.default_rng(seed)
     c = points.mean(0)
@@ -114,8 +122,17 @@ class Rig:
     azimuth_deg: np.ndarray
 
 
-def arc_cameras(points, azimuth_deg, elevation_deg, focal_mm, target_offset_mm, roll_deg,
-                width: int = W, height: int = H, fill: float = 0.5) -> list[Camera]:  # fmt: skip
+def arc_cameras(
+    points,
+    azimuth_deg,
+    elevation_deg,
+    focal_mm,
+    target_offset_mm,
+    roll_deg,
+    width: int = W,
+    height: int = H,
+    fill: float = 0.5,
+) -> list[Camera]:
     """Cameras on an arc around ``points``, one per entry of the per-camera arrays.
 
     Camera ``j`` looks at the centroid moved by ``target_offset_mm[j]`` from azimuth
@@ -165,8 +182,13 @@ def rig_clicks(cameras, points, rng: np.random.Generator, noise_px: float = 0.0,
 def _rig(cameras, points, azimuth_deg, rng, noise_px, hide) -> Rig:
     presets = [nearest_preset(a) for a in azimuth_deg]
     w, h = cameras[0].width, cameras[0].height
-    return Rig(rig_clicks(cameras, points, rng, noise_px, hide), cameras, [preset_camera(p, w, h) for p in presets],
-               presets, np.asarray(azimuth_deg, float))  # fmt: skip
+    return Rig(
+        rig_clicks(cameras, points, rng, noise_px, hide),
+        cameras,
+        [preset_camera(p, w, h) for p in presets],
+        presets,
+        np.asarray(azimuth_deg, float),
+    )
 
 
 def synthetic_rig(
@@ -244,8 +266,15 @@ def perturbed_start(cameras, points, seed, *, deg=2.0, mm=10.0, focal=0.05, poin
     for c in cameras:
         w = rng.normal(size=3)
         w *= np.radians(deg) / np.linalg.norm(w)
-        out.append(Camera(rodrigues(w) @ c.R, c.t + rng.uniform(-mm, mm, 3),
-                          c.f * (1.0 + rng.uniform(-focal, focal)), c.width, c.height))  # fmt: skip
+        out.append(
+            Camera(
+                rodrigues(w) @ c.R,
+                c.t + rng.uniform(-mm, mm, 3),
+                c.f * (1.0 + rng.uniform(-focal, focal)),
+                c.width,
+                c.height,
+            )
+        )
     return out, points + rng.uniform(-point_mm, point_mm, points.shape)
 
 

@@ -233,14 +233,10 @@ def orbit_camera(
     return Camera(R, t, focal_mm_to_px(focal_mm, width), width, height)
 
 
-def preset_camera(
-    name: str, width: int, height: int, *, distance_mm: float = 600.0, focal_mm: float = 50.0
-) -> Camera:
+def preset_camera(name: str, width: int, height: int, *, distance_mm: float = 600.0, focal_mm: float = 50.0) -> Camera:
     """The rough initial camera for a named preset (see :data:`PRESET_AZIMUTH_DEG`)."""
     try:
         az = PRESET_AZIMUTH_DEG[name]
     except KeyError:
-        raise ValueError(
-            f"unknown camera preset {name!r}; choose one of {sorted(PRESET_AZIMUTH_DEG)}"
-        ) from None
+        raise ValueError(f"unknown camera preset {name!r}; choose one of {sorted(PRESET_AZIMUTH_DEG)}") from None
     return orbit_camera(az, width, height, distance_mm=distance_mm, focal_mm=focal_mm)

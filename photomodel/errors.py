@@ -28,22 +28,36 @@ class MissingClicks(FitError):
         ``photo`` (or None), ``photos_clicked``, ``needed``, ``hint``, ``clicked_in``, ``hidden_in``.
     """
 
-    def __init__(self, expression: str, checklist: list[dict], *, placed: int, pose_features: int,
-                 note: str | None = None, needed_photos: int = 2):
+    def __init__(
+        self,
+        expression: str,
+        checklist: list[dict],
+        *,
+        placed: int,
+        pose_features: int,
+        note: str | None = None,
+        needed_photos: int = 2,
+    ):
         self.expression = expression
         self.checklist = list(checklist)
         where = "in 2+ photos" if needed_photos >= 2 else "in the photo"
-        head = (f"expression {expression!r} cannot be fitted yet: {placed} of {pose_features} pose feature(s) "
-                f"are clicked {where}; {len(self.checklist)} thing(s) to click:")
+        head = (
+            f"expression {expression!r} cannot be fitted yet: {placed} of {pose_features} pose feature(s) "
+            f"are clicked {where}; {len(self.checklist)} thing(s) to click:"
+        )
         lines = [head] if note is None else [head, f"  ({note})"]
         for it in self.checklist:
             if it.get("feature") is not None:
-                lines.append(f"  - {it['feature']}: clicked in {it['photos_clicked']} photo(s), "
-                             f"needs {it['needed']} — {it['hint']}")
+                lines.append(
+                    f"  - {it['feature']}: clicked in {it['photos_clicked']} photo(s), "
+                    f"needs {it['needed']} — {it['hint']}"
+                )
             else:
                 shared = "shared " if needed_photos >= 2 else ""
-                lines.append(f"  - photo {it['photo']!r}: {it['photos_clicked']} {shared}click(s), "
-                             f"needs {it['needed']} — {it['hint']}")
+                lines.append(
+                    f"  - photo {it['photo']!r}: {it['photos_clicked']} {shared}click(s), "
+                    f"needs {it['needed']} — {it['hint']}"
+                )
         super().__init__("\n".join(lines))
 
 

@@ -140,9 +140,7 @@ def shoot(out: Path, expression: str, scan, cameras, ids, names, points3d, curve
         paths.append(rel)
         depth = np.asarray(result.depth, float)
         depths.append(depth)
-        vis.append(
-            synthetic.visible(cam, points3d, scan, depth=depth, tol_mm=CLICK_TOL_MM, min_cos=CLICK_MIN_COS)
-        )
+        vis.append(synthetic.visible(cam, points3d, scan, depth=depth, tol_mm=CLICK_TOL_MM, min_cos=CLICK_MIN_COS))
     vis = np.array(vis)
     clicks = synthetic.synthesize_clicks(cameras, points3d, vis, NOISE_PX, rng)
 
@@ -234,10 +232,17 @@ def build(out: Path, overlays: Path | None = None, expressions=EXPRESSIONS) -> d
         truth = geometry[k]
         points3d = truth[vertex_ids]
         photos, gt_photos, vis = shoot(
-            out, expression, expression_scan(scan, expression), cameras, ids, names, points3d,
-            {name: truth[mesh.curves[name]] for name in curve_names}, rng,
+            out,
+            expression,
+            expression_scan(scan, expression),
+            cameras,
+            ids,
+            names,
+            points3d,
+            {name: truth[mesh.curves[name]] for name in curve_names},
+            rng,
             "png" if expression == NEUTRAL else "jpg",
-        )  # fmt: skip
+        )
         if overlays is not None:
             for photo in photos:
                 _overlay(out / photo.path, photo, features, overlays / f"sample_overlay_{expression}_{photo.id}.png")
@@ -278,9 +283,7 @@ def build(out: Path, overlays: Path | None = None, expressions=EXPRESSIONS) -> d
     (out / GROUND_TRUTH_FILE).write_text(json.dumps(ground_truth, indent=1) + "\n")
 
     size = sum(p.stat().st_size for p in out.rglob("*") if p.is_file())
-    photo_bytes = {
-        e: sum((out / p.path).stat().st_size for p in project.expression(e).photos) for e in expressions
-    }
+    photo_bytes = {e: sum((out / p.path).stat().st_size for p in project.expression(e).photos) for e in expressions}
     return {
         "photos": ids,
         "features": len(features),

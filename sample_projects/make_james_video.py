@@ -45,8 +45,10 @@ def first_pose_clicks(truth) -> dict:
     model = sample_face_model(truth.names)
     X = model.blend_geometry(model.vertex_weights(truth.weights[0]))[project.feature_vertices(names)]
     uv = truth.camera(0).project(X) + np.random.default_rng(2).normal(0.0, CLICK_NOISE_PX, (len(names), 2))
-    return {"focal_px": truth.focal_px, "clicks": {n: [round(float(u), 2), round(float(v), 2)]
-                                                   for n, (u, v) in zip(names, uv, strict=True)}}
+    return {
+        "focal_px": truth.focal_px,
+        "clicks": {n: [round(float(u), 2), round(float(v), 2)] for n, (u, v) in zip(names, uv, strict=True)},
+    }
 
 
 def first_pose_json(spec: dict) -> str:

@@ -153,8 +153,9 @@ def studio_window(qtbot, tmp_path, messages):
 
     from app.qt.main_window import MainWindow
 
-    w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
-                   autosave_interval_ms=0)  # fmt: skip
+    w = MainWindow(
+        settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat), autosave_interval_ms=0
+    )
     qtbot.addWidget(w)
     w.resize(1300, 850)
     w.show()
@@ -187,8 +188,10 @@ def studio_run_loop(monkeypatch, project_copy):
     from PySide6.QtWidgets import QApplication
 
     monkeypatch.setattr(sys, "excepthook", sys.excepthook)  # run_studio installs the window's
-    monkeypatch.setattr("app.qt.main_window.QSettings", lambda *a: QSettings(str(project_copy.parent / "s.ini"),
-                                                                         QSettings.Format.IniFormat))
+    monkeypatch.setattr(
+        "app.qt.main_window.QSettings",
+        lambda *a: QSettings(str(project_copy.parent / "s.ini"), QSettings.Format.IniFormat),
+    )
 
     def use(inspect):
         def exec_():

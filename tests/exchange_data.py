@@ -78,8 +78,9 @@ def assert_reopened_renders_like_the_original(path, scale, v, f, corner_uv, text
     src, uv_split, f_split = split_uv_seams(len(v), f, corner_uv)
     ref = r.render(cam, v[src], f_split, uv=uv_split, texture=texture_img, cull_backfaces=True)
     m = trimesh.load(path, process=False, force="mesh")
-    img = np.asarray((m.visual.material.baseColorTexture if path.suffix == ".glb"
-                      else m.visual.material.image).convert("RGB"))  # fmt: skip
+    img = np.asarray(
+        (m.visual.material.baseColorTexture if path.suffix == ".glb" else m.visual.material.image).convert("RGB")
+    )
     got = r.render(cam, m.vertices * scale, m.faces, uv=m.visual.uv, texture=img, cull_backfaces=True)
     assert ref.mask.sum() > 5000 and np.array_equal(got.mask, ref.mask)
     # float32 positions / uv: a pixel may land a hair differently on a texel edge; 1/255 = 8 bits

@@ -39,23 +39,36 @@ def sample_project(tmp_path: Path | None = None, *, with_result: bool = True) ->
     file's rounding (1e-3 px, 1e-4 mm) is exact and round trips can be compared with ==."""
     features = [Feature("nose_tip", 10, True), Feature("eye_l", 20, True), Feature("jaw_00", 30, False)]
     curves = [CurveDef("brow_r", [1, 2, 3]), CurveDef("lip_top", [4, 5])]
-    front = Photo("front", "photos/neutral_front.png", W, H, "front", 50.0,
-                  points={"nose_tip": [31.5, 20.25], "eye_l": [40.125, 12.0], "jaw_00": [30.0, 47.0]},
-                  hidden={"jaw_00"}, curves={"brow_r": [[10.0, 8.5], [14.0, 7.0], [18.25, 8.0]]})
-    left = Photo("left", "photos/neutral_left.png", W, H, "left",
-                 points={"nose_tip": [12.0, 22.0], "eye_l": [-3.5, 13.0]})  # slightly outside: allowed
-    smile = Photo("front", "photos/smile_front.png", W, H, "three_quarter_right",
-                  points={"nose_tip": [30, 21]})
+    front = Photo(
+        "front",
+        "photos/neutral_front.png",
+        W,
+        H,
+        "front",
+        50.0,
+        points={"nose_tip": [31.5, 20.25], "eye_l": [40.125, 12.0], "jaw_00": [30.0, 47.0]},
+        hidden={"jaw_00"},
+        curves={"brow_r": [[10.0, 8.5], [14.0, 7.0], [18.25, 8.0]]},
+    )
+    left = Photo(
+        "left", "photos/neutral_left.png", W, H, "left", points={"nose_tip": [12.0, 22.0], "eye_l": [-3.5, 13.0]}
+    )  # slightly outside: allowed
+    smile = Photo("front", "photos/smile_front.png", W, H, "three_quarter_right", points={"nose_tip": [30, 21]})
     result = None
     if with_result:
         result = ExpressionResult(
             cameras={"front": sample_camera(0.0), "left": sample_camera(90.0)},
             points_3d={"nose_tip": [0.0, -1.5, 102.25], "eye_l": [33.1234, 30.0, 60.0]},
-            mesh_obj="results/neutral.obj", mesh_ply="results/neutral.ply",
+            mesh_obj="results/neutral.obj",
+            mesh_ply="results/neutral.ply",
             report={"rms_px": 0.75, "per_view": {"front": 0.5, "left": 1.0}, "iterations": 12},
         )
-    p = Project("james", features=features, curves=curves,
-                expressions=[Expression("neutral", [front, left], result), Expression("smile", [smile])])
+    p = Project(
+        "james",
+        features=features,
+        curves=curves,
+        expressions=[Expression("neutral", [front, left], result), Expression("smile", [smile])],
+    )
     if tmp_path is not None:
         p.path = tmp_path / "james.facestudio.json"
     return p
@@ -98,9 +111,14 @@ def temp_files(folder: Path) -> list[str]:
 def textured_project(tmp_path: Path) -> Project:
     p = sample_project(tmp_path)
     p.expression("neutral").result.texture = TextureResult(
-        size=512, image="results/neutral_texture.png",
+        size=512,
+        image="results/neutral_texture.png",
         weight_maps={"left": "results/neutral_weights_left.png", "front": "results/neutral_weights_front.png"},
-        exports={"obj": "results/neutral_textured.obj", "glb": "results/neutral.glb",
-                 "ply": "results/neutral_colors.ply"},
-        report={"coverage": 0.97, "extract_s": 0.5})
+        exports={
+            "obj": "results/neutral_textured.obj",
+            "glb": "results/neutral.glb",
+            "ply": "results/neutral_colors.ply",
+        },
+        report={"coverage": 0.97, "extract_s": 0.5},
+    )
     return p

@@ -59,8 +59,7 @@ def test_projection_of_a_rotated_camera():
     cam = Camera(RY90, [0.0, 0.0, 400.0], 1000.0, 641, 481)
     # R X: (0, 20, 0) → (0, 20, 0); (50, 0, 0) → (0, 0, -50); (0, 0, 100) → (100, 0, 0); then + t
     X = np.array([[0.0, 20.0, 0.0], [50.0, 0.0, 0.0], [0.0, 0.0, 100.0]])
-    np.testing.assert_allclose(cam.to_camera(X), [[0.0, 20.0, 400.0], [0.0, 0.0, 350.0], [100.0, 0.0, 400.0]],
-                               atol=TOL)  # fmt: skip
+    np.testing.assert_allclose(cam.to_camera(X), [[0.0, 20.0, 400.0], [0.0, 0.0, 350.0], [100.0, 0.0, 400.0]], atol=TOL)
     # u = 1000 x/z + 320, v = 1000 y/z + 240
     np.testing.assert_allclose(cam.project(X), [[320.0, 290.0], [320.0, 240.0], [570.0, 240.0]], atol=TOL)
     np.testing.assert_allclose(cam.depth(X), [400.0, 350.0, 400.0], atol=TOL)

@@ -329,8 +329,17 @@ def test_depth_the_views_cannot_measure_comes_from_the_generic_head():
     gen = generic_head(truth, seed=1, mm=4.0, scale=0.05)
     taken = 0
     for seed in range(30):
-        rig = synthetic_rig(5, truth, width=640, height=360, rng=seed, noise_px=2.0,
-                            azimuth_range_deg=(-12, 12), focal_mm_range=(28, 28), fill=0.25)
+        rig = synthetic_rig(
+            5,
+            truth,
+            width=640,
+            height=360,
+            rng=seed,
+            noise_px=2.0,
+            azimuth_range_deg=(-12, 12),
+            focal_mm_range=(28, 28),
+            fill=0.25,
+        )
         free = solve_cameras(rig.observations, rig.init_cameras, gen, groups=[0] * 5, prior=False)
         ours = solve_cameras(rig.observations, rig.init_cameras, gen, groups=[0] * 5)
         rf = _depth_ratio(_aligned(free.points, truth), truth)
@@ -354,8 +363,17 @@ def test_one_viewpoint_and_a_changing_mouth_hold_the_generic_heads_depth(monkeyp
     gen = generic_head(truth, seed=1, mm=4.0, scale=0.05)
     held = []
     for seed in range(12):
-        rig = synthetic_rig(5, truth, width=640, height=360, rng=seed, noise_px=2.0,
-                            azimuth_range_deg=(-1.5, 1.5), focal_mm_range=(28, 28), fill=0.25)
+        rig = synthetic_rig(
+            5,
+            truth,
+            width=640,
+            height=360,
+            rng=seed,
+            noise_px=2.0,
+            azimuth_range_deg=(-1.5, 1.5),
+            focal_mm_range=(28, 28),
+            fill=0.25,
+        )
         obs = rig.observations.copy()
         rng = np.random.default_rng(seed + 7)
         for j in range(5):

@@ -39,8 +39,7 @@ def test_fit_writes_results_into_the_project(project_copy, capsys):
     assert "nose_tip" in result.points_3d
     original = load_project(SAMPLE / "james.facestudio.json")
     assert (
-        project.expression("neutral").photos[0].points.keys()
-        == original.expression("neutral").photos[0].points.keys()
+        project.expression("neutral").photos[0].points.keys() == original.expression("neutral").photos[0].points.keys()
     )
     # the stored result reprojects at the RMS the report prints (cameras and points as saved,
     # every click of a feature with a 3D point; 1e-3 px: the file rounds cameras and points)

@@ -23,8 +23,24 @@ def track_copy(straight, tmp_path):
 
 def test_edit_writes_frames_video_and_edits_json(track_copy, fitted_sample, tmp_path, capsys):
     out = tmp_path / "edited.mp4"
-    rc = main(["edit", str(fitted_sample), "--track", str(track_copy), "--scale", "smile=0", "--span", "2:5",
-               "--replace", "0:1@4", "--no-smooth", "--out", str(out), "--json"])  # fmt: skip
+    rc = main(
+        [
+            "edit",
+            str(fitted_sample),
+            "--track",
+            str(track_copy),
+            "--scale",
+            "smile=0",
+            "--span",
+            "2:5",
+            "--replace",
+            "0:1@4",
+            "--no-smooth",
+            "--out",
+            str(out),
+            "--json",
+        ]
+    )
     assert rc == 0
     rep = json.loads(capsys.readouterr().out)
     doc = load_track_results(track_copy)
@@ -80,8 +96,9 @@ def test_video_keeps_the_footages_audio(tmp_path):
         for p in v.encode():
             c.mux(p)
         t = np.arange(44100 * 10 // 25) / 44100
-        frame = av.AudioFrame.from_ndarray(0.3 * np.sin(2 * np.pi * 440 * t).astype(np.float32)[None], format="fltp",
-                                           layout="mono")  # fmt: skip
+        frame = av.AudioFrame.from_ndarray(
+            0.3 * np.sin(2 * np.pi * 440 * t).astype(np.float32)[None], format="fltp", layout="mono"
+        )
         frame.sample_rate = 44100
         for p in [*a.encode(frame), *a.encode()]:
             c.mux(p)

@@ -36,12 +36,19 @@ def fake_placer(image, names):
     points = {n: np.array([fx * w - 0.5, fy * h - 0.5]) for n, (fx, fy) in FAKE.items() if n in names}
     points["not_a_feature"] = np.array([1.0, 1.0])  # names the project does not define are ignored
     points["chin"] = np.array([w / 2, 3.0 * h])  # far below the photo: dropped, never stored
-    curves = {"lip_upper": np.array([[0.4 * w, 0.7 * h], [0.5 * w, 0.68 * h], [0.6 * w, 0.7 * h]]),
-              "not_a_curve": np.array([[1.0, 1.0], [2.0, 2.0]]),  # curves the project lacks are ignored
-              "lip_lower": np.array([[0.4 * w, 0.7 * h], [0.5 * w, 3.0 * h]])}  # off the photo: dropped
-    return SimpleNamespace(points=points, confidence={"nose_tip": 0.8, "eye_r_outer": 1.3, "eye_l_outer": 0.6},
-                           preset="three_quarter_left", yaw_deg=30.0, curves=curves,
-                           faces_found=3 if tuple(image[0, 0]) == (255, 0, 0) else 1)
+    curves = {
+        "lip_upper": np.array([[0.4 * w, 0.7 * h], [0.5 * w, 0.68 * h], [0.6 * w, 0.7 * h]]),
+        "not_a_curve": np.array([[1.0, 1.0], [2.0, 2.0]]),  # curves the project lacks are ignored
+        "lip_lower": np.array([[0.4 * w, 0.7 * h], [0.5 * w, 3.0 * h]]),
+    }  # off the photo: dropped
+    return SimpleNamespace(
+        points=points,
+        confidence={"nose_tip": 0.8, "eye_r_outer": 1.3, "eye_l_outer": 0.6},
+        preset="three_quarter_left",
+        yaw_deg=30.0,
+        curves=curves,
+        faces_found=3 if tuple(image[0, 0]) == (255, 0, 0) else 1,
+    )
 
 
 def photo(path: Path, seed: int, size=(160, 120), exif: dict | None = None, red_corner=False) -> Path:
@@ -110,19 +117,32 @@ def test_new_project_from_a_folder_with_automatic_clicks(tmp_path, folder, monke
     assert text["expressions"][0]["photos"][0]["click_sources"]["nose_tip"] == {"source": "auto", "confidence": 0.8}
     assert none.points == {} and none.preset == "front"
     assert first.auto_curves() == ["lip_upper"] and text["expressions"][0]["photos"][0]["curve_sources"] == {
-        "lip_upper": "auto"}
+        "lip_upper": "auto"
+    }
     np.testing.assert_allclose(first.curves["lip_upper"][1], [0.5 * 160, 0.68 * 120], atol=1e-3)
     # the features of the sample project: its 13 pose features and 68 landmarks, and its curves
     sample = load_project(SAMPLE)  # a version-1 file: still opens
     assert [(f.name, f.vertex, f.pose) for f in p.features] == [
-        (f.name, f.vertex, f.pose) for f in sample.features[:68]]
+        (f.name, f.vertex, f.pose) for f in sample.features[:68]
+    ]
     assert p.curves == sample.curves
 
 
 def test_human_summary_camera_group_and_features_from(tmp_path, folder, monkeypatch, capsys):
     target = tmp_path / "video.facestudio.json"
-    code, out, err = run_new(monkeypatch, capsys, target, "--photos", folder, "--camera-group", "clip",
-                             "--expression", "smile", "--features-from", SAMPLE)
+    code, out, err = run_new(
+        monkeypatch,
+        capsys,
+        target,
+        "--photos",
+        folder,
+        "--camera-group",
+        "clip",
+        "--expression",
+        "smile",
+        "--features-from",
+        SAMPLE,
+    )
     assert code == 0, err
     assert out.startswith(f"created {target}: expression 'smile', 4 photos, 9 automatic clicks")
     assert "IMG_0001" in out and "three_quarter_left" in out and f"next: facestudio fit {target}" in out
@@ -147,8 +167,9 @@ def test_a_truncated_photo_stops_new_and_nothing_is_written(tmp_path, folder, mo
 
 def test_add_photos_to_a_project_and_a_large_photo(tmp_path, folder):
     features = [Feature("nose_tip", 10, True), Feature("eye_l_outer", 20, True)]
-    project, warnings = new_project_from_photos([folder / "IMG_0001.jpg"], tmp_path / "p.facestudio.json",
-                                                features=features, placer=fake_placer)
+    project, warnings = new_project_from_photos(
+        [folder / "IMG_0001.jpg"], tmp_path / "p.facestudio.json", features=features, placer=fake_placer
+    )
     assert warnings == [] and [p.id for p in project.expression("neutral").photos] == ["IMG_0001"]
     # a photo wider than the working resolution: placed at a reduced size, clicks in its own pixels
     big = photo(tmp_path / "IMG_0001.JPG", 5, size=(6400, 100))
@@ -169,15 +190,15 @@ def test_add_photos_to_a_project_and_a_large_photo(tmp_path, folder):
         add_photos(project, "neutral", [folder / "IMG_0002.png", tmp_path / "cut.png"], placer=fake_placer)
     assert len(project.expression("neutral").photos) == before
     # ... or, asked to skip it (the studio's drop), is left out and named; the others come in
-    warnings = add_photos(project, "neutral", [tmp_path / "cut.png", folder / "IMG_0002.png"], placer=fake_placer,
-                          skip_unreadable=True)
+    warnings = add_photos(
+        project, "neutral", [tmp_path / "cut.png", folder / "IMG_0002.png"], placer=fake_placer, skip_unreadable=True
+    )
     assert warnings[0].startswith("cut.png: truncated PNG") and warnings[0].endswith("not added")
     assert warnings[1:] == ["IMG_0002.png: 3 faces found; the largest used"]  # the fake placer's say
     assert [p.id for p in project.expression("neutral").photos[before:]] == ["IMG_0002"]
     # a new expression is created on the way
     add_photos(project, "smile", [folder / "IMG_0002.png"], placer=fake_placer)
     assert [e.name for e in project.expressions] == ["neutral", "smile"]
-
 
 
 def run_command(command, monkeypatch, capsys, *argv):
@@ -200,8 +221,20 @@ def one_photo_project(tmp_path, monkeypatch, capsys):
 def test_add_photos_command_adds_a_new_expression(one_photo_project, folder, monkeypatch, capsys):
     target = one_photo_project
     # files and a folder holding one of them again: each file once, in the order named
-    code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", folder / "IMG_0002.png",
-                                 folder, "--expression", "smile", "--camera-group", "rig", "--json")
+    code, out, err = run_command(
+        "add-photos",
+        monkeypatch,
+        capsys,
+        target,
+        "--photos",
+        folder / "IMG_0002.png",
+        folder,
+        "--expression",
+        "smile",
+        "--camera-group",
+        "rig",
+        "--json",
+    )
     assert code == 0, err
     report = json.loads(out)  # exactly one JSON object on stdout
     assert report["path"] == str(target) and report["expression"] == "smile"
@@ -230,7 +263,9 @@ def test_add_photos_drops_the_fit_it_outdates_and_names_bad_paths(one_photo_proj
     assert load_project(target).expression("smile").result is not None
     p = load_project(target)
     assert p.expression("neutral").result is None and [x.id for x in p.expression("neutral").photos] == [
-        "front", "IMG_0001"]
+        "front",
+        "IMG_0001",
+    ]
     before = target.read_bytes()
     for bad in (folder.parent / "nothere.jpg", folder / "notes.txt"):
         code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", bad, "--json")

@@ -22,8 +22,10 @@ def _lock(folder: Path) -> bool:
     if os.geteuid() != 0:
         folder.chmod(0o555)
         return True
-    return (shutil.which("chattr") is not None
-            and subprocess.run(["chattr", "+i", str(folder)], capture_output=True).returncode == 0)
+    return (
+        shutil.which("chattr") is not None
+        and subprocess.run(["chattr", "+i", str(folder)], capture_output=True).returncode == 0
+    )
 
 
 def _unlock(folder: Path) -> None:

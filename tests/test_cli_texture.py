@@ -74,8 +74,11 @@ def test_texture_records_every_output_in_the_project(textured):
     assert tex is not None and tex.size == SIZE
     assert tex.image == "results/neutral_texture.png"
     assert set(tex.weight_maps) == PHOTOS
-    assert tex.exports == {"obj": "results/neutral_textured.obj", "glb": "results/neutral.glb",
-                           "ply": "results/neutral_colors.ply"}
+    assert tex.exports == {
+        "obj": "results/neutral_textured.obj",
+        "glb": "results/neutral.glb",
+        "ply": "results/neutral_colors.ply",
+    }
     folder = path.parent
     for rel in [tex.image, *tex.weight_maps.values(), *tex.exports.values(), "results/neutral_textured.mtl"]:
         assert (folder / rel).is_file(), rel
@@ -130,10 +133,13 @@ def test_unfitted_expression_asks_for_a_fit_and_writes_nothing(tmp_path, capsys)
     assert _snapshot(tmp_path / "james") == before
 
 
-@pytest.mark.parametrize("damage, message", [
-    (lambda p: p.unlink(), "neutral_left.png does not exist"),
-    (lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n not really"), "neutral_left.png: truncated PNG"),
-])
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda p: p.unlink(), "neutral_left.png does not exist"),
+        (lambda p: p.write_bytes(b"\x89PNG\r\n\x1a\n not really"), "neutral_left.png: truncated PNG"),
+    ],
+)
 def test_missing_or_corrupt_photo_is_named_and_nothing_is_written(project_copy, capsys, damage, message):
     damage(project_copy.parent / "photos" / "neutral_left.png")
     before = _snapshot(project_copy.parent)
@@ -169,7 +175,6 @@ def test_a_new_fit_drops_the_texture_record(textured, tmp_path):
 
 
 def test_ctrl_c_while_saving_waits_until_everything_is_saved(project_copy, capsys, monkeypatch):
-
 
     real = files.write_files
 

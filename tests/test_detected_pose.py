@@ -49,8 +49,16 @@ def pose_errors(rec: dict, truth, model) -> tuple[float, float]:
 
 
 def test_a_neutral_only_model_tracks_the_head_from_the_detectors_first_pose(fitted_sample, video, truth, tmp_path):
-    result = track_video(fitted_sample, video, tmp_path / "out", expressions=["neutral"], focal_px=truth.focal_px,
-                         max_frames=FRAMES, plots=False, overlay=False)  # fmt: skip
+    result = track_video(
+        fitted_sample,
+        video,
+        tmp_path / "out",
+        expressions=["neutral"],
+        focal_px=truth.focal_px,
+        max_frames=FRAMES,
+        plots=False,
+        overlay=False,
+    )
     doc = load_track_results(result.out_dir)
     assert doc["first_pose"]["source"].startswith("landmark detector on frame 0")
     assert doc["first_pose"]["spec"]["detected"] is True and len(doc["first_pose"]["spec"]["clicks"]) >= 6
@@ -118,8 +126,9 @@ def test_landmark_error_is_the_mean_distance_over_common_features():
 def test_a_large_face_is_fitted_on_frames_reduced_by_an_integer_factor(truth):
     model = fitted_sample_model()
     s, Rg, tg = model_gauge(model)
-    state = FrameState(truth.R[0] @ Rg, (truth.t[0] + truth.R[0] @ (s * Rg @ model.centre + tg)) / s,
-                       np.zeros(sum(model.n_alpha)))  # fmt: skip
+    state = FrameState(
+        truth.R[0] @ Rg, (truth.t[0] + truth.R[0] @ (s * Rg @ model.centre + tg)) / s, np.zeros(sum(model.n_alpha))
+    )
     small = FrameFitter(model, truth.focal_px, truth.width, truth.height)
     assert _work_fitter(small, state) is small  # the sample's ~150 px face: fitted as it is
     big = FrameFitter(model, 2 * truth.focal_px, 2 * truth.width, 2 * truth.height)  # a ~300 px face
@@ -127,7 +136,6 @@ def test_a_large_face_is_fitted_on_frames_reduced_by_an_integer_factor(truth):
     assert (work.W, work.H, work.f) == (truth.width, truth.height, truth.focal_px)
     # the same pose seen by both cameras: pixel centres map exactly as the k × k area average does
     X = model.geometry[0][model.face_mask][::50]
-    np.testing.assert_allclose(big.camera(state).project(X), 2 * (work.camera(state).project(X) + 0.5) - 0.5,
-                               atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(big.camera(state).project(X), 2 * (work.camera(state).project(X) + 0.5) - 0.5, atol=1e-9)
     frame = np.random.default_rng(0).random((2 * truth.height, 2 * truth.width, 3)).astype(np.float32)
     np.testing.assert_allclose(_work_frame(frame, work)[5, 7], frame[10:12, 14:16].mean(axis=(0, 1)), atol=1e-6)

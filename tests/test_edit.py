@@ -69,21 +69,26 @@ def test_replace_passes_through_the_chosen_frame_at_the_centre(truth):
 def test_edited_alphas_reach_the_edited_weights(truth):
     model = sample_face_model(EXPRESSION_NAMES)
     alphas = np.array([model.alpha_of_weights(w) for w in truth.weights])
-    edits = [{"op": "scale", "expression": "smile", "factor": 0.5, "span": [5, 20]},
-             {"op": "replace", "span": [25, 35], "frame": 12}]  # fmt: skip
+    edits = [
+        {"op": "scale", "expression": "smile", "factor": 0.5, "span": [5, 20]},
+        {"op": "replace", "span": [25, 35], "frame": 12},
+    ]
     new = edited_alphas(model, alphas, edits)
     got = np.array([model.region_weights(a) for a in new])
     np.testing.assert_allclose(got[:, 1:], apply_edits(model, truth.weights, edits)[:, 1:], atol=1e-9)
 
 
-@pytest.mark.parametrize("edit, words", [
-    ({"op": "scale", "expression": "grin", "factor": 0.5}, "grin"),
-    ({"op": "scale", "expression": "smile"}, "factor or a curve"),
-    ({"op": "scale", "expression": "smile", "factor": 1, "span": [30, 50]}, "span 30:50"),
-    ({"op": "replace", "span": [5, 9], "frame": 99}, "frame 99"),
-    ({"op": "replace", "frame": 3}, "span"),
-    ({"op": "blur"}, "unknown edit op"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        ({"op": "scale", "expression": "grin", "factor": 0.5}, "grin"),
+        ({"op": "scale", "expression": "smile"}, "factor or a curve"),
+        ({"op": "scale", "expression": "smile", "factor": 1, "span": [30, 50]}, "span 30:50"),
+        ({"op": "replace", "span": [5, 9], "frame": 99}, "frame 99"),
+        ({"op": "replace", "frame": 3}, "span"),
+        ({"op": "blur"}, "unknown edit op"),
+    ],
+)
 def test_bad_edits_are_named(truth, edit, words):
     model = sample_face_model(EXPRESSION_NAMES)
     with pytest.raises(EditError, match=words):

@@ -25,8 +25,9 @@ def session_parts():
     for i in range(10, 14):
         Wv = model.vertex_weights(truth.weights[i])
         frames.append(render_model(get_renderer(), truth.camera(i), model, model.blend_geometry(Wv), Wv, bg).image)
-        states.append(FrameState(truth.R[i], truth.t[i] + truth.R[i] @ model.centre,
-                                 model.alpha_of_weights(truth.weights[i])))  # fmt: skip
+        states.append(
+            FrameState(truth.R[i], truth.t[i] + truth.R[i] @ model.centre, model.alpha_of_weights(truth.weights[i]))
+        )
     return fitter, frames, states, truth.weights[10:14]
 
 

@@ -41,10 +41,10 @@ def glb_chunks(data: bytes) -> tuple[dict, bytes]:
     assert (magic, version, length) == (GLB_MAGIC, 2, len(data))
     n_json, kind = struct.unpack_from("<II", data, 12)
     assert kind == JSON_CHUNK and n_json % 4 == 0
-    doc = json.loads(data[20: 20 + n_json])
+    doc = json.loads(data[20 : 20 + n_json])
     n_bin, kind = struct.unpack_from("<II", data, 20 + n_json)
     assert kind == BIN_CHUNK and n_bin % 4 == 0 and 28 + n_json + n_bin == len(data)
-    return doc, data[28 + n_json: 28 + n_json + n_bin]
+    return doc, data[28 + n_json : 28 + n_json + n_bin]
 
 
 def read_accessor(doc: dict, blob: bytes, index: int) -> list:
@@ -53,7 +53,7 @@ def read_accessor(doc: dict, blob: bytes, index: int) -> list:
     k = {"SCALAR": 1, "VEC2": 2, "VEC3": 3}[acc["type"]]
     fmt = {FLOAT: "f", UNSIGNED_INT: "I"}[acc["componentType"]]
     values = struct.unpack_from(f"<{acc['count'] * k}{fmt}", blob, view["byteOffset"] + acc.get("byteOffset", 0))
-    return [list(values[i: i + k]) for i in range(0, len(values), k)] if k > 1 else list(values)
+    return [list(values[i : i + k]) for i in range(0, len(values), k)] if k > 1 else list(values)
 
 
 # ----------------------------------------------------------------------------- known answers
@@ -69,8 +69,9 @@ def test_one_untextured_triangle_in_metres():
     assert (pos["componentType"], pos["type"], pos["count"]) == (FLOAT, "VEC3", 3)
     assert doc["bufferViews"][pos["bufferView"]]["target"] == ARRAY_BUFFER
     # 10 mm = 0.01 m; float32(0.01) = 0.00999999977648258, so 1e-9 m (1e-6 mm) of slack
-    np.testing.assert_allclose(read_accessor(doc, blob, prim["attributes"]["POSITION"]),
-                               [[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0]], atol=1e-9)  # fmt: skip
+    np.testing.assert_allclose(
+        read_accessor(doc, blob, prim["attributes"]["POSITION"]), [[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0]], atol=1e-9
+    )
     np.testing.assert_allclose(pos["min"], [0, 0, 0], atol=1e-9)
     np.testing.assert_allclose(pos["max"], [0.01, 0.01, 0], atol=1e-9)
     np.testing.assert_array_equal(read_accessor(doc, blob, prim["attributes"]["NORMAL"]), [[0, 0, 1]] * 3)
@@ -86,8 +87,9 @@ def test_one_untextured_triangle_in_metres():
 def test_one_textured_triangle_flips_v_and_embeds_the_png():
     tex = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], np.uint8)
     uv = [[0.25, 0.75], [0.75, 0.75], [0.25, 0.25]]  # v up: the top-left, top-right, bottom-left texels
-    doc, blob = glb_chunks(encode_glb([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]], [[0, 1, 2]],
-                                      uv=uv, texture=tex))  # fmt: skip
+    doc, blob = glb_chunks(
+        encode_glb([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]], [[0, 1, 2]], uv=uv, texture=tex)
+    )
     prim = doc["meshes"][0]["primitives"][0]
     # glTF's t runs down from the top: t = 1 − v (all exact in float32)
     assert read_accessor(doc, blob, prim["attributes"]["TEXCOORD_0"]) == [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75]]
@@ -97,7 +99,7 @@ def test_one_textured_triangle_flips_v_and_embeds_the_png():
     assert image["mimeType"] == "image/png"
     assert (sampler["wrapS"], sampler["wrapT"]) == (33071, 33071)  # CLAMP_TO_EDGE
     view = doc["bufferViews"][image["bufferView"]]
-    png = blob[view["byteOffset"]: view["byteOffset"] + view["byteLength"]]
+    png = blob[view["byteOffset"] : view["byteOffset"] + view["byteLength"]]
     np.testing.assert_array_equal(np.asarray(Image.open(io.BytesIO(png))), tex)  # Pillow decodes it
 
 
@@ -159,7 +161,7 @@ def test_glb_structure_with_pygltflib(tmp_path, sphere, texture):
     assert (sampler.wrapS, sampler.wrapT) == (pygltflib.CLAMP_TO_EDGE, pygltflib.CLAMP_TO_EDGE)
     assert image.mimeType == "image/png"
     view = g.bufferViews[image.bufferView]
-    png = g.binary_blob()[view.byteOffset: view.byteOffset + view.byteLength]
+    png = g.binary_blob()[view.byteOffset : view.byteOffset + view.byteLength]
     np.testing.assert_array_equal(decode_png(png), texture)
 
 

@@ -36,8 +36,11 @@ def test_ply_header_and_binary_body(tmp_path):
     assert header[:2] == ["ply", "format binary_little_endian 1.0"]
     assert "element vertex 4" in header and "element face 2" in header
     assert [h for h in header if h.startswith("property")] == [
-        "property float x", "property float y", "property float z", "property list uchar int vertex_indices",
-    ]  # fmt: skip
+        "property float x",
+        "property float y",
+        "property float z",
+        "property list uchar int vertex_indices",
+    ]
     body = data[end:]
     assert len(body) == 4 * 12 + 2 * 13  # 3 float32 per vertex; count byte + 3 int32 per face
     np.testing.assert_array_equal(np.reshape(struct.unpack_from("<12f", body, 0), (4, 3)), V)

@@ -69,9 +69,11 @@ def test_a_seam_is_corners_of_one_vertex_with_different_vt(tmp_path):
     out = encode_textured_obj(tmp_path / "sq.obj", v, f, corners, np.zeros((2, 2, 3), np.uint8))
     lines = content_lines(out.files[out.obj_path])
     assert [ln for ln in lines if ln.startswith("v ")] == [
-        "v 0.000000 0.000000 0.000000", "v 10.000000 0.000000 0.000000",
-        "v 0.000000 10.000000 0.000000", "v 10.000000 10.000000 0.000000",
-    ]  # fmt: skip
+        "v 0.000000 0.000000 0.000000",
+        "v 10.000000 0.000000 0.000000",
+        "v 0.000000 10.000000 0.000000",
+        "v 10.000000 10.000000 0.000000",
+    ]
     assert [ln for ln in lines if ln.startswith("vn ")] == ["vn 0.000000 0.000000 1.000000"] * 4
     vt = [[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("vt ")]
     assert len(vt) == 5 == out.n_texcoords  # six corners, (0.5, 0.5) shared

@@ -45,8 +45,8 @@ def test_float_colours_units_and_bad_input():
     # float colours: ×255, rounded (0.5 → 127.5 → 128, half to even), clipped, NaN → 0
     data = encode_colored_ply(v, f, np.array([[1.0, 0.5, 0.0], [2.0, -1.0, np.nan], [0.2, 0.4, 0.6]]), units="m")
     assert b"comment units m\n" in data
-    body = data[data.index(b"end_header\n") + len(b"end_header\n"):]
-    colours = [tuple(body[15 * i + 12: 15 * i + 15]) for i in range(3)]  # 3 float32 then 3 uchar per vertex
+    body = data[data.index(b"end_header\n") + len(b"end_header\n") :]
+    colours = [tuple(body[15 * i + 12 : 15 * i + 15]) for i in range(3)]  # 3 float32 then 3 uchar per vertex
     assert colours == [(255, 128, 0), (255, 0, 0), (51, 102, 153)]  # 0.2·255 = 51, 0.4·255 = 102, 0.6·255 = 153
     with pytest.raises(ValueError, match=r"\(3, 3\) RGB per vertex"):
         encode_colored_ply(v, f, np.zeros((2, 3), np.uint8))

@@ -25,10 +25,12 @@ from photomodel.exchange.uv import (
 
 #: Two triangles over a square; vertex 1 has u = 0.9 in the first and u = 0.0 in the second: a seam.
 QUAD_FACES = np.array([[0, 1, 2], [1, 3, 2]])
-QUAD_CORNERS = np.array([
-    [[0.1, 0.1], [0.9, 0.1], [0.5, 0.5]],
-    [[0.0, 0.1], [0.2, 0.9], [0.5, 0.5]],
-])  # fmt: skip
+QUAD_CORNERS = np.array(
+    [
+        [[0.1, 0.1], [0.9, 0.1], [0.5, 0.5]],
+        [[0.0, 0.1], [0.2, 0.9], [0.5, 0.5]],
+    ]
+)
 
 
 def test_split_uv_seams_of_two_triangles_copies_the_one_seam_vertex():
@@ -65,8 +67,9 @@ def test_checks_name_the_problem():
         check_texture(np.zeros((4, 4), np.uint8))
     with pytest.raises(ValueError, match="uint8 or float"):
         check_texture(np.zeros((4, 4, 3), np.int32))
-    np.testing.assert_array_equal(corner_uvs(QUAD_FACES, np.arange(8.0).reshape(4, 2))[1],
-                                  [[2.0, 3.0], [6.0, 7.0], [4.0, 5.0]])  # fmt: skip
+    np.testing.assert_array_equal(
+        corner_uvs(QUAD_FACES, np.arange(8.0).reshape(4, 2))[1], [[2.0, 3.0], [6.0, 7.0], [4.0, 5.0]]
+    )
 
 
 # ----------------------------------------------------------------------------- on the sphere

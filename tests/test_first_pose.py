@@ -27,12 +27,18 @@ def test_first_pose_files(truth, tmp_path, fitted_sample):
     project = load_project(fitted_sample)
     model = sample_face_model()
     R, t = truth.R[0], truth.t[0]
-    fp = load_first_pose({"focal_px": 560.0, "R": R.tolist(), "t_mm": t.tolist(),
-                          "weights": {"mouth": {"smile": 0.5}}}, project, model, 300, 300)  # fmt: skip
+    fp = load_first_pose(
+        {"focal_px": 560.0, "R": R.tolist(), "t_mm": t.tolist(), "weights": {"mouth": {"smile": 0.5}}},
+        project,
+        model,
+        300,
+        300,
+    )
     np.testing.assert_allclose(fp.state.t, t + R @ model.centre)
     assert abs(model.region_weights(fp.state.alpha)[1, 1] - 0.5) < 1e-9
-    fp = load_first_pose({"focal_mm": 50.0, "rotation_vector": [0.0, 0.0, 0.0], "t_mm": [0, 0, 600]},
-                         project, model, 300, 300)  # fmt: skip
+    fp = load_first_pose(
+        {"focal_mm": 50.0, "rotation_vector": [0.0, 0.0, 0.0], "t_mm": [0, 0, 600]}, project, model, 300, 300
+    )
     assert fp.focal_px == pytest.approx(50.0 * 300 / 36.0)
     clicks = json.loads(VIDEO.with_name("james_track.first_pose.json").read_text())["clicks"]
     few = dict(list(clicks.items())[:4])

@@ -226,9 +226,11 @@ def test_unsure_automatic_clicks_place_the_cameras_but_not_the_shape(mesh):
     why = [d for d in result.report["dropped"] if d.startswith("jaw_03:")]
     n_hand = sum("jaw_03" in p.points for p in project.expression("neutral").photos) - n_auto
     assert n_hand < 2  # so the sure clicks cannot place it
-    assert why == [f"jaw_03: {n_auto} automatic click(s) unsure (confidence < 0.5, e.g. outline or far-side "
-                   f"points) and {n_hand} sure; triangulation needs 2 sure clicks, so the generic mesh places it: "
-                   "click or drag it by hand to fit to it"]
+    assert why == [
+        f"jaw_03: {n_auto} automatic click(s) unsure (confidence < 0.5, e.g. outline or far-side "
+        f"points) and {n_hand} sure; triangulation needs 2 sure clicks, so the generic mesh places it: "
+        "click or drag it by hand to fit to it"
+    ]
 
 
 def test_click_weights_are_one_for_the_artist_and_confidence_squared_for_the_detector():
@@ -337,8 +339,9 @@ def test_a_profiles_automatic_clicks_are_left_out_while_other_photos_place_the_c
     assert 0 < result.report["views"][result.photo_ids.index("left")]["points"] <= 20  # its pose features among them
 
 
-def test_automatic_landmarks_on_the_sample_photos_place_every_fitted_camera_near_the_truth(tmp_path, mesh,
-                                                                                         sample_truth):
+def test_automatic_landmarks_on_the_sample_photos_place_every_fitted_camera_near_the_truth(
+    tmp_path, mesh, sample_truth
+):
     # the real detector on the sample's five neutral photos, no hand click (as bench_landmarks.py's
     # auto_fit): the 75° right profile has no face found, the left profile's automatic clicks
     # are left out (with them its camera came out 38–43° off); the front and three-quarter

@@ -247,8 +247,10 @@ def test_autosave_is_offered_for_recovery(qtbot, tmp_path, project_copy, message
 def _crashed_instance_lock(path: Path) -> None:
     """Leave ``<path>.lock`` as a studio that crashed leaves it: taken by a process that then died."""
 
-    code = ("import os, sys; from PySide6.QtCore import QLockFile; "
-            "l = QLockFile(sys.argv[1]); l.setStaleLockTime(0); assert l.tryLock(0); os._exit(0)")
+    code = (
+        "import os, sys; from PySide6.QtCore import QLockFile; "
+        "l = QLockFile(sys.argv[1]); l.setStaleLockTime(0); assert l.tryLock(0); os._exit(0)"
+    )
     subprocess.run([sys.executable, "-c", code, str(path) + ".lock"], check=True, timeout=60)
     assert Path(str(path) + ".lock").is_file()
 
@@ -259,8 +261,11 @@ def test_two_instances_keep_their_own_recovery_files(qtbot, tmp_path, project_co
     folder = tmp_path / "data"
 
     def window():
-        w = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat),
-                       autosave_interval_ms=0, recovery_folder=folder)
+        w = MainWindow(
+            settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat),
+            autosave_interval_ms=0,
+            recovery_folder=folder,
+        )
         qtbot.addWidget(w)
         return w
 
@@ -298,8 +303,9 @@ def test_two_instances_keep_their_own_recovery_files(qtbot, tmp_path, project_co
     d.model.set_point("neutral", d.model.photos[0].id, "nose_tip", (510.0, 520.0))
     d.autosave()
     assert load_project(dead).expression("neutral").photos[0].points["nose_tip"][0] == 510.0
-    np.testing.assert_allclose(load_project(a.recovery_file).expression("neutral").photos[0].points["nose_tip"],
-                               (500.0, 520.0))  # a's own file untouched
+    np.testing.assert_allclose(
+        load_project(a.recovery_file).expression("neutral").photos[0].points["nose_tip"], (500.0, 520.0)
+    )  # a's own file untouched
     # closing a (its project discarded) removes its file and lock only
     messages.answers["question"] = QMessageBox.StandardButton.Discard
     assert a.close()

@@ -35,8 +35,11 @@ def make_window(qtbot, tmp_path):
     made = []
 
     def make():
-        w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
-                       autosave_interval_ms=0, recovery_folder=tmp_path / "recovery")
+        w = MainWindow(
+            settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
+            autosave_interval_ms=0,
+            recovery_folder=tmp_path / "recovery",
+        )
         qtbot.addWidget(w)
         w.resize(1300, 850)
         w.show()
@@ -53,7 +56,8 @@ def make_window(qtbot, tmp_path):
 
 def photos_of(project_copy):
     return sorted((project_copy.parent / "photos").glob("*_front.*"))[:3] + sorted(
-        (project_copy.parent / "photos").glob("neutral_*.png"))
+        (project_copy.parent / "photos").glob("neutral_*.png")
+    )
 
 
 @pytest.mark.parametrize("seed", [11, 12])
@@ -67,8 +71,9 @@ def test_monkey_on_the_sample_project(qtbot, make_window, project_copy, tmp_path
 
 
 def test_monkey_on_an_empty_project(qtbot, make_window, project_copy, tmp_path, messages):
-    monkey = Monkey(make_window, 21, tmp_path / "work", None, photos_of(project_copy),
-                    {**SUITE_WEIGHTS, "add_photos": 6})
+    monkey = Monkey(
+        make_window, 21, tmp_path / "work", None, photos_of(project_copy), {**SUITE_WEIGHTS, "add_photos": 6}
+    )
     counts = monkey.run(ACTIONS_PER_SEED)
     assert sum(counts.values()) == ACTIONS_PER_SEED and counts["add_photos"] > 0
     assert monkey.window.unexpected_errors == []

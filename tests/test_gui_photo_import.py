@@ -46,8 +46,14 @@ def test_new_from_photos_auto_landmarks_drag_fit(qtbot, studio_window, tmp_path,
     qtbot.waitUntil(lambda: view.isVisible())
     assert all(item.is_auto for item in view._items.values())  # violet diamonds
     # the eyelids and outer lips drawn as automatic curves, dashed in the same violet
-    assert set(front.auto_curves()) == {"eyelid_r_upper", "eyelid_r_lower", "eyelid_l_upper", "eyelid_l_lower",
-                                        "lip_upper", "lip_lower"}
+    assert set(front.auto_curves()) == {
+        "eyelid_r_upper",
+        "eyelid_r_lower",
+        "eyelid_l_upper",
+        "eyelid_l_lower",
+        "lip_upper",
+        "lip_lower",
+    }
     pen = view._curve_items["lip_upper"].pen()
     assert pen.color().rgb() == AUTO_COLOR.rgb() and pen.style() == Qt.PenStyle.DashLine
     # redrawn by the artist it is theirs (solid); undone, the detector's again
@@ -155,9 +161,12 @@ def test_a_dropped_folder_adds_its_photos_and_names_what_it_cannot(qtbot, studio
     shutil.copy(PHOTOS / "neutral_three_quarter_right.png", single)
     _drop(studio_window, (folder, single, empty), Qt.KeyboardModifier.ShiftModifier)
     assert [p.id for p in studio_window.model.photos] == [
-        "neutral_front", "neutral_three_quarter_left", "single"]  # the folder's in name order, then the file
+        "neutral_front",
+        "neutral_three_quarter_left",
+        "single",
+    ]  # the folder's in name order, then the file
     assert all(not p.points for p in studio_window.model.photos)  # no automatic clicks
-    (kind, title, text), = messages  # one message for what was not added
+    ((kind, title, text),) = messages  # one message for what was not added
     assert kind == "critical" and "not added" in title
     assert "IMG_0100.HEIC is not read" in text and f"{empty}: no photos in it" in text
     studio_window.undo_stack.undo()  # one drop, one undo step
@@ -177,7 +186,7 @@ def test_dropped_photos_get_automatic_landmarks(qtbot, studio_window, tmp_path, 
     _drop(w, (folder,))
     assert w.importer.busy
     _drop(w, (PHOTOS / "neutral_left.png",))  # while the first drop is being read
-    (kind, title, text), = messages
+    ((kind, title, text),) = messages
     assert "not added" in title and "still being read" in text
     qtbot.waitUntil(lambda: not w.importer.busy and len(model.photos) == 2, timeout=60_000)
     assert [p.id for p in model.photos] == ["neutral_front", "neutral_three_quarter_left"]

@@ -80,8 +80,9 @@ def test_new_and_open_while_another_photo_tab_shows(qtbot, studio_window, projec
     assert photo_tabs(w) == ["other_front", "other_left"]
 
 
-def test_open_of_a_file_nested_thousands_deep_keeps_the_project(qtbot, studio_window, project_copy, messages,
-                                                                 monkeypatch):
+def test_open_of_a_file_nested_thousands_deep_keeps_the_project(
+    qtbot, studio_window, project_copy, messages, monkeypatch
+):
     w = studio_window
     assert w.open_project(project_copy)
     w.show_photo("left")
@@ -173,8 +174,9 @@ def test_a_fit_of_photos_removed_meanwhile_is_not_stored(qtbot, studio_window, p
     assert set(w.model.fit().cameras) == {p.id for p in w.model.photos}
 
 
-def test_studio_command_on_a_bad_project_does_not_block_headless(qtbot, qapp, project_copy, monkeypatch, capsys,
-                                                                  studio_run_loop):
+def test_studio_command_on_a_bad_project_does_not_block_headless(
+    qtbot, qapp, project_copy, monkeypatch, capsys, studio_run_loop
+):
     """``QT_QPA_PLATFORM=offscreen facestudio studio deep.json``: the error is a non-modal box and a
     line on stderr (no modal box nobody could close); the window opens on an empty project."""
     from PySide6.QtWidgets import QApplication, QMessageBox

@@ -39,6 +39,7 @@ def messages(monkeypatch):
         def box(parent, title, text, *args, **kwargs):
             shown.append((kind, title, text))
             return answers.get(kind, QMessageBox.StandardButton.Ok)
+
         return box
 
     for kind in ("critical", "warning", "information", "question"):
@@ -48,8 +49,11 @@ def messages(monkeypatch):
 
 
 def make_window(qtbot, tmp_path, name="w"):
-    w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
-                   autosave_interval_ms=0, recovery_file=tmp_path / "data" / "untitled.recovery.facestudio.json")
+    w = MainWindow(
+        settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
+        autosave_interval_ms=0,
+        recovery_file=tmp_path / "data" / "untitled.recovery.facestudio.json",
+    )
     qtbot.addWidget(w)
     w.resize(1300, 850)
     w.texture_size = 256
@@ -313,8 +317,9 @@ def test_a_damaged_texture_file_is_named_and_the_project_still_opens(qtbot, wind
     assert "results/neutral_texture.png is not an image" in status and "Extract texture" in status
     # a missing weight map of another expression: named when that expression is shown
     m.set_expression("smile")
-    assert m.texture() is None and "results/smile_weights_left.png does not exist" in \
-        window.statusBar().currentMessage()
+    assert (
+        m.texture() is None and "results/smile_weights_left.png does not exist" in window.statusBar().currentMessage()
+    )
     # the others are shown as usual, and a damaged one can be extracted again
     m.set_expression("frown")
     assert m.texture() is not None and window.view3d.texture is not None

@@ -29,9 +29,9 @@ def names():
 
 
 @pytest.mark.parametrize(
-    "pid, preset", [("front", "front"), ("three_quarter_left", "three_quarter_left"),
-                    ("three_quarter_right", "three_quarter_right")],
-)  # fmt: skip
+    "pid, preset",
+    [("front", "front"), ("three_quarter_left", "three_quarter_left"), ("three_quarter_right", "three_quarter_right")],
+)
 def test_features_of_the_sample_photos(truth, names, pid, preset):
     image = cv2.cvtColor(cv2.imread(str(SAMPLE_DIR / "photos" / f"neutral_{pid}.png")), cv2.COLOR_BGR2RGB)
     placed = place_landmarks(image, names, name=pid)

@@ -96,4 +96,3 @@ def test_curves_pass_through_the_clicks_on_them_end_to_end():
     assert set(curves) == set(MESH_CURVES)
     np.testing.assert_array_equal(curves["lip_lower"], mesh[list(MESH_CURVES["lip_lower"]), :2])
     assert curves_from_mesh(mesh, PROFILE_FROM_DEG + 1.0) == {}  # a profile hides half the lips
-

@@ -8,10 +8,14 @@ from photomodel.landmarks.mirror import MIRROR_468
 # iBUG-68's own left/right mirror: jaw 0..16 reversed, brows 17..26 reversed, nose line fixed,
 # nostrils 31..35 reversed, eyes 36..47 onto each other, the lips' mirrored order.
 IBUG_MIRROR = np.array(
-    list(range(16, -1, -1)) + list(range(26, 16, -1)) + [27, 28, 29, 30] + [35, 34, 33, 32, 31]
+    list(range(16, -1, -1))
+    + list(range(26, 16, -1))
+    + [27, 28, 29, 30]
+    + [35, 34, 33, 32, 31]
     + [45, 44, 43, 42, 47, 46, 39, 38, 37, 36, 41, 40]
-    + [54, 53, 52, 51, 50, 49, 48, 59, 58, 57, 56, 55] + [64, 63, 62, 61, 60, 67, 66, 65]
-)  # fmt: skip
+    + [54, 53, 52, 51, 50, 49, 48, 59, 58, 57, 56, 55]
+    + [64, 63, 62, 61, 60, 67, 66, 65]
+)
 
 
 def test_the_mirror_is_an_involution_with_a_midline():

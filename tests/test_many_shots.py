@@ -89,8 +89,19 @@ def test_corrupt_video_fails_alone_and_the_summary_lists_every_shot(batch, clips
 
 def test_rerun_skips_finished_shots_and_prints_one_json_object(batch, clips, fitted_sample, capsys):
     _, out, _ = batch
-    code = main(["track-many", str(fitted_sample), *map(str, clips[:2]), "--out", str(out), "--frames",
-                 str(FRAMES), "--no-overlay", "--json"])  # fmt: skip
+    code = main(
+        [
+            "track-many",
+            str(fitted_sample),
+            *map(str, clips[:2]),
+            "--out",
+            str(out),
+            "--frames",
+            str(FRAMES),
+            "--no-overlay",
+            "--json",
+        ]
+    )
     summary = json.loads(capsys.readouterr().out)  # exactly one object
     assert code == 0 and summary["by_status"]["skipped"] == 2 and summary["tracked_frames"] == 0
     assert summary["workers"] == 0  # nothing to track: no cluster started
@@ -106,10 +117,13 @@ def test_two_videos_with_one_stem_are_refused(tmp_path):
 
 def test_pin_threads_limits_renderer_opencv_and_blas():
     # in a fresh process: the limits are process-wide and would slow the rest of the suite
-    code = ("import os, cv2, json; from threadpoolctl import threadpool_info; "
-            "from tracking.many_shots import pin_threads; pin_threads(1); "
-            "print(json.dumps([os.environ['LP_NUM_THREADS'], cv2.getNumThreads(), "
-            "[p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas']]))")  # fmt: skip
-    lp, cv, blas = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                                             check=True).stdout)  # fmt: skip
+    code = (
+        "import os, cv2, json; from threadpoolctl import threadpool_info; "
+        "from tracking.many_shots import pin_threads; pin_threads(1); "
+        "print(json.dumps([os.environ['LP_NUM_THREADS'], cv2.getNumThreads(), "
+        "[p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas']]))"
+    )
+    lp, cv, blas = json.loads(
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    )
     assert lp == "1" and cv == 1 and blas and set(blas) == {1}

@@ -26,8 +26,9 @@ def _sphere(radius=80.0, n_lat=40, n_lon=80):
     lat = np.linspace(-np.pi / 2, np.pi / 2, n_lat)
     lon = np.linspace(-np.pi, np.pi, n_lon, endpoint=False)
     LA, LO = np.meshgrid(lat[1:-1], lon, indexing="ij")
-    V = radius * np.column_stack([np.cos(LA).ravel() * np.sin(LO).ravel(), np.sin(LA).ravel(),
-                                  np.cos(LA).ravel() * np.cos(LO).ravel()])
+    V = radius * np.column_stack(
+        [np.cos(LA).ravel() * np.sin(LO).ravel(), np.sin(LA).ravel(), np.cos(LA).ravel() * np.cos(LO).ravel()]
+    )
     rows, cols = n_lat - 2, n_lon
     F = []
     for r in range(rows - 1):

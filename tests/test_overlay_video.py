@@ -42,9 +42,14 @@ def test_overlay_tints_an_occluder_and_little_else():
     model, truth, i = sample_face_model(), video_truth(8), 3
     frame = render_video_frame(truth, i).astype(np.float32)
     R = truth.R[i]
-    rec = {"frame": i, "rms": 0.0, "diverged": False, "R": R.tolist(),
-           "centre_mm": (truth.t[i] + R @ model.centre).tolist(),
-           "alpha": model.alpha_of_weights(truth.weights[i]).tolist()}  # fmt: skip
+    rec = {
+        "frame": i,
+        "rms": 0.0,
+        "diverged": False,
+        "R": R.tolist(),
+        "centre_mm": (truth.t[i] + R @ model.centre).tolist(),
+        "alpha": model.alpha_of_weights(truth.weights[i]).tolist(),
+    }
     # a blue-grey card over the middle of the face (the truth: where the model is not the face)
     card = np.zeros(frame.shape[:2], bool)
     card[150:190, 120:180] = True

@@ -136,7 +136,7 @@ def test_a_large_photo_is_read_at_a_working_resolution(tmp_path):
     assert (work.width, work.height) == (640, 400)  # the original's size, what the project stores
     assert work.image.shape == (50, 80, 3) and work.reduced and work.scale == pytest.approx(80 / 640)
     ys, xs = np.nonzero(work.image[..., 0] > 10)
-    w = (work.image[ys, xs, 0].astype(float))
+    w = work.image[ys, xs, 0].astype(float)
     centre = np.array([(xs * w).sum(), (ys * w).sum()]) / w.sum()
     # the dot maps back to where it is in the original, within half a working pixel (4 px)
     assert np.abs(to_original(centre, work.scale) - [480, 200]).max() < 4
@@ -167,7 +167,13 @@ def test_photos_in_folder_and_camera_identity(tmp_path):
     for name in ("IMG_10.jpg", "img_9.JPG", "IMG_0011.jpg"):  # as a file browser orders them
         (tmp_path / name).write_bytes(b"x")
     assert [p.name for p in photos_in_folder(tmp_path)] == [
-        "a.png", "b.JPG", "c.tiff", "img_9.JPG", "IMG_10.jpg", "IMG_0011.jpg"]
+        "a.png",
+        "b.JPG",
+        "c.tiff",
+        "img_9.JPG",
+        "IMG_10.jpg",
+        "IMG_0011.jpg",
+    ]
     for name in ("IMG_10.jpg", "img_9.JPG", "IMG_0011.jpg"):
         (tmp_path / name).unlink()
     (tmp_path / "empty").mkdir()
@@ -196,9 +202,17 @@ def test_webp_is_read_and_photos_of_unread_types_are_named(tmp_path):
         (tmp_path / name).write_bytes(b"x")
     assert [q.name for q in photos_in_folder(tmp_path)] == ["a.webp"]
     assert [q.name for q in unreadable_photos_in_folder(tmp_path)] == [
-        "anim.gif", "DSC_1.NEF", "IMG_1.heic", "IMG_2.HEIC", "x.cr3"]
+        "anim.gif",
+        "DSC_1.NEF",
+        "IMG_1.heic",
+        "IMG_2.HEIC",
+        "x.cr3",
+    ]
     (tmp_path / "a.webp").unlink()
-    with pytest.raises(PhotoError, match=r"no photos this program reads in it; anim.gif is not read \(GIF: convert it "
-                                         r"to PNG\); DSC_1.NEF is not read \(NEF: a camera raw file"):
+    with pytest.raises(
+        PhotoError,
+        match=r"no photos this program reads in it; anim.gif is not read \(GIF: convert it "
+        r"to PNG\); DSC_1.NEF is not read \(NEF: a camera raw file",
+    ):
         photos_in_folder(tmp_path)
     assert unreadable_photos_in_folder(tmp_path / "nowhere") == []

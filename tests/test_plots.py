@@ -41,7 +41,7 @@ def v_of(value, y0, y1):
 def near_colour(img, u, v, colour, radius=2, tol=40):
     """Whether a pixel within ``radius`` of (u, v) has ``colour`` (each channel within ``tol``)."""
     r, c = int(round(v)), int(round(u))
-    patch = img[r - radius: r + radius + 1, c - radius: c + radius + 1].astype(int)
+    patch = img[r - radius : r + radius + 1, c - radius : c + radius + 1].astype(int)
     return bool(np.any(np.all(np.abs(patch - colour) <= tol, axis=-1)))
 
 
@@ -55,15 +55,19 @@ def colour_rows_in_column(img, u, colour, tol=40):
 def records():
     out = []
     for i in FRAMES:
-        out.append({
-            "frame": int(i),
-            "weights": {"mouth": {"neutral": 1.0 - SMILE[i], "smile": SMILE[i]},
-                        "brows": {"neutral": 0.75, "smile": 0.25}},
-            "head_rotation_deg": [0.0, YAW[i], 5.0],
-            "centre_mm": [2.0, -1.0, 650.0 + i],
-            "rms": RMS[i],
-            "diverged": bool(RMS[i] > DIVERGED_RMS),
-        })  # fmt: skip
+        out.append(
+            {
+                "frame": int(i),
+                "weights": {
+                    "mouth": {"neutral": 1.0 - SMILE[i], "smile": SMILE[i]},
+                    "brows": {"neutral": 0.75, "smile": 0.25},
+                },
+                "head_rotation_deg": [0.0, YAW[i], 5.0],
+                "centre_mm": [2.0, -1.0, 650.0 + i],
+                "rms": RMS[i],
+                "diverged": bool(RMS[i] > DIVERGED_RMS),
+            }
+        )
     return out
 
 
@@ -78,8 +82,12 @@ def test_layout_constants_are_the_ones_worked_out_here():
 
 def test_plots_are_written_with_the_expected_sizes(plots, tmp_path):
     # one 860 × 220 panel per region (2), per rotation plot (1), per translation axis (3), for the RMS (1)
-    expected = {"weights.png": (440, 860), "rotation.png": (220, 860), "translation.png": (660, 860),
-                "rms.png": (220, 860)}  # fmt: skip
+    expected = {
+        "weights.png": (440, 860),
+        "rotation.png": (220, 860),
+        "translation.png": (660, 860),
+        "rms.png": (220, 860),
+    }
     assert set(plots) == set(expected)
     for name, (h, w) in expected.items():
         assert plots[name].shape == (h, w, 3) and plots[name].dtype == np.uint8, name

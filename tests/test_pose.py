@@ -142,9 +142,7 @@ def test_fixed_focal_keeps_the_lens_and_recovers_the_pose():
     obs, true_cams, presets = make_rig(truth, *RIGS[5], seed=5)
     init = [Camera(p.R, p.t, t.f, p.width, p.height) for p, t in zip(presets, true_cams, strict=True)]
     for accelerate in (True, False):
-        r = recover_poses(
-            obs, init, generic_head(truth), fixed_focal=True, accelerate=accelerate, max_sweeps=20000
-        )
+        r = recover_poses(obs, init, generic_head(truth), fixed_focal=True, accelerate=accelerate, max_sweeps=20000)
         rot, focal, _, pt = errors(r, true_cams, truth)
         assert [c.f for c in r.cameras] == [c.f for c in true_cams]
         assert r.rms_px < 1e-5 and rot < 0.1 and pt < 0.05
@@ -270,9 +268,7 @@ VIEWS = ["left.jpg", "front.jpg", "right.jpg"]
 
 
 def fit(obs, presets, pts, **kw):
-    return recover_poses(
-        obs, presets, pts, names=NAMES[: obs.shape[1]], view_names=VIEWS[: obs.shape[0]], **kw
-    )
+    return recover_poses(obs, presets, pts, names=NAMES[: obs.shape[1]], view_names=VIEWS[: obs.shape[0]], **kw)
 
 
 def test_rejects_wrong_shapes(scene):

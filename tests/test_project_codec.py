@@ -36,8 +36,12 @@ def test_rounding_to_documented_precision(tmp_path):
 
 def test_report_numpy_and_nan_become_plain_json(tmp_path):
     p = sample_project(tmp_path)
-    p.expressions[0].result.report = {"rms": np.float32(0.5), "per_point": np.array([1.0, np.nan]),
-                                      "n": np.int64(3), "ok": np.bool_(True)}
+    p.expressions[0].result.report = {
+        "rms": np.float32(0.5),
+        "per_point": np.array([1.0, np.nan]),
+        "n": np.int64(3),
+        "ok": np.bool_(True),
+    }
     save_project(p)
     r = load_project(p.path).expressions[0].result.report
     assert r == {"rms": 0.5, "per_point": [1.0, None], "n": 3, "ok": True}
@@ -81,8 +85,7 @@ def test_save_as_elsewhere_keeps_finding_the_photos(tmp_path, saved):
     assert q.generic_mesh == (tmp_path / "meshes" / "custom.ply").as_posix()
     # saving back into the original folder makes them relative again
     save_project(q, tmp_path / "back.facestudio.json")
-    assert load_project(tmp_path / "back.facestudio.json").expressions[0].photos[0].path == \
-        "photos/neutral_front.png"
+    assert load_project(tmp_path / "back.facestudio.json").expressions[0].photos[0].path == "photos/neutral_front.png"
 
 
 # ---------------------------------------------------------------------------------------

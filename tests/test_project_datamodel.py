@@ -125,11 +125,14 @@ def test_set_click_by_hand_makes_an_automatic_click_the_users():
     assert "chin" not in ph.sources and "chin" not in ph.confidence and ph.remove_click("chin") is None
 
 
-@pytest.mark.parametrize("uv, source, confidence, match", [
-    ([np.nan, 1.0], "user", None, "not finite"),
-    ([1.0, 1.0], "detector", None, "source is one of"),
-    ([1.0, 1.0], "auto", 1.2, r"confidence lies in \[0, 1\]"),
-])
+@pytest.mark.parametrize(
+    "uv, source, confidence, match",
+    [
+        ([np.nan, 1.0], "user", None, "not finite"),
+        ([1.0, 1.0], "detector", None, "source is one of"),
+        ([1.0, 1.0], "auto", 1.2, r"confidence lies in \[0, 1\]"),
+    ],
+)
 def test_set_click_refuses_bad_input(uv, source, confidence, match):
     ph = Photo("front", "front.png", W, H)
     with pytest.raises(ValueError, match=match):

@@ -31,8 +31,9 @@ from photomodel.samples.project_mutants import (
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 #: Mutants per kind and run: 9 kinds x 25 = 225 (about 20 s); the benchmark runs 10 000.
 PER_KIND = 25
-_SETTINGS = settings(max_examples=PER_KIND, deadline=None, derandomize=True, database=None,
-                     suppress_health_check=list(HealthCheck))
+_SETTINGS = settings(
+    max_examples=PER_KIND, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck)
+)
 
 
 @functools.cache
@@ -93,9 +94,11 @@ def _first_click(tree) -> str:
 def test_integer_too_large_for_a_float_is_a_project_error(tmp_path, what):
     tree = base().tree
     photo = tree["expressions"][0]["photos"][0]
-    path = {"click": PHOTO + ("points", _first_click(tree), 0),
-            "curve point": PHOTO + ("curves", next(iter(photo["curves"])), 1, 0),
-            "points_3d": RESULT + ("points_3d", next(iter(tree["expressions"][0]["result"]["points_3d"])), 2)}[what]
+    path = {
+        "click": PHOTO + ("points", _first_click(tree), 0),
+        "curve point": PHOTO + ("curves", next(iter(photo["curves"])), 1, 0),
+        "points_3d": RESULT + ("points_3d", next(iter(tree["expressions"][0]["result"]["points_3d"])), 2),
+    }[what]
     with pytest.raises(ProjectError, match="not a finite number: too large for a double") as ei:
         _load(tmp_path, _mutant(path, HUGE_INT))
     assert path[2 if what == "points_3d" else 4] in str(ei.value)  # the field is named
@@ -125,6 +128,7 @@ def test_sample_project_itself_round_trips(tmp_path):
 @pytest.mark.parametrize("kind", MUTATIONS)
 def test_every_mutant_loads_or_is_a_project_error(kind):
     with tempfile.TemporaryDirectory() as folder:
+
         @_SETTINGS
         @given(mutants(base(), kind))
         def check(data):

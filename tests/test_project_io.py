@@ -153,11 +153,16 @@ def _orphan(folder: Path, name: str, age_s: float) -> Path:
 def test_temporaries_of_a_killed_save_are_removed_on_the_next_load_or_save(tmp_path, saved, when):
     path, _ = saved
     results = path.parent / "results"
-    old = [_orphan(path.parent, f".{path.name}.ab12cd_9.tmp", 3600),  # a killed project save
-           _orphan(results, ".neutral.obj.x1y2z3w4.tmp", 3600)]  # a killed mesh write
-    kept = [_orphan(path.parent, f".{path.name}.qwertyui.tmp", 5),  # a save in progress elsewhere
-            _orphan(path.parent, "notes.tmp", 3600), _orphan(path.parent, ".hidden.tmp", 3600),
-            _orphan(results, ".neutral.obj.TOOLONGNAME.tmp", 3600)]  # not our pattern
+    old = [
+        _orphan(path.parent, f".{path.name}.ab12cd_9.tmp", 3600),  # a killed project save
+        _orphan(results, ".neutral.obj.x1y2z3w4.tmp", 3600),
+    ]  # a killed mesh write
+    kept = [
+        _orphan(path.parent, f".{path.name}.qwertyui.tmp", 5),  # a save in progress elsewhere
+        _orphan(path.parent, "notes.tmp", 3600),
+        _orphan(path.parent, ".hidden.tmp", 3600),
+        _orphan(results, ".neutral.obj.TOOLONGNAME.tmp", 3600),
+    ]  # not our pattern
     project = load_project(path)
     if when == "save":
         for f in old:  # made again after the load: only the save removes them now

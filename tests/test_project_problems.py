@@ -7,8 +7,7 @@ from photomodel.project.problems import did_you_mean, fmt_path, listing, problem
 
 
 def test_json_paths():
-    assert fmt_path(("expressions", 0, "photos", 2, "points", "nose_tip")) == \
-        "expressions[0].photos[2].points.nose_tip"
+    assert fmt_path(("expressions", 0, "photos", 2, "points", "nose_tip")) == "expressions[0].photos[2].points.nose_tip"
     assert fmt_path(("points", "left eye")) == 'points["left eye"]'
     assert fmt_path(()) == "(top level)"
 

@@ -36,16 +36,26 @@ FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
 
 def _fit(shift: float = 0.0):
     """What :func:`photomodel.modeling.fit.fit_expression` returns, as far as storing reads it."""
-    return SimpleNamespace(photo_ids=["front", "left"], cameras=[sample_camera(0.0), sample_camera(90.0)],
-                           feature_names=["nose_tip", "eye_l"], points_3d=np.array([[0.0, -1.5, 102.25], [1, 2, 3]]),
-                           vertices=VERTICES + shift, report={"rms_px": 0.5, "views": []})
+    return SimpleNamespace(
+        photo_ids=["front", "left"],
+        cameras=[sample_camera(0.0), sample_camera(90.0)],
+        feature_names=["nose_tip", "eye_l"],
+        points_3d=np.array([[0.0, -1.5, 102.25], [1, 2, 3]]),
+        vertices=VERTICES + shift,
+        report={"rms_px": 0.5, "views": []},
+    )
 
 
 def _texture(folder: Path, name: str = "neutral"):
     """A texture job, its encoded files in ``folder`` and their paths (as encode_texture_outputs gives)."""
-    rel = {"image": f"results/{name}_texture.png", "weight_maps": {"front": f"results/{name}_weights_front.png"},
-           "obj": f"results/{name}_textured.obj", "mtl": f"results/{name}_textured.mtl",
-           "glb": f"results/{name}.glb", "ply": f"results/{name}_colors.ply"}
+    rel = {
+        "image": f"results/{name}_texture.png",
+        "weight_maps": {"front": f"results/{name}_weights_front.png"},
+        "obj": f"results/{name}_textured.obj",
+        "mtl": f"results/{name}_textured.mtl",
+        "glb": f"results/{name}.glb",
+        "ply": f"results/{name}_colors.ply",
+    }
     paths = [rel["image"], *rel["weight_maps"].values(), rel["mtl"], rel["obj"], rel["glb"], rel["ply"]]
     files = {folder / p: f"{p} of {name}".encode() for p in paths}
     job = SimpleNamespace(expression=name, size=64, report={"coverage": 0.9})
@@ -136,8 +146,7 @@ def test_save_results_into_another_folder_records_the_files_there(saved, tmp_pat
     save_results(saved, other, fits={"neutral": VERTICES}, faces=FACES, textures=[(job, files, rel)])
     q = load_project(other)
     r = q.expression("neutral").result
-    assert (r.mesh_obj, r.texture.image, r.texture.exports["glb"]) == (
-        "results/neutral.obj", rel["image"], rel["glb"])
+    assert (r.mesh_obj, r.texture.image, r.texture.exports["glb"]) == ("results/neutral.obj", rel["image"], rel["glb"])
     assert q.resolve(r.mesh_obj) == other.parent / "results" / "neutral.obj" and q.resolve(r.mesh_obj).is_file()
     assert q.resolve(r.texture.image).is_file() and not (tmp_path / "results").exists()
 
@@ -165,8 +174,9 @@ def test_a_failed_result_file_leaves_the_project_file_as_it_was(saved, tmp_path,
     monkeypatch.setattr(photomodel.project.results, "write_mesh", disk_full_at_the_ply)  # where results looks it up
     with pytest.raises(ProjectError) as ei:
         save_results(saved, fits={"neutral": VERTICES}, faces=FACES)
-    assert str(ei.value).startswith(f"{tmp_path / 'results' / 'neutral.ply'}: could not write the fitted mesh: "
-                                    "No space left on device")
+    assert str(ei.value).startswith(
+        f"{tmp_path / 'results' / 'neutral.ply'}: could not write the fitted mesh: No space left on device"
+    )
     assert saved.path.read_bytes() == before
     assert temp_files(tmp_path) == [] and temp_files(tmp_path / "results") == []
 
@@ -203,7 +213,8 @@ def test_a_refit_switches_to_new_mesh_files_and_removes_the_old(saved, tmp_path)
     assert re.fullmatch(r"results/neutral\.[0-9a-f]{8}\.obj", r.mesh_obj) and r.mesh_ply == r.mesh_obj[:-3] + "ply"
     np.testing.assert_allclose(read_mesh(tmp_path / r.mesh_ply)[0], VERTICES + 1.0)
     assert sorted(p.name for p in (tmp_path / "results").glob("neutral*")) == sorted(
-        Path(p).name for p in (r.mesh_obj, r.mesh_ply))  # the replaced fit's files are gone
+        Path(p).name for p in (r.mesh_obj, r.mesh_ply)
+    )  # the replaced fit's files are gone
     record_fit(saved, "neutral", _fit(shift=2.0))  # and the next re-fit takes the plain names again
     save_results(saved, fits={"neutral": VERTICES + 2.0}, faces=FACES)
     r = load_project(saved.path).expression("neutral").result

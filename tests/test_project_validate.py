@@ -37,75 +37,167 @@ def saved(tmp_path):
 
 CASES = [
     # (id, mutation of the valid dict, substrings expected in the message)
-    ("short point", lambda d: photo_dict(d)["points"].__setitem__("nose_tip", [12.0]),
-     ["james.facestudio.json: expressions[0].photos[0].points.nose_tip: "
-      "expected [u, v] of two finite numbers, got [12.0]"]),
-    ("string coordinate", lambda d: photo_dict(d)["points"].__setitem__("eye_l", [1, "2"]),
-     ["expressions[0].photos[0].points.eye_l: expected [u, v]"]),
-    ("three coordinates", lambda d: photo_dict(d, 0, 1)["points"].__setitem__("eye_l", [1, 2, 3]),
-     ["expressions[0].photos[1].points.eye_l: expected [u, v]"]),
-    ("missing width", lambda d: photo_dict(d).pop("width"),
-     ["expressions[0].photos[0]: 'width' is a required property"]),
-    ("misspelt field", lambda d: photo_dict(d).__setitem__("pionts", {}),
-     ["expressions[0].photos[0]: ", "'pionts' was unexpected"]),
-    ("width not integer", lambda d: photo_dict(d).__setitem__("width", 64.5),
-     ["expressions[0].photos[0].width: expected the image width in pixels"]),
-    ("negative feature vertex", lambda d: d["features"][1].__setitem__("vertex", -3),
-     ["features[1].vertex: expected a generic-mesh vertex index (an integer >= 0, below 2^31), got -3"]),
-    ("negative curve vertex", lambda d: d["curves"][0]["vertices"].__setitem__(2, -1),
-     ["curves[0].vertices[2]: expected a generic-mesh vertex index"]),
-    ("pose not bool", lambda d: d["features"][0].__setitem__("pose", "yes"),
-     ["features[0].pose: expected true or false"]),
-    ("one-point curve", lambda d: photo_dict(d)["curves"].__setitem__("brow_r", [[1, 2]]),
-     ["expressions[0].photos[0].curves.brow_r: expected a polyline of at least two [u, v] points"]),
-    ("bad result", lambda d: d["expressions"][0].__setitem__("result", 3),
-     ["expressions[0].result: expected null or a result object, got 3"]),
-    ("short rotation row", lambda d: d["expressions"][0]["result"]["cameras"]["front"]["rotation"][1].pop(),
-     ["expressions[0].result.cameras.front.rotation: expected a 3x3 rotation matrix"]),
-    ("negative focal guess", lambda d: photo_dict(d).__setitem__("focal_mm_guess", -50),
-     ["expressions[0].photos[0].focal_mm_guess: expected null or a positive focal length"]),
-    ("duplicate feature", lambda d: d["features"].append({"name": "eye_l", "vertex": 7, "pose": False}),
-     ["features[3].name: feature name 'eye_l' is used twice (also at features[1])"]),
-    ("duplicate curve", lambda d: d["curves"].append({"name": "brow_r", "vertices": [7, 8]}),
-     ["curves[2].name: curve name 'brow_r' is used twice"]),
-    ("duplicate expression", lambda d: d["expressions"][1].__setitem__("name", "neutral"),
-     ["expressions[1].name: expression name 'neutral' is used twice"]),
-    ("duplicate photo id", lambda d: photo_dict(d, 0, 1).__setitem__("id", "front"),
-     ["expressions[0].photos[1].id: photo id 'front' is used twice (also at expressions[0].photos[0])"]),
-    ("undefined feature", lambda d: photo_dict(d)["points"].__setitem__("nose_tp", [1, 2]),
-     ["expressions[0].photos[0].points.nose_tp: no feature named 'nose_tp' is defined",
-      "did you mean 'nose_tip'"]),
-    ("undefined hidden", lambda d: photo_dict(d)["hidden"].append("ear_r"),
-     ["expressions[0].photos[0].hidden[1]: no feature named 'ear_r'"]),
-    ("undefined curve", lambda d: photo_dict(d)["curves"].__setitem__("brow_l", [[1, 2], [3, 4]]),
-     ["expressions[0].photos[0].curves.brow_l: no curve named 'brow_l' is defined",
-      "did you mean 'brow_r'"]),
-    ("unknown preset", lambda d: photo_dict(d, 1, 0).__setitem__("preset", "frnt"),
-     ["expressions[1].photos[0].preset: unknown camera preset 'frnt'; choose one of front"]),
-    ("point far outside", lambda d: photo_dict(d)["points"].__setitem__("eye_l", [1000.0, 12.0]),
-     ["expressions[0].photos[0].points.eye_l: [1000, 12] lies far outside the 64x48 photo"]),
-    ("point far above", lambda d: photo_dict(d)["points"].__setitem__("eye_l", [0.5, -0.7 * H]),
-     ["expressions[0].photos[0].points.eye_l: ", "lies far outside"]),
-    ("curve point far outside", lambda d: photo_dict(d)["curves"]["brow_r"].__setitem__(1, [10, 200]),
-     ["expressions[0].photos[0].curves.brow_r[1]: [10, 200] lies far outside"]),
-    ("camera of unknown photo", lambda d: d["expressions"][0]["result"]["cameras"].__setitem__(
-        "right", copy.deepcopy(d["expressions"][0]["result"]["cameras"]["front"])),
-     ["expressions[0].result.cameras.right: camera for photo 'right', which is not a photo"]),
-    ("camera size mismatch", lambda d: d["expressions"][0]["result"]["cameras"]["left"].__setitem__(
-        "width", 640), ["expressions[0].result.cameras.left: camera image size 640x48 differs"]),
-    ("not a rotation", lambda d: d["expressions"][0]["result"]["cameras"]["front"]["rotation"][0].__setitem__(
-        0, 0.9), ["expressions[0].result.cameras.front.rotation: not a rotation matrix"]),
-    ("3d point of unknown feature", lambda d: d["expressions"][0]["result"]["points_3d"].__setitem__(
-        "chin", [0, 0, 0]), ["expressions[0].result.points_3d.chin: no feature named 'chin'"]),
-    ("key with spaces", lambda d: photo_dict(d)["points"].__setitem__("left eye", [1, 2]),
-     ['expressions[0].photos[0].points["left eye"]: no feature named']),
-    ("wrong format", lambda d: d.__setitem__("format", "blender"),
-     ["not a Face Studio project file", '"blender"']),
-    ("newer version", lambda d: d.__setitem__("version", 6),
-     ["james.facestudio.json: written by a newer Face Studio (project format version 6; "
-      "this version reads up to 5)"]),
+    (
+        "short point",
+        lambda d: photo_dict(d)["points"].__setitem__("nose_tip", [12.0]),
+        [
+            "james.facestudio.json: expressions[0].photos[0].points.nose_tip: "
+            "expected [u, v] of two finite numbers, got [12.0]"
+        ],
+    ),
+    (
+        "string coordinate",
+        lambda d: photo_dict(d)["points"].__setitem__("eye_l", [1, "2"]),
+        ["expressions[0].photos[0].points.eye_l: expected [u, v]"],
+    ),
+    (
+        "three coordinates",
+        lambda d: photo_dict(d, 0, 1)["points"].__setitem__("eye_l", [1, 2, 3]),
+        ["expressions[0].photos[1].points.eye_l: expected [u, v]"],
+    ),
+    (
+        "missing width",
+        lambda d: photo_dict(d).pop("width"),
+        ["expressions[0].photos[0]: 'width' is a required property"],
+    ),
+    (
+        "misspelt field",
+        lambda d: photo_dict(d).__setitem__("pionts", {}),
+        ["expressions[0].photos[0]: ", "'pionts' was unexpected"],
+    ),
+    (
+        "width not integer",
+        lambda d: photo_dict(d).__setitem__("width", 64.5),
+        ["expressions[0].photos[0].width: expected the image width in pixels"],
+    ),
+    (
+        "negative feature vertex",
+        lambda d: d["features"][1].__setitem__("vertex", -3),
+        ["features[1].vertex: expected a generic-mesh vertex index (an integer >= 0, below 2^31), got -3"],
+    ),
+    (
+        "negative curve vertex",
+        lambda d: d["curves"][0]["vertices"].__setitem__(2, -1),
+        ["curves[0].vertices[2]: expected a generic-mesh vertex index"],
+    ),
+    (
+        "pose not bool",
+        lambda d: d["features"][0].__setitem__("pose", "yes"),
+        ["features[0].pose: expected true or false"],
+    ),
+    (
+        "one-point curve",
+        lambda d: photo_dict(d)["curves"].__setitem__("brow_r", [[1, 2]]),
+        ["expressions[0].photos[0].curves.brow_r: expected a polyline of at least two [u, v] points"],
+    ),
+    (
+        "bad result",
+        lambda d: d["expressions"][0].__setitem__("result", 3),
+        ["expressions[0].result: expected null or a result object, got 3"],
+    ),
+    (
+        "short rotation row",
+        lambda d: d["expressions"][0]["result"]["cameras"]["front"]["rotation"][1].pop(),
+        ["expressions[0].result.cameras.front.rotation: expected a 3x3 rotation matrix"],
+    ),
+    (
+        "negative focal guess",
+        lambda d: photo_dict(d).__setitem__("focal_mm_guess", -50),
+        ["expressions[0].photos[0].focal_mm_guess: expected null or a positive focal length"],
+    ),
+    (
+        "duplicate feature",
+        lambda d: d["features"].append({"name": "eye_l", "vertex": 7, "pose": False}),
+        ["features[3].name: feature name 'eye_l' is used twice (also at features[1])"],
+    ),
+    (
+        "duplicate curve",
+        lambda d: d["curves"].append({"name": "brow_r", "vertices": [7, 8]}),
+        ["curves[2].name: curve name 'brow_r' is used twice"],
+    ),
+    (
+        "duplicate expression",
+        lambda d: d["expressions"][1].__setitem__("name", "neutral"),
+        ["expressions[1].name: expression name 'neutral' is used twice"],
+    ),
+    (
+        "duplicate photo id",
+        lambda d: photo_dict(d, 0, 1).__setitem__("id", "front"),
+        ["expressions[0].photos[1].id: photo id 'front' is used twice (also at expressions[0].photos[0])"],
+    ),
+    (
+        "undefined feature",
+        lambda d: photo_dict(d)["points"].__setitem__("nose_tp", [1, 2]),
+        ["expressions[0].photos[0].points.nose_tp: no feature named 'nose_tp' is defined", "did you mean 'nose_tip'"],
+    ),
+    (
+        "undefined hidden",
+        lambda d: photo_dict(d)["hidden"].append("ear_r"),
+        ["expressions[0].photos[0].hidden[1]: no feature named 'ear_r'"],
+    ),
+    (
+        "undefined curve",
+        lambda d: photo_dict(d)["curves"].__setitem__("brow_l", [[1, 2], [3, 4]]),
+        ["expressions[0].photos[0].curves.brow_l: no curve named 'brow_l' is defined", "did you mean 'brow_r'"],
+    ),
+    (
+        "unknown preset",
+        lambda d: photo_dict(d, 1, 0).__setitem__("preset", "frnt"),
+        ["expressions[1].photos[0].preset: unknown camera preset 'frnt'; choose one of front"],
+    ),
+    (
+        "point far outside",
+        lambda d: photo_dict(d)["points"].__setitem__("eye_l", [1000.0, 12.0]),
+        ["expressions[0].photos[0].points.eye_l: [1000, 12] lies far outside the 64x48 photo"],
+    ),
+    (
+        "point far above",
+        lambda d: photo_dict(d)["points"].__setitem__("eye_l", [0.5, -0.7 * H]),
+        ["expressions[0].photos[0].points.eye_l: ", "lies far outside"],
+    ),
+    (
+        "curve point far outside",
+        lambda d: photo_dict(d)["curves"]["brow_r"].__setitem__(1, [10, 200]),
+        ["expressions[0].photos[0].curves.brow_r[1]: [10, 200] lies far outside"],
+    ),
+    (
+        "camera of unknown photo",
+        lambda d: d["expressions"][0]["result"]["cameras"].__setitem__(
+            "right", copy.deepcopy(d["expressions"][0]["result"]["cameras"]["front"])
+        ),
+        ["expressions[0].result.cameras.right: camera for photo 'right', which is not a photo"],
+    ),
+    (
+        "camera size mismatch",
+        lambda d: d["expressions"][0]["result"]["cameras"]["left"].__setitem__("width", 640),
+        ["expressions[0].result.cameras.left: camera image size 640x48 differs"],
+    ),
+    (
+        "not a rotation",
+        lambda d: d["expressions"][0]["result"]["cameras"]["front"]["rotation"][0].__setitem__(0, 0.9),
+        ["expressions[0].result.cameras.front.rotation: not a rotation matrix"],
+    ),
+    (
+        "3d point of unknown feature",
+        lambda d: d["expressions"][0]["result"]["points_3d"].__setitem__("chin", [0, 0, 0]),
+        ["expressions[0].result.points_3d.chin: no feature named 'chin'"],
+    ),
+    (
+        "key with spaces",
+        lambda d: photo_dict(d)["points"].__setitem__("left eye", [1, 2]),
+        ['expressions[0].photos[0].points["left eye"]: no feature named'],
+    ),
+    ("wrong format", lambda d: d.__setitem__("format", "blender"), ["not a Face Studio project file", '"blender"']),
+    (
+        "newer version",
+        lambda d: d.__setitem__("version", 6),
+        [
+            "james.facestudio.json: written by a newer Face Studio (project format version 6; "
+            "this version reads up to 5)"
+        ],
+    ),
     ("version zero", lambda d: d.__setitem__("version", 0), ["unknown project format version 0"]),
-    ("version string", lambda d: d.__setitem__("version", "1"), ['version: expected an integer', '"1"']),
+    ("version string", lambda d: d.__setitem__("version", "1"), ["version: expected an integer", '"1"']),
 ]
 
 
@@ -128,8 +220,10 @@ def test_several_problems_are_listed(tmp_path, saved):
     with pytest.raises(ProjectError) as ei:
         load_dict(tmp_path, d)
     assert str(ei.value).startswith("james.facestudio.json: 2 problems:")
-    assert [p for p, _ in ei.value.problems] == ["expressions[0].photos[0].preset",
-                                                 "expressions[1].photos[0].points.nose"]
+    assert [p for p, _ in ei.value.problems] == [
+        "expressions[0].photos[0].preset",
+        "expressions[1].photos[0].points.nose",
+    ]
 
 
 def test_slightly_outside_point_is_accepted(tmp_path, saved):
@@ -149,8 +243,7 @@ def test_schema_is_shipped_and_valid():
 def test_every_preset_is_accepted(tmp_path, saved):
     _, d = saved
     template = photo_dict(d, 1, 0)
-    d["expressions"][1]["photos"] = [dict(copy.deepcopy(template), id=k, preset=k)
-                                     for k in PRESET_AZIMUTH_DEG]
+    d["expressions"][1]["photos"] = [dict(copy.deepcopy(template), id=k, preset=k) for k in PRESET_AZIMUTH_DEG]
     assert len(load_dict(tmp_path, d).expressions[1].photos) == len(PRESET_AZIMUTH_DEG)
 
 
@@ -178,7 +271,6 @@ LEAF_VALUES = {
 def test_fast_leaf_checks_agree_with_the_shipped_schema(saved, kind):
     """The loader checks coordinate maps in Python for speed (validate._validator); the shipped
     schema, read by a standard validator, must accept and reject exactly the same values."""
-
 
     standard = jsonschema.Draft202012Validator(project_schema())
     _, d = saved
@@ -215,13 +307,18 @@ def test_invalid_project_is_not_written(tmp_path):
 # ---------------------------------------------------------------------------------------
 # result.texture
 # ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("mutate, expected", [
-    (lambda t: t["weight_maps"].__setitem__("back", "w.png"),
-     "expressions[0].result.texture.weight_maps.back: weight map for photo 'back', which is not a photo"),
-    (lambda t: t["exports"].__setitem__("fbx", "a.fbx"), "expressions[0].result.texture.exports"),
-    (lambda t: t.pop("image"), "'image' is a required property"),
-    (lambda t: t.__setitem__("size", 0), "texture.size: expected the texture size in texels"),
-])
+@pytest.mark.parametrize(
+    "mutate, expected",
+    [
+        (
+            lambda t: t["weight_maps"].__setitem__("back", "w.png"),
+            "expressions[0].result.texture.weight_maps.back: weight map for photo 'back', which is not a photo",
+        ),
+        (lambda t: t["exports"].__setitem__("fbx", "a.fbx"), "expressions[0].result.texture.exports"),
+        (lambda t: t.pop("image"), "'image' is a required property"),
+        (lambda t: t.__setitem__("size", 0), "texture.size: expected the texture size in texels"),
+    ],
+)
 def test_texture_validation_names_the_field(tmp_path, mutate, expected):
     p = textured_project(tmp_path)
     d = p.to_dict()
@@ -234,21 +331,40 @@ def test_texture_validation_names_the_field(tmp_path, mutate, expected):
 # ---------------------------------------------------------------------------------------
 # cameras_from: an expression photographed by another expression's cameras
 # ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("mutate, expected", [
-    (lambda d: d["expressions"][1].__setitem__("cameras_from", "neutal"),
-     ["expressions[1].cameras_from: no expression named 'neutal' to take the cameras from",
-      "did you mean 'neutral'"]),
-    (lambda d: d["expressions"][1].__setitem__("cameras_from", "smile"),
-     ["expressions[1].cameras_from: expression 'smile' cannot take its cameras from itself"]),
-    (lambda d: (d["expressions"][0].__setitem__("cameras_from", "smile"),
-                d["expressions"][1].__setitem__("cameras_from", "neutral")),
-     ["expressions[0].cameras_from: cameras_from goes round in a cycle (neutral → smile → neutral)",
-      "expressions[1].cameras_from: cameras_from goes round in a cycle (smile → neutral → smile)"]),
-    (lambda d: d["expressions"][1].__setitem__("cameras_from", 3),
-     ["expressions[1].cameras_from: expected null or the name of another expression"]),
-    (lambda d: d["expressions"][1].__setitem__("cameras_from", ""),
-     ["expressions[1].cameras_from: expected a non-empty name"]),
-])
+@pytest.mark.parametrize(
+    "mutate, expected",
+    [
+        (
+            lambda d: d["expressions"][1].__setitem__("cameras_from", "neutal"),
+            [
+                "expressions[1].cameras_from: no expression named 'neutal' to take the cameras from",
+                "did you mean 'neutral'",
+            ],
+        ),
+        (
+            lambda d: d["expressions"][1].__setitem__("cameras_from", "smile"),
+            ["expressions[1].cameras_from: expression 'smile' cannot take its cameras from itself"],
+        ),
+        (
+            lambda d: (
+                d["expressions"][0].__setitem__("cameras_from", "smile"),
+                d["expressions"][1].__setitem__("cameras_from", "neutral"),
+            ),
+            [
+                "expressions[0].cameras_from: cameras_from goes round in a cycle (neutral → smile → neutral)",
+                "expressions[1].cameras_from: cameras_from goes round in a cycle (smile → neutral → smile)",
+            ],
+        ),
+        (
+            lambda d: d["expressions"][1].__setitem__("cameras_from", 3),
+            ["expressions[1].cameras_from: expected null or the name of another expression"],
+        ),
+        (
+            lambda d: d["expressions"][1].__setitem__("cameras_from", ""),
+            ["expressions[1].cameras_from: expected a non-empty name"],
+        ),
+    ],
+)
 def test_malformed_cameras_from_names_the_field(tmp_path, saved, mutate, expected):
     _, d = saved
     mutate(d)
@@ -292,12 +408,15 @@ def test_version_1_file_loads_and_is_saved_as_the_current_version(tmp_path, save
     assert sample.camera_groups("neutral") == [0, 1, 2, 3, 4]
 
 
-@pytest.mark.parametrize("value, expected", [
-    (3, "expected null or a camera group name (a non-empty string), got 3"),
-    ("", "expected null or a camera group name (a non-empty string), got \"\""),
-    (["video"], "expected null or a camera group name"),
-    (True, "expected null or a camera group name"),
-])
+@pytest.mark.parametrize(
+    "value, expected",
+    [
+        (3, "expected null or a camera group name (a non-empty string), got 3"),
+        ("", 'expected null or a camera group name (a non-empty string), got ""'),
+        (["video"], "expected null or a camera group name"),
+        (True, "expected null or a camera group name"),
+    ],
+)
 def test_malformed_camera_group_names_the_field(tmp_path, saved, value, expected):
     _, d = saved
     photo_dict(d, 0, 1)["camera_group"] = value
@@ -395,13 +514,16 @@ def test_version_2_file_loads_unchanged_and_its_clicks_are_the_users(tmp_path, s
     assert again["version"] == 5 and again["expressions"] == d["expressions"]
 
 
-@pytest.mark.parametrize("value, expected", [
-    ({"eye_l": {"source": "robot"}}, 'click_sources.eye_l.source: expected "auto"'),
-    ({"eye_l": {"source": "auto", "confidence": 1.5}}, "click_sources.eye_l.confidence: expected the detector's"),
-    ({"eye_l": {"confidence": 0.5}}, "click_sources.eye_l"),
-    ({"eye_l": "auto"}, "click_sources.eye_l"),
-    ({"jaw_00": {"source": "auto"}}, "click_sources.jaw_00: 'jaw_00' has no click in this photo's points"),
-])
+@pytest.mark.parametrize(
+    "value, expected",
+    [
+        ({"eye_l": {"source": "robot"}}, 'click_sources.eye_l.source: expected "auto"'),
+        ({"eye_l": {"source": "auto", "confidence": 1.5}}, "click_sources.eye_l.confidence: expected the detector's"),
+        ({"eye_l": {"confidence": 0.5}}, "click_sources.eye_l"),
+        ({"eye_l": "auto"}, "click_sources.eye_l"),
+        ({"jaw_00": {"source": "auto"}}, "click_sources.jaw_00: 'jaw_00' has no click in this photo's points"),
+    ],
+)
 def test_malformed_click_sources_name_the_field(tmp_path, saved, value, expected):
     _, d = saved
     photo_dict(d, 0, 1)["click_sources"] = value  # photo 'left' clicks nose_tip and eye_l

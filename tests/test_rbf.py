@@ -12,9 +12,7 @@ def face_surface(n, rng):
     """n points on the front of a head-sized ellipsoid (semi-axes 75 × 100 × 90 mm)."""
     th = rng.uniform(-1.2, 1.2, n)
     ph = rng.uniform(-1.0, 1.0, n)
-    return np.column_stack(
-        [75 * np.sin(th) * np.cos(ph), 100 * np.sin(ph), 90 * np.cos(th) * np.cos(ph)]
-    )
+    return np.column_stack([75 * np.sin(th) * np.cos(ph), 100 * np.sin(ph), 90 * np.cos(th) * np.cos(ph)])
 
 
 @pytest.fixture(params=[13, 250], ids=["13 centres", "250 centres"])

@@ -74,9 +74,7 @@ def test_one_pixel_noise_matches_predicted_error(cameras):
     for a in range(3):
         dX = np.zeros(3)
         dX[a] = eps
-        J[:, :, a] = np.concatenate(
-            [(c.project(X + dX) - c.project(X - dX)) / (2 * eps) for c in cameras], axis=1
-        )
+        J[:, :, a] = np.concatenate([(c.project(X + dX) - c.project(X - dX)) / (2 * eps) for c in cameras], axis=1)
     cov = np.linalg.inv(np.einsum("nki,nkj->nij", J, J))
     predicted = float(np.sqrt(np.mean(np.trace(cov, axis1=1, axis2=2))))
     measured = rms_3d(tri.points, X)

@@ -54,8 +54,9 @@ def test_cached_deformer_equals_deform_vertices(mesh):
     assert (deformer.misses, deformer.hits) == (1, 2)
     # options are part of the key
     T = V[idx] + 1.0
-    np.testing.assert_allclose(deformer(V, idx, T, smoothing=1e-4), deform_vertices(V, idx, T, smoothing=1e-4),
-                               atol=1e-8)
+    np.testing.assert_allclose(
+        deformer(V, idx, T, smoothing=1e-4), deform_vertices(V, idx, T, smoothing=1e-4), atol=1e-8
+    )
     assert deformer.misses == 2
 
 

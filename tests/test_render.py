@@ -31,10 +31,8 @@ EDGE_MARGIN_PX = 0.02
 # pixel centre, with an even one between two — the half-pixel bookkeeping must hold for both.
 CAMERAS = {
     "front 640x480": orbit_camera(0.0, 640, 480, distance_mm=500.0),
-    "oblique 480x640": orbit_camera(35.0, 480, 640, distance_mm=450.0, elevation_deg=20.0,
-                                    target=(10.0, -5.0, 20.0)),
-    "side 321x203": orbit_camera(-70.0, 321, 203, distance_mm=700.0, focal_mm=85.0,
-                                 elevation_deg=-10.0),
+    "oblique 480x640": orbit_camera(35.0, 480, 640, distance_mm=450.0, elevation_deg=20.0, target=(10.0, -5.0, 20.0)),
+    "side 321x203": orbit_camera(-70.0, 321, 203, distance_mm=700.0, focal_mm=85.0, elevation_deg=-10.0),
 }
 
 
@@ -370,9 +368,7 @@ def test_gl_projection_maps_pixels_to_window_coordinates():
     ndc = clip[:, :3] / clip[:, 3:]
     window = (ndc[:, :2] + 1.0) / 2.0 * [cam.width, cam.height]
     np.testing.assert_allclose(window, cam.project(X) + 0.5, atol=1e-9)
-    np.testing.assert_allclose(
-        gl_projection(cam, 100.0, 2000.0) @ [0, 0, 100.0, 1] / 100.0, [0, 0, -1, 1], atol=1e-12
-    )
+    np.testing.assert_allclose(gl_projection(cam, 100.0, 2000.0) @ [0, 0, 100.0, 1] / 100.0, [0, 0, -1, 1], atol=1e-12)
 
 
 # ----------------------------------------------------------------------------- boundaries

@@ -24,7 +24,7 @@ def test_csv_matches_json(straight):
         rows = list(csv.DictReader(fh))
     assert len(rows) == len(doc["frames"])
     head, tail = CSV_COLUMNS
-    assert list(rows[0])[: len(head)] == head and list(rows[0])[-len(tail):] == tail
+    assert list(rows[0])[: len(head)] == head and list(rows[0])[-len(tail) :] == tail
     for row, f in zip(rows, doc["frames"], strict=True):
         assert int(row["frame"]) == f["frame"]
         got = [float(row[c]) for c in ("rx_rad", "ry_rad", "rz_rad", "tx_mm", "ty_mm", "tz_mm", "cx_mm", "cy_mm")]

@@ -35,9 +35,12 @@ def test_a_review_holds_the_results_their_footage_and_plots(straight):
     for name, img in review.plots.items():  # the images the run wrote
         np.testing.assert_array_equal(img, decode_png((straight.out_dir / name).read_bytes()), err_msg=name)
     settings = review.correction_settings()
-    assert settings == {"video": VIDEO.absolute(), "expressions": review.doc["model"]["expressions"],
-                        "first_pose": review.doc["first_pose"]["spec"],
-                        "focal_px": review.doc["camera"]["focal_px"]}  # fmt: skip
+    assert settings == {
+        "video": VIDEO.absolute(),
+        "expressions": review.doc["model"]["expressions"],
+        "first_pose": review.doc["first_pose"]["spec"],
+        "focal_px": review.doc["camera"]["focal_px"],
+    }
 
 
 def test_overlays_and_tracked_feature_positions(straight, fitted_sample):

@@ -25,8 +25,9 @@ def _performance(frames, k):
     rng = np.random.default_rng(3)
     angles = rng.normal(0, 0.2, (frames, 3))
     R = np.array([trimesh.transformations.euler_matrix(*a)[:3, :3] for a in angles]) @ np.diag([1.0, -1.0, -1.0])
-    return Performance(np.arange(frames) / 25.0, rng.random((frames, k)), R,
-                       np.tile([5.0, -3.0, 600.0], (frames, 1)), 900.0, 640, 480)
+    return Performance(
+        np.arange(frames) / 25.0, rng.random((frames, k)), R, np.tile([5.0, -3.0, 600.0], (frames, 1)), 900.0, 640, 480
+    )
 
 
 def test_rigged_glb_reads_back_with_every_target_and_frame(tmp_path):
@@ -90,8 +91,13 @@ def test_livelink_csv_round_trip(tmp_path):
 def test_livelink_csv_reader_finds_columns_by_name_and_names_a_missing_one(tmp_path):
     cols = list(BLENDSHAPE_COLUMNS)[::-1]
     p = tmp_path / "other.csv"
-    p.write_text("timecode," + ",".join(c.lower() for c in cols) + "\n00:00:00:00.000," +
-                 ",".join(str(i / 100) for i in range(len(cols))) + "\n")
+    p.write_text(
+        "timecode,"
+        + ",".join(c.lower() for c in cols)
+        + "\n00:00:00:00.000,"
+        + ",".join(str(i / 100) for i in range(len(cols)))
+        + "\n"
+    )
     _, W, rot = read_livelink_csv(p)
     assert W[0, 0] == pytest.approx((len(cols) - 1) / 100) and not rot.any()
     p.write_text("Timecode,EyeBlinkLeft\n00:00:00:00.000,0.5\n")

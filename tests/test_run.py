@@ -108,8 +108,23 @@ def test_ctrl_c_and_cancel_save_valid_results_and_a_rerun_continues(straight, tm
     assert len(load_track_results(out)["frames"]) == 3
     assert (out / "weights.png").is_file()  # plots of what is there, even when cancelled
     # the command continues to the end: frames 3..5, prediction restored from the saved frames 1, 2
-    assert main(["track", str(fitted_sample), "--video", str(VIDEO), "--out", str(out), "--frames", str(FRAMES),
-                 "--no-overlay", "--json"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "track",
+                str(fitted_sample),
+                "--video",
+                str(VIDEO),
+                "--out",
+                str(out),
+                "--frames",
+                str(FRAMES),
+                "--no-overlay",
+                "--json",
+            ]
+        )
+        == 0
+    )
     summary = json.loads(capsys.readouterr().out)
     assert summary["resumed_from"] == 3 and summary["tracked"] == 3 and summary["frames"] == FRAMES
     assert summary["complete"] and not summary["cancelled"] and summary["diverged_frames"] == 0
@@ -138,8 +153,14 @@ def true_pose_file(tmp_path_factory, truth):
     X = true_model.blend_geometry(true_model.vertex_weights(truth.weights[CORRECT]))[project.feature_vertices(names)]
     uv = truth.camera(CORRECT).project(X)
     path = tmp_path_factory.mktemp("pose") / f"frame{CORRECT}.json"
-    path.write_text(json.dumps({"focal_px": truth.focal_px,
-                                "clicks": {n: [float(u), float(v)] for n, (u, v) in zip(names, uv, strict=True)}}))
+    path.write_text(
+        json.dumps(
+            {
+                "focal_px": truth.focal_px,
+                "clicks": {n: [float(u), float(v)] for n, (u, v) in zip(names, uv, strict=True)},
+            }
+        )
+    )
     return path
 
 
@@ -156,14 +177,30 @@ def corrected(straight, true_pose_file, fitted_sample, tmp_path_factory):
     out = copy_of(straight, tmp_path_factory.mktemp("corrected"))
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        code = main(["track", str(fitted_sample), "--video", str(VIDEO), "--out", str(out), "--frames", str(FRAMES),
-                     "--correct", str(CORRECT), "--pose", str(true_pose_file), "--json"])  # fmt: skip
+        code = main(
+            [
+                "track",
+                str(fitted_sample),
+                "--video",
+                str(VIDEO),
+                "--out",
+                str(out),
+                "--frames",
+                str(FRAMES),
+                "--correct",
+                str(CORRECT),
+                "--pose",
+                str(true_pose_file),
+                "--json",
+            ]
+        )
     assert code == 0
     return json.loads(buf.getvalue()), out
 
 
-def test_correction_keeps_earlier_frames_and_refits_from_the_users_pose(corrected, straight, truth, gauge,
-                                                                       true_pose_file):  # fmt: skip
+def test_correction_keeps_earlier_frames_and_refits_from_the_users_pose(
+    corrected, straight, truth, gauge, true_pose_file
+):
     summary, out = corrected
     assert summary["corrected"] == CORRECT and summary["resumed_from"] == CORRECT
     assert summary["tracked"] == FRAMES - CORRECT and summary["frames"] == FRAMES and summary["complete"]
@@ -172,8 +209,9 @@ def test_correction_keeps_earlier_frames_and_refits_from_the_users_pose(correcte
     assert [f["frame"] for f in frames] == list(range(FRAMES))
     # frames before the correction are the earlier results, bit for bit (full-precision JSON)
     assert frames[:CORRECT] == json.loads(json.dumps(straight.frames[:CORRECT]))
-    assert [f["start"] for f in frames] == ["first_pose"] + ["predicted"] * (CORRECT - 1) + ["user"] + \
-        ["predicted"] * (FRAMES - CORRECT - 1)  # fmt: skip
+    assert [f["start"] for f in frames] == ["first_pose"] + ["predicted"] * (CORRECT - 1) + ["user"] + ["predicted"] * (
+        FRAMES - CORRECT - 1
+    )
     # the correction is recorded with the JSON it came from, so that a rerun re-applies it
     (c,) = doc["corrections"]
     assert c["frame"] == CORRECT and c["spec"] == json.loads(true_pose_file.read_text())
@@ -194,15 +232,24 @@ def test_correction_keeps_earlier_frames_and_refits_from_the_users_pose(correcte
         assert Path(summary["files"][name]).is_file(), name
 
 
-def test_a_cancelled_correction_continues_like_an_uninterrupted_one(corrected, straight, true_pose_file,
-                                                                     fitted_sample, tmp_path, monkeypatch):  # fmt: skip
+def test_a_cancelled_correction_continues_like_an_uninterrupted_one(
+    corrected, straight, true_pose_file, fitted_sample, tmp_path, monkeypatch
+):
     out = copy_of(straight, tmp_path)
     source = load_track_results(out)["model"]["source"]
     model = fitted_sample_model(tuple(load_track_results(out)["model"]["expressions"]))  # the one built, cached
 
     def track(**kwargs):
-        return track_video(fitted_sample, VIDEO, out, model=model, model_source=source, overlay=False, plots=False,
-                           **{"max_frames": FRAMES, **kwargs})  # fmt: skip
+        return track_video(
+            fitted_sample,
+            VIDEO,
+            out,
+            model=model,
+            model_source=source,
+            overlay=False,
+            plots=False,
+            **{"max_frames": FRAMES, **kwargs},
+        )
 
     def ctrl_c(*args, **kwargs):
         raise KeyboardInterrupt
@@ -261,8 +308,14 @@ def test_bad_corrections_are_named(straight, true_pose_file, fitted_sample, tmp_
     ]
     for kwargs, words in cases:
         with pytest.raises((FitError, FaceStudioError), match=words):
-            track_video(fitted_sample, VIDEO, straight.out_dir, model=model, model_source=doc["model"]["source"],
-                        **{"max_frames": FRAMES, **kwargs})  # fmt: skip
+            track_video(
+                fitted_sample,
+                VIDEO,
+                straight.out_dir,
+                model=model,
+                model_source=doc["model"]["source"],
+                **{"max_frames": FRAMES, **kwargs},
+            )
     assert (straight.out_dir / "track.json").read_bytes() == before  # nothing written
     with pytest.raises(FaceStudioError, match="no tracking results to correct"):
         track_video(fitted_sample, VIDEO, tmp_path / "empty", model=model, correct_frame=0, correct_pose=good)

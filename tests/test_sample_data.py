@@ -106,9 +106,7 @@ def test_install_from_local_sdist_replaces_corrupt_cache(monkeypatch, tmp_path, 
     sdist = tmp_path / "fake.tar.gz"
     _fake_sdist(sdist, {**contents, "bunny.obj": b"not extracted"})
     monkeypatch.setattr(sample_data, "SDIST_SHA256", hashlib.sha256(sdist.read_bytes()).hexdigest())
-    monkeypatch.setattr(
-        sample_data, "FILE_SHA256", {n: hashlib.sha256(d).hexdigest() for n, d in contents.items()}
-    )
+    monkeypatch.setattr(sample_data, "FILE_SHA256", {n: hashlib.sha256(d).hexdigest() for n, d in contents.items()})
     cache = tmp_path / "cache"
     (cache / "menpo3d-0.8.6").mkdir(parents=True)
     (cache / "menpo3d-0.8.6" / "james.obj").write_bytes(b"corrupt")

@@ -66,8 +66,10 @@ def test_weights_stay_in_the_convex_range(model):
     W[:, fore, 3], W[:, fore, 0] = 1.4, -0.4
     want = np.array([model.alpha_of_weights(w) for w in W])
     A = np.tile(np.eye(a), (T, 1, 1)) * 100.0
-    got = weight_curves(model, _solve_in_range(model, A, np.einsum("tij,tj->ti", A, want), want,
-                                               np.full(T, 10000.0), 0.01, (0.0, 1.0, 0.0)))  # fmt: skip
+    got = weight_curves(
+        model,
+        _solve_in_range(model, A, np.einsum("tij,tj->ti", A, want), want, np.full(T, 10000.0), 0.01, (0.0, 1.0, 0.0)),
+    )
     # D (c = 0.01 × 10⁴ px = 100 per unit², as strong as the data) holds them halfway to [0, 1]
     assert got[:, mouth, 1].max() < -0.1 and got[:, mouth, 1].min() > -0.3
     assert got[:, fore, 3].min() > 1.1 and got[:, fore, 3].max() < 1.3

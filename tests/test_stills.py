@@ -40,8 +40,16 @@ REAL_HAND_FRAMES = frozenset({60, *range(69, 227)})
 
 
 def _look(frame, yaw, expression=0.0, spread=1.0, lips=4.0) -> FrameLook:
-    return FrameLook(frame=frame, yaw_deg=yaw, lips_apart=expression, corner_offset=0.0, eye_opening=0.1,
-                     spread_pct=spread, lip_contrast=lips, eye_px=50.0)
+    return FrameLook(
+        frame=frame,
+        yaw_deg=yaw,
+        lips_apart=expression,
+        corner_offset=0.0,
+        eye_opening=0.1,
+        spread_pct=spread,
+        lip_contrast=lips,
+        eye_px=50.0,
+    )
 
 
 def _fingers_over_mouth(image: np.ndarray) -> np.ndarray:

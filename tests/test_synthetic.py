@@ -127,8 +127,12 @@ def test_sample_rig(scan):
     np.testing.assert_allclose(az, [-75, -35, 0, 40, 80], atol=1.0)
     assert [round(c.focal_mm) for c in cams] == [35, 50, 85, 100, 70]
     assert [synthetic.preset_for(c) for c in cams] == [
-        "right", "three_quarter_right", "front", "three_quarter_left", "left",
-    ]  # fmt: skip
+        "right",
+        "three_quarter_right",
+        "front",
+        "three_quarter_left",
+        "left",
+    ]
     for c in cams:
         uv = c.project(scan.landmarks)
         assert np.all((uv > 50) & (uv < 950)), "the face must be well inside every photo"

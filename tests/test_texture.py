@@ -66,8 +66,15 @@ def scene():
         head = r.render(cam, welded.vertices, welded.faces).mask.astype(np.uint8)
         # 2 px inside the silhouette: the photos are anti-aliased there, renders are not
         masks.append(face & (cv2.erode(head, np.ones((5, 5), np.uint8)) > 0))
-    return {"V": np.asarray(welded.vertices), "F": np.asarray(welded.faces), "photos": photos, "cams": cams,
-            "masks": masks, "mesh": mesh, "on_scan": on_scan}
+    return {
+        "V": np.asarray(welded.vertices),
+        "F": np.asarray(welded.faces),
+        "photos": photos,
+        "cams": cams,
+        "masks": masks,
+        "mesh": mesh,
+        "on_scan": on_scan,
+    }
 
 
 @pytest.fixture(scope="module")
@@ -337,8 +344,9 @@ def test_view_dependent_held_out_view_with_true_geometry(scene):
     """Leave-one-out: textured from four photos, rendered from the fifth's camera."""
     keep = [0, 1, 3, 4]
     j = 2
-    img = render_view_dependent(scene["cams"][j], scene["V"], scene["F"], [scene["cams"][i] for i in keep],
-                                [scene["photos"][i] for i in keep])
+    img = render_view_dependent(
+        scene["cams"][j], scene["V"], scene["F"], [scene["cams"][i] for i in keep], [scene["photos"][i] for i in keep]
+    )
     # measured 39.4 dB (the benchmark's 46 dB at full resolution); the bar of issue 4 is 30 dB
     assert psnr(img, scene["photos"][j] / 255.0, scene["masks"][j]) > 35.0
 

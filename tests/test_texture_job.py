@@ -53,8 +53,7 @@ def test_texture_from_the_project_files_is_written_and_recorded(fitted):
     project = load_project(path)
     assert fitted_expressions(project, None) == ["neutral"]
     stages = []
-    job = texture_expression(project, "neutral", 64, face_mask=mesh.face_mask,
-                             progress=lambda s, f: stages.append(f))
+    job = texture_expression(project, "neutral", 64, face_mask=mesh.face_mask, progress=lambda s, f: stages.append(f))
     assert stages[0] == 0.0 and stages[-1] == 1.0 and stages == sorted(stages)
     assert job.texture.image.shape == (64, 64, 3) and len(job.texture.weight_maps) == 5
     assert job.report["single_view_fallback"] and 0.5 < job.report["coverage"] <= 1.0

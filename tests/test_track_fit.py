@@ -61,13 +61,19 @@ def test_analytic_jacobian_agrees_with_central_differences(setup):
 def test_fit_recovers_a_known_pose_and_expression(setup):
     model, truth = setup
     i = 5
-    fitter = FrameFitter(model, truth.focal_px, truth.width, truth.height,
-                         TrackOptions(pose_iterations=8, expression_iterations=8, rounds=3))  # fmt: skip
+    fitter = FrameFitter(
+        model,
+        truth.focal_px,
+        truth.width,
+        truth.height,
+        TrackOptions(pose_iterations=8, expression_iterations=8, rounds=3),
+    )
     true = _state(model, truth, i)
     blank = np.zeros((truth.height, truth.width, 3), np.float32)
     frame = fitter._evaluate(blank, true, False).render.image  # rendered from the model itself
-    init = FrameState(rodrigues(np.radians([1.5, -1.0, 0.5])) @ true.R, true.t + [3.0, -2.0, 8.0],
-                      np.zeros_like(true.alpha))  # fmt: skip
+    init = FrameState(
+        rodrigues(np.radians([1.5, -1.0, 0.5])) @ true.R, true.t + [3.0, -2.0, 8.0], np.zeros_like(true.alpha)
+    )
     rms0 = fitter._evaluate(frame, init, False).rms
     res = fitter.fit(frame, init)
     assert not res.diverged
@@ -92,9 +98,14 @@ def test_penalty_gradient_matches_differences(setup):
     D, g, H = fitter._penalty(model.region_weights(alpha), render)
     assert D > 0
     h = 1e-6
-    num = [(fitter._penalty(model.region_weights(alpha + h * e), render)[0]
-            - fitter._penalty(model.region_weights(alpha - h * e), render)[0]) / (2 * h)
-           for e in np.eye(len(alpha))]  # fmt: skip
+    num = [
+        (
+            fitter._penalty(model.region_weights(alpha + h * e), render)[0]
+            - fitter._penalty(model.region_weights(alpha - h * e), render)[0]
+        )
+        / (2 * h)
+        for e in np.eye(len(alpha))
+    ]
     np.testing.assert_allclose(g, num, rtol=1e-5, atol=1e-6 * abs(D))
 
 
@@ -175,8 +186,12 @@ def test_home_regions_are_where_the_expressions_were_made(frown_model):
     # jaw, brows raised and frown move the brows
     home = [CONTROL_REGIONS[r] if k else "neutral" for k, r in enumerate(home_regions(frown_model))]
     assert dict(zip(frown_model.names, home, strict=True)) == {
-        "neutral": "neutral", "smile": "mouth", "open_mouth": "mouth", "brows_raised": "forehead", "frown": "forehead",
-    }  # fmt: skip
+        "neutral": "neutral",
+        "smile": "mouth",
+        "open_mouth": "mouth",
+        "brows_raised": "forehead",
+        "frown": "forehead",
+    }
 
 
 def test_coherence_prior_costs_what_a_region_shows_beyond_the_home_region(frown_model, setup):
@@ -203,9 +218,16 @@ def test_coherence_prior_costs_what_a_region_shows_beyond_the_home_region(frown_
     assert D_on == pytest.approx(c * 0.2**2, rel=1e-6)  # κ = 1: c (0.3 − 0.1)²
     # the gradient and Hessian of the active pieces agree with differences of D
     h = 1e-5
-    num = np.array([(on._penalty(model.region_weights(alpha + h * e), render)[0]
-                     - on._penalty(model.region_weights(alpha - h * e), render)[0]) / (2 * h)
-                    for e in np.eye(len(alpha))])  # fmt: skip
+    num = np.array(
+        [
+            (
+                on._penalty(model.region_weights(alpha + h * e), render)[0]
+                - on._penalty(model.region_weights(alpha - h * e), render)[0]
+            )
+            / (2 * h)
+            for e in np.eye(len(alpha))
+        ]
+    )
     _, g, H = on._penalty(weights, render)
     # atol: weights exactly at a bound of [0, 1] (the other regions' neutral) make the central
     # difference of D's one-sided piece c·h²/(2h) there

@@ -32,8 +32,11 @@ SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
 @pytest.fixture
 def window(qtbot, tmp_path, errors, fitted_project_copy):
-    w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
-                   autosave_interval_ms=0, recovery_file=tmp_path / "untitled.recovery.facestudio.json")
+    w = MainWindow(
+        settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
+        autosave_interval_ms=0,
+        recovery_file=tmp_path / "untitled.recovery.facestudio.json",
+    )
     qtbot.addWidget(w)
     w.resize(1300, 850)
     w.show()
@@ -183,9 +186,9 @@ def test_first_pose_dialog_click_solve_save(qtbot, window, errors, fitted_projec
     assert not dlg.save(tmp_path / "other.json") and not (tmp_path / "other.json").exists()
 
 
-def test_correct_the_pose_of_a_tracked_frame_and_retrack(qtbot, window, errors, fitted_project_copy,
-                                                          sample_video_truth):
-
+def test_correct_the_pose_of_a_tracked_frame_and_retrack(
+    qtbot, window, errors, fitted_project_copy, sample_video_truth
+):
 
     view = window.tracking_view
     assert not view.correct_button.isEnabled()

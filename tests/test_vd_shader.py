@@ -50,8 +50,9 @@ def sample():
     mesh = load_generic_mesh()
     fit = fit_expression(project, "neutral", mesh)
     cams = [fit.camera(p.id) for p in expr.photos]
-    vdt = ViewDependentTexture(fit.vertices, mesh.faces, cams, photos,
-                               single_view=single_view_weights(fit.vertices, mesh.face_mask))
+    vdt = ViewDependentTexture(
+        fit.vertices, mesh.faces, cams, photos, single_view=single_view_weights(fit.vertices, mesh.face_mask)
+    )
     front = cams[[p.id for p in expr.photos].index("front")]
     new = front.copy()  # the front camera turned 20° about the head (the benchmark's new view)
     R = rodrigues(np.array([0.0, np.radians(20.0), 0.0]))
@@ -64,8 +65,10 @@ def sample():
 def plain_pair(sample):
     vdt, cam = sample["vdt"], sample["new"]
     bg = (0.86, 0.86, 0.85)
-    return (vdt.render(cam, background=bg, method="numpy", align=False),
-            vdt.render(cam, background=bg, method="shader", align=False))
+    return (
+        vdt.render(cam, background=bg, method="numpy", align=False),
+        vdt.render(cam, background=bg, method="shader", align=False),
+    )
 
 
 def test_shader_and_numpy_cover_the_same_pixels(plain_pair):
@@ -125,13 +128,15 @@ def test_view_dependent_default_is_the_shader_path(sample):
     vdt, cam = sample["vdt"], sample["new"]
     small = cam.copy()
     small.f, small.width, small.height = cam.f / 4, cam.width // 4, cam.height // 4
-    default = render_view_dependent(small, vdt.vertices, vdt.faces, vdt.cameras, vdt.photos,
-                                    single_view=vdt.single_view)
+    default = render_view_dependent(
+        small, vdt.vertices, vdt.faces, vdt.cameras, vdt.photos, single_view=vdt.single_view
+    )
     shader = vdt.render(small, method="shader").color
     np.testing.assert_allclose(default, shader, atol=1e-6)
     # the numpy path stays callable under both names
-    np.testing.assert_array_equal(vdt.render(small, method="numpy").color,
-                                  vdt.render(small, method="position_buffer").color)
+    np.testing.assert_array_equal(
+        vdt.render(small, method="numpy").color, vdt.render(small, method="position_buffer").color
+    )
 
 
 def test_frames_of_other_sizes_and_out_of_view(sample):
@@ -176,8 +181,10 @@ def quad():
     V, F, uv = quad_mesh()
     r = get_renderer()
     cams = [orbit_camera(a, 320, 240, distance_mm=700.0, elevation_deg=e) for a, e in ((-30.0, 5.0), (30.0, -5.0))]
-    photos = [(np.clip(r.render(c, V, F, uv=uv, texture=tex, background=0.5).color, 0, 1) * 255 + 0.5).astype(np.uint8)
-              for c in cams]
+    photos = [
+        (np.clip(r.render(c, V, F, uv=uv, texture=tex, background=0.5).color, 0, 1) * 255 + 0.5).astype(np.uint8)
+        for c in cams
+    ]
     return {"V": V, "F": F, "uv": uv, "tex": tex, "cams": cams, "photos": photos}
 
 
@@ -208,9 +215,16 @@ def test_photos_of_other_sizes_and_a_view_outside_the_photographed_arc(quad):
     photos only the nearest one is used. Both as the numpy path."""
     r = get_renderer()
     cams = [quad["cams"][0], orbit_camera(30.0, 401, 299, distance_mm=700.0, elevation_deg=-5.0)]
-    photos = [quad["photos"][0],
-              (np.clip(r.render(cams[1], quad["V"], quad["F"], uv=quad["uv"], texture=quad["tex"], background=0.5)
-                       .color, 0, 1) * 255 + 0.5).astype(np.uint8)]
+    photos = [
+        quad["photos"][0],
+        (
+            np.clip(
+                r.render(cams[1], quad["V"], quad["F"], uv=quad["uv"], texture=quad["tex"], background=0.5).color, 0, 1
+            )
+            * 255
+            + 0.5
+        ).astype(np.uint8),
+    ]
     vdt = ViewDependentTexture(quad["V"], quad["F"], cams, photos, centre=np.zeros(3))
     for az in (8.0, 55.0):
         cam = orbit_camera(az, 320, 240, distance_mm=650.0)

@@ -23,8 +23,9 @@ def test_a_frame_folder_tracks_like_the_video(straight, tmp_path, fitted_sample)
     folder = tmp_path / "frames"
     folder.mkdir()
     for i, frame in VideoFrames(VIDEO).frames(0, 2):  # lossless copies of the decoded frames
-        cv2.imwrite(str(folder / f"f{i + 8}.png"), cv2.cvtColor(np.round(frame * 255).astype(np.uint8),
-                                                                 cv2.COLOR_RGB2BGR))  # fmt: skip
+        cv2.imwrite(
+            str(folder / f"f{i + 8}.png"), cv2.cvtColor(np.round(frame * 255).astype(np.uint8), cv2.COLOR_RGB2BGR)
+        )
     # f8 before f9 in natural order (and f10 would come after f9)
     shutil.copy(VIDEO.with_name("james_track.first_pose.json"), folder / "first_pose.json")
     res = track_video(fitted_sample, folder, tmp_path / "out", overlay=False, plots=False)

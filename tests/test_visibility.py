@@ -15,8 +15,9 @@ from photomodel.texturing.visibility import front_facing, render_depth, vertex_v
 def square(z: float, half: float, centre=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """A square at depth ``z`` (world), facing +z (counter-clockwise seen from +z)."""
     cx, cy = centre
-    v = np.array([[cx - half, cy - half, z], [cx + half, cy - half, z], [cx + half, cy + half, z],
-                  [cx - half, cy + half, z]])
+    v = np.array(
+        [[cx - half, cy - half, z], [cx + half, cy - half, z], [cx + half, cy + half, z], [cx - half, cy + half, z]]
+    )
     return v, np.array([[0, 1, 2], [0, 2, 3]])
 
 

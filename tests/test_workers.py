@@ -84,8 +84,9 @@ def test_an_edit_during_a_refit_ends_with_the_newest_overlay(qtbot, project_copy
     qtbot.waitUntil(lambda: fits.busy, timeout=10_000)
     stack.push(SetPointCommand(model, "neutral", "front", "jaw_05", uv - 3.0))  # while it refits
     fits.schedule_refit()
-    qtbot.waitUntil(lambda: not fits.busy and fits._pending_expression is None and not fits._timer.isActive(),
-                    timeout=60_000)
+    qtbot.waitUntil(
+        lambda: not fits.busy and fits._pending_expression is None and not fits._timer.isActive(), timeout=60_000
+    )
     fit = model.fit()
     assert len(applied) == 2 and applied[-1] is fit  # the older edit's refit, then the newest's
     assert applied[0].overlays["front"] is not fit.overlays["front"]

@@ -31,8 +31,19 @@ from photomodel.errors import NoFaceFound
 from photomodel.landmarks import place_landmarks, place_landmarks_near
 from tracking.video import frame_uint8
 
-__all__ = ["DEFAULT_FOCAL_WIDTHS", "LOST_PX", "MIN_CONFIDENCE", "REDETECT_EVERY", "Redetector", "detected_spec",
-           "detected_features", "landmark_error_px", "pose_features", "projected_features", "video_focal_px"]
+__all__ = [
+    "DEFAULT_FOCAL_WIDTHS",
+    "LOST_PX",
+    "MIN_CONFIDENCE",
+    "REDETECT_EVERY",
+    "Redetector",
+    "detected_spec",
+    "detected_features",
+    "landmark_error_px",
+    "pose_features",
+    "projected_features",
+    "video_focal_px",
+]
 
 #: Focal length (in frame widths) assumed when the project has no camera of the video's size: a
 #: horizontal field of view of 58°, between a phone's main camera (~65–70°) and a webcam's or a
@@ -56,14 +67,21 @@ def video_focal_px(project, width: int, height: int) -> tuple[float, str]:
     (frames of the same video, or photos of the same camera), else :data:`DEFAULT_FOCAL_WIDTHS`
     × ``width``.
     """
-    found = [(f"{e.name}/{pid}", cam.f) for e in project.expressions if e.result is not None
-             for pid, cam in e.result.cameras.items() if (cam.width, cam.height) == (width, height)]  # fmt: skip
+    found = [
+        (f"{e.name}/{pid}", cam.f)
+        for e in project.expressions
+        if e.result is not None
+        for pid, cam in e.result.cameras.items()
+        if (cam.width, cam.height) == (width, height)
+    ]
     if found:
         f = float(np.median([f for _, f in found]))
         return f, f"the project's fitted cameras of {width}x{height} images ({', '.join(n for n, _ in found)})"
     f = DEFAULT_FOCAL_WIDTHS * width
-    return f, (f"estimated: {DEFAULT_FOCAL_WIDTHS} x the frame width (no fitted camera of {width}x{height} "
-               f"images in the project; pass --focal-px if known)")  # fmt: skip
+    return f, (
+        f"estimated: {DEFAULT_FOCAL_WIDTHS} x the frame width (no fitted camera of {width}x{height} "
+        f"images in the project; pass --focal-px if known)"
+    )
 
 
 def pose_features(project) -> list[str]:
@@ -82,8 +100,11 @@ def detected_features(frame: np.ndarray, names, *, name: str = "the frame") -> d
         placed = place_landmarks(img, list(names), name=name)
     except NoFaceFound:
         return None
-    return {n: [round(float(u), 3), round(float(v), 3)] for n, (u, v) in placed.points.items()
-            if placed.confidence.get(n, 0.0) >= MIN_CONFIDENCE}  # fmt: skip
+    return {
+        n: [round(float(u), 3), round(float(v), 3)]
+        for n, (u, v) in placed.points.items()
+        if placed.confidence.get(n, 0.0) >= MIN_CONFIDENCE
+    }
 
 
 def detected_spec(frame: np.ndarray, project, focal_px: float, *, name: str = "frame 0") -> dict | None:

@@ -84,8 +84,9 @@ def check_edit(edit: dict, names, frames: int) -> dict:
     op = edit.get("op")
     if op == "scale":
         if edit.get("expression") not in names[1:]:
-            raise EditError(f"scale: expression {edit.get('expression')!r} is not one of the model's "
-                            f"{', '.join(names[1:])}")  # fmt: skip
+            raise EditError(
+                f"scale: expression {edit.get('expression')!r} is not one of the model's {', '.join(names[1:])}"
+            )
         if ("factor" in edit) == ("curve" in edit):
             raise EditError("scale: give either a factor or a curve [[frame, factor], ...]")
         if "curve" in edit and (np.asarray(edit["curve"], float).ndim != 2 or len(edit["curve"]) < 1):
@@ -130,10 +131,14 @@ def scale_expression(weights: np.ndarray, k: int, factors: np.ndarray) -> np.nda
     lo, hi = WEIGHT_RANGE
     with np.errstate(divide="ignore", invalid="ignore"):
         # w_k + s·change ∈ range and w_0 − s·change ∈ range
-        lim = np.stack([np.where(change > 0, (hi - W[:, :, k]) / change, np.inf),
-                        np.where(change < 0, (lo - W[:, :, k]) / change, np.inf),
-                        np.where(change > 0, (W[:, :, 0] - lo) / change, np.inf),
-                        np.where(change < 0, (W[:, :, 0] - hi) / change, np.inf)]).min(axis=0)  # fmt: skip
+        lim = np.stack(
+            [
+                np.where(change > 0, (hi - W[:, :, k]) / change, np.inf),
+                np.where(change < 0, (lo - W[:, :, k]) / change, np.inf),
+                np.where(change > 0, (W[:, :, 0] - lo) / change, np.inf),
+                np.where(change < 0, (W[:, :, 0] - hi) / change, np.inf),
+            ]
+        ).min(axis=0)
     s = np.clip(lim.min(axis=1), 0.0, 1.0)[:, None]
     W[:, :, k] += s * change
     W[:, :, 0] -= s * change
@@ -153,7 +158,8 @@ def replace_span(weights: np.ndarray, first: int, last: int, chosen: int) -> np.
     t = np.arange(first, last + 1, dtype=float)
     flat = keys.reshape(3, -1)
     W[first : last + 1] = np.stack([np.interp(t, key_t, flat[:, j]) for j in range(flat.shape[1])], 1).reshape(
-        len(t), *W.shape[1:])  # fmt: skip
+        len(t), *W.shape[1:]
+    )
     return W
 
 
@@ -181,8 +187,14 @@ def edited_alphas(model: FaceModel, alphas: np.ndarray, edits: list[dict]) -> np
 
 def edits_document(edits: list[dict], frames: int, smooth: dict | None) -> dict:
     """The ``edits.json`` document (module docstring)."""
-    return {"format": FORMAT, "version": VERSION, "track": "track.json", "frames": int(frames),
-            "smooth": smooth, "edits": list(edits)}  # fmt: skip
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "track": "track.json",
+        "frames": int(frames),
+        "smooth": smooth,
+        "edits": list(edits),
+    }
 
 
 def save_edits(track_dir: str | os.PathLike, doc: dict) -> Path:

@@ -74,11 +74,16 @@ class EditReport:
     edited_weights: np.ndarray = field(repr=False)
 
     def to_json(self) -> dict:
-        return {"frames": self.frames, "edited": self.edited, "filled_similar_px": self.filled_similar,
-                "filled_texture_px": self.filled_texture,
-                "frames_dir": None if self.frames_dir is None else str(self.frames_dir),
-                "video": None if self.video is None else str(self.video), "audio": self.audio,
-                "edits_json": str(self.edits_json)}  # fmt: skip
+        return {
+            "frames": self.frames,
+            "edited": self.edited,
+            "filled_similar_px": self.filled_similar,
+            "filled_texture_px": self.filled_texture,
+            "frames_dir": None if self.frames_dir is None else str(self.frames_dir),
+            "video": None if self.video is None else str(self.video),
+            "audio": self.audio,
+            "edits_json": str(self.edits_json),
+        }
 
 
 def most_similar_frames(weights: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -90,8 +95,9 @@ def most_similar_frames(weights: np.ndarray, targets: np.ndarray) -> np.ndarray:
     return np.argmin(d, axis=1)
 
 
-def edit_frames(fitter: FrameFitter, frames, states, edits: list[dict], flow: FlowOptions | None = None,
-                progress=None, only=None) -> tuple[list, np.ndarray, dict]:  # fmt: skip
+def edit_frames(
+    fitter: FrameFitter, frames, states, edits: list[dict], flow: FlowOptions | None = None, progress=None, only=None
+) -> tuple[list, np.ndarray, dict]:
     """The edited frames of a clip (steps 3–4 of the module docstring).
 
     Parameters
@@ -189,10 +195,17 @@ def _fraction(fps: float) -> Fraction:
     return Fraction(float(fps)).limit_denominator(1001)
 
 
-def edit_track(track_dir: str | os.PathLike, edits: list[dict], *, smooth: SmoothOptions | None = None,
-               out_video: str | os.PathLike | None = None, frames_dir: str | os.PathLike | None = None,
-               flow: FlowOptions | None = None, project: str | os.PathLike | None = None,
-               progress=None) -> EditReport:  # fmt: skip
+def edit_track(
+    track_dir: str | os.PathLike,
+    edits: list[dict],
+    *,
+    smooth: SmoothOptions | None = None,
+    out_video: str | os.PathLike | None = None,
+    frames_dir: str | os.PathLike | None = None,
+    flow: FlowOptions | None = None,
+    project: str | os.PathLike | None = None,
+    progress=None,
+) -> EditReport:
     """Edit the expressions of the tracked video in ``track_dir`` (module docstring).
 
     Parameters
@@ -225,19 +238,33 @@ def edit_track(track_dir: str | os.PathLike, edits: list[dict], *, smooth: Smoot
     frames = [f for _, f in video.frames(0, len(records))]
     states = [state_of(r) for r in records[: len(frames)]]
     if smooth is not None:
-        states = smooth_clip(fitter, frames, states, smooth,
-                             lambda k, t: report(f"smoothing (round {k + 1})", t + 1, len(frames))).states  # fmt: skip
-    images, new, counts = edit_frames(fitter, frames, states, edits, flow,
-                                      lambda t: report("editing", t + 1, len(frames)))  # fmt: skip
+        states = smooth_clip(
+            fitter, frames, states, smooth, lambda k, t: report(f"smoothing (round {k + 1})", t + 1, len(frames))
+        ).states
+    images, new, counts = edit_frames(
+        fitter, frames, states, edits, flow, lambda t: report("editing", t + 1, len(frames))
+    )
     edits_json = save_edits(track_dir, edits_document(edits, len(frames), None if smooth is None else asdict(smooth)))
     if frames_dir is None:
-        frames_dir = (Path(out_video).with_name(Path(out_video).stem + "_frames") if out_video is not None
-                      else track_dir / "edited_frames")  # fmt: skip
+        frames_dir = (
+            Path(out_video).with_name(Path(out_video).stem + "_frames")
+            if out_video is not None
+            else track_dir / "edited_frames"
+        )
     write_frames(frames_dir, images)
     audio = False
     if out_video is not None:
         audio = write_video(out_video, images, video.fps, None if video.is_folder else video.path)
     alphas = np.array([s.alpha for s in states]).reshape(len(states), fitter.n_alpha)
-    return EditReport(len(images), counts["edited"], counts["filled_similar"], counts["filled_texture"],
-                      Path(frames_dir).absolute(), None if out_video is None else Path(out_video).absolute(), audio,
-                      edits_json, weight_curves(model, alphas), weight_curves(model, new))  # fmt: skip
+    return EditReport(
+        len(images),
+        counts["edited"],
+        counts["filled_similar"],
+        counts["filled_texture"],
+        Path(frames_dir).absolute(),
+        None if out_video is None else Path(out_video).absolute(),
+        audio,
+        edits_json,
+        weight_curves(model, alphas),
+        weight_curves(model, new),
+    )

@@ -156,8 +156,9 @@ def warp_frame(frame: np.ndarray, displacement: np.ndarray) -> np.ndarray:
     displacement is under :data:`STILL_PX` copied unchanged."""
     H, W = frame.shape[:2]
     gx, gy = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
-    out = cv2.remap(frame, gx + displacement[..., 0], gy + displacement[..., 1], cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)  # fmt: skip
+    out = cv2.remap(
+        frame, gx + displacement[..., 0], gy + displacement[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
     still = np.abs(displacement).max(axis=2) < STILL_PX
     out[still] = frame[still]
     return out
@@ -180,8 +181,16 @@ class EditedFrame:
     filled_texture: int
 
 
-def edit_frame(renderer, model: FaceModel, camera: Camera, frame: np.ndarray, tracked_alpha: np.ndarray,
-               edited_alpha: np.ndarray, similar=None, options: FlowOptions | None = None) -> EditedFrame:  # fmt: skip
+def edit_frame(
+    renderer,
+    model: FaceModel,
+    camera: Camera,
+    frame: np.ndarray,
+    tracked_alpha: np.ndarray,
+    edited_alpha: np.ndarray,
+    similar=None,
+    options: FlowOptions | None = None,
+) -> EditedFrame:
     """Frame ``frame`` with the expression changed from ``tracked_alpha`` to ``edited_alpha`` (§4).
 
     Parameters
@@ -221,8 +230,13 @@ def edit_frame(renderer, model: FaceModel, camera: Camera, frame: np.ndarray, tr
             ok = ~sflow.hidden & todo[sflow.pixels]
             if ok.any():
                 src = sflow.source[ok]
-                fill[sflow.pixels[ok]] = cv2.remap(np.asarray(s_frame, np.float32), src[:, 0:1], src[:, 1:2],
-                                                   cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[:, 0]  # fmt: skip
+                fill[sflow.pixels[ok]] = cv2.remap(
+                    np.asarray(s_frame, np.float32),
+                    src[:, 0:1],
+                    src[:, 1:2],
+                    cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE,
+                )[:, 0]
             todo[sflow.pixels[ok]] = False
             n_similar = int(ok.sum())
         if todo.any():

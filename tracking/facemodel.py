@@ -225,8 +225,9 @@ def smooth_membership(regions: np.ndarray, faces: np.ndarray, passes: int = MEMB
     return mu / mu.sum(1, keepdims=True)
 
 
-def expression_basis(geometry: np.ndarray, weight: np.ndarray, basis: str = "gram_schmidt",
-                     use: np.ndarray | None = None) -> np.ndarray:
+def expression_basis(
+    geometry: np.ndarray, weight: np.ndarray, basis: str = "gram_schmidt", use: np.ndarray | None = None
+) -> np.ndarray:
     """``Q`` (m, a) of one region: directions in weight space spanning ``Σ_k w_k = 0``.
 
     Parameters

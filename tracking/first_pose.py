@@ -26,8 +26,7 @@ from photomodel.errors import FaceStudioError, FitError
 from tracking.facemodel import CONTROL_REGIONS, FaceModel
 from tracking.frame_fit import FrameState, pose_from_clicks
 
-__all__ = ["FirstPose", "default_first_pose_path", "load_first_pose", "read_pose_spec", "spec_focal",
-           "pose_from_spec"]  # fmt: skip
+__all__ = ["FirstPose", "default_first_pose_path", "load_first_pose", "read_pose_spec", "spec_focal", "pose_from_spec"]
 
 
 @dataclass
@@ -76,10 +75,14 @@ def read_pose_spec(spec: dict | str | os.PathLike, frame: int = 0) -> tuple[dict
     kind = "first-pose" if frame == 0 else "pose"
     if not path.is_file():
         if frame == 0:
-            raise FitError(f"the first-pose file {path} does not exist: write the first frame's pose or clicks "
-                           f"there (see docs/tracking.md) or pass --first-pose")  # fmt: skip
-        raise FitError(f"the pose file {path} does not exist: write frame {frame}'s pose or clicks there "
-                       f"(the first-pose format, see docs/tracking.md)")  # fmt: skip
+            raise FitError(
+                f"the first-pose file {path} does not exist: write the first frame's pose or clicks "
+                f"there (see docs/tracking.md) or pass --first-pose"
+            )
+        raise FitError(
+            f"the pose file {path} does not exist: write frame {frame}'s pose or clicks there "
+            f"(the first-pose format, see docs/tracking.md)"
+        )
     try:
         spec = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
@@ -98,8 +101,16 @@ def spec_focal(spec: dict, where: str, width: int) -> float | None:
     return None
 
 
-def load_first_pose(spec: dict | str | os.PathLike, project, model: FaceModel, width: int, height: int,
-                    focal_px: float | None = None, *, frame: int = 0) -> FirstPose:  # fmt: skip
+def load_first_pose(
+    spec: dict | str | os.PathLike,
+    project,
+    model: FaceModel,
+    width: int,
+    height: int,
+    focal_px: float | None = None,
+    *,
+    frame: int = 0,
+) -> FirstPose:
     """The first frame's pose from a first-pose JSON (a path or the parsed dict).
 
     The JSON object::
@@ -121,14 +132,17 @@ def load_first_pose(spec: dict | str | os.PathLike, project, model: FaceModel, w
     return pose_from_spec(spec, where, project, model, width, height, focal_px, frame)
 
 
-def pose_from_spec(spec: dict, where: str, project, model: FaceModel, width: int, height: int,
-                   focal_px: float | None, frame: int) -> FirstPose:  # fmt: skip
+def pose_from_spec(
+    spec: dict, where: str, project, model: FaceModel, width: int, height: int, focal_px: float | None, frame: int
+) -> FirstPose:
     """:func:`load_first_pose` of a parsed JSON object named ``where`` in errors."""
     if focal_px is None:
         focal_px = spec_focal(spec, where, width)
         if focal_px is None:
-            raise FitError(f"{where}: the video camera's focal length is missing: give 'focal_px' (or 'focal_mm' "
-                           f"for a 36 mm-wide sensor) or pass --focal-px")  # fmt: skip
+            raise FitError(
+                f"{where}: the video camera's focal length is missing: give 'focal_px' (or 'focal_mm' "
+                f"for a 36 mm-wide sensor) or pass --focal-px"
+            )
     if not (math.isfinite(focal_px) and focal_px > 0):
         raise FitError(f"{where}: the focal length must be a positive number of pixels, got {focal_px}")
     if "clicks" in spec:
@@ -147,8 +161,11 @@ def pose_from_spec(spec: dict, where: str, project, model: FaceModel, width: int
             raise FitError(f"{where}: {exc} (clicks of frame {frame})") from exc
         source = f"{where}: {len(names)} clicked features, pose by tracking.frame_fit.pose_from_clicks"
     elif "R" in spec or "rotation_vector" in spec:
-        R = _vector(spec, "R", (3, 3), where) if "R" in spec else rodrigues(_vector(spec, "rotation_vector", (3,),
-                                                                                      where))  # fmt: skip
+        R = (
+            _vector(spec, "R", (3, 3), where)
+            if "R" in spec
+            else rodrigues(_vector(spec, "rotation_vector", (3,), where))
+        )
         if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
             raise FitError(f"{where}: 'R' is not a rotation matrix")
         if "t_mm" not in spec:
@@ -157,8 +174,10 @@ def pose_from_spec(spec: dict, where: str, project, model: FaceModel, width: int
         state = FrameState(R, t + R @ model.centre, np.zeros(sum(model.n_alpha)))
         source = f"{where}: pose given"
     else:
-        raise FitError(f"{where}: give either 'clicks' (≥ 6 features of frame {frame}) or a pose ('R' or "
-                       f"'rotation_vector', and 't_mm')")  # fmt: skip
+        raise FitError(
+            f"{where}: give either 'clicks' (≥ 6 features of frame {frame}) or a pose ('R' or "
+            f"'rotation_vector', and 't_mm')"
+        )
     if "weights" in spec:
         state.alpha = model.alpha_of_weights(_weights_array(spec["weights"], model, where))
     return FirstPose(state, float(focal_px), source, spec)
@@ -175,8 +194,9 @@ def _weights_array(weights, model: FaceModel, where: str) -> np.ndarray:
         ri = CONTROL_REGIONS.index(r)
         for e, w in ws.items():
             if e not in model.names[1:]:
-                raise FitError(f"{where}: 'weights.{r}' has unknown expression {e!r}; "
-                               f"expressions: {', '.join(model.names[1:])}")  # fmt: skip
+                raise FitError(
+                    f"{where}: 'weights.{r}' has unknown expression {e!r}; expressions: {', '.join(model.names[1:])}"
+                )
             W[ri, model.names.index(e)] = float(w)
         W[ri, 0] = 1.0 - W[ri, 1:].sum()
     return W

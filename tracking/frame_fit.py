@@ -346,8 +346,15 @@ class FrameFitter:
     renderer : photomodel.rendering.renderer.Renderer, optional (default: this thread's).
     """
 
-    def __init__(self, model: FaceModel, focal_px: float, width: int, height: int,
-                 options: TrackOptions | None = None, renderer=None):  # fmt: skip
+    def __init__(
+        self,
+        model: FaceModel,
+        focal_px: float,
+        width: int,
+        height: int,
+        options: TrackOptions | None = None,
+        renderer=None,
+    ):
 
         self.model = model
         self.f, self.W, self.H = float(focal_px), int(width), int(height)
@@ -694,8 +701,9 @@ class FrameFitter:
             A[np.ix_(sel, sel)] += hD[np.ix_(ia, ia)]
         return A, g
 
-    def _lm(self, frame, state, params, iterations, method, filtered, history, render=None, tolerance_mm=None,
-            reuse=True):  # fmt: skip
+    def _lm(
+        self, frame, state, params, iterations, method, filtered, history, render=None, tolerance_mm=None, reuse=True
+    ):
         """Levenberg–Marquardt on ``params`` from ``state`` (or the evaluation of ``render``).
 
         Ends when a step would move the surface by less than the tolerance (checked before
@@ -815,13 +823,32 @@ class FrameFitter:
             # silhouette against the background pulls it in from afar); the last round weighs the
             # face alone (TrackOptions.outside_weight)
             self._weighted = k == rounds - 1
-            ev = self._lm(frame, initial.copy() if ev is None else ev.state, np.arange(6), o.pose_iterations,
-                          o.pose_jacobian, False, history, None if ev is None else ev.render, pose_tol,
-                          not far)  # fmt: skip
+            ev = self._lm(
+                frame,
+                initial.copy() if ev is None else ev.state,
+                np.arange(6),
+                o.pose_iterations,
+                o.pose_jacobian,
+                False,
+                history,
+                None if ev is None else ev.render,
+                pose_tol,
+                not far,
+            )
             if not self.n_alpha:
                 if o.bandpass is not None:  # a pose-only model: the pose on the bandpassed images too
-                    ev = self._lm(frame, ev.state, np.arange(6), o.expression_iterations, o.pose_jacobian, True,
-                                  history, ev.render, None, not far)  # fmt: skip
+                    ev = self._lm(
+                        frame,
+                        ev.state,
+                        np.arange(6),
+                        o.expression_iterations,
+                        o.pose_jacobian,
+                        True,
+                        history,
+                        ev.render,
+                        None,
+                        not far,
+                    )
                 continue
             filtered = o.bandpass is not None
             groups = (
@@ -832,14 +859,28 @@ class FrameFitter:
             for params in groups:
                 if o.joint:
                     params = np.concatenate([np.arange(6), params])
-                ev = self._lm(frame, ev.state, params, o.expression_iterations, o.expression_jacobian, filtered,
-                              history, ev.render, None, not far)  # fmt: skip
+                ev = self._lm(
+                    frame,
+                    ev.state,
+                    params,
+                    o.expression_iterations,
+                    o.expression_jacobian,
+                    filtered,
+                    history,
+                    ev.render,
+                    None,
+                    not far,
+                )
         npx, rms = len(ev.render.pixels), ev.rms  # the last rendering's unfiltered RMS
         return FrameResult(
-            state=ev.state, weights=ev.weights, rms=rms, pixels=npx,
+            state=ev.state,
+            weights=ev.weights,
+            rms=rms,
+            pixels=npx,
             evaluations=self.evaluations - start,
-            diverged=bool(self._inlier_rms(ev) > DIVERGED_RMS or npx < MIN_PIXELS), history=history,
-        )  # fmt: skip
+            diverged=bool(self._inlier_rms(ev) > DIVERGED_RMS or npx < MIN_PIXELS),
+            history=history,
+        )
 
     def _inlier_rms(self, ev: _Eval) -> float:
         """The image RMS that says whether a frame diverged: with the robust error, over the covered
@@ -867,8 +908,15 @@ def _single_threaded_blas():
     return contextlib.nullcontext() if ctl is None else ctl.limit(limits=1, user_api="blas")
 
 
-def track_frames(fitter: FrameFitter, frames, first: FrameState, *, previous: list | None = None,
-                 first_rounds: int = 3, callback=None) -> list[FrameResult]:  # fmt: skip
+def track_frames(
+    fitter: FrameFitter,
+    frames,
+    first: FrameState,
+    *,
+    previous: list | None = None,
+    first_rounds: int = 3,
+    callback=None,
+) -> list[FrameResult]:
     """Track a sequence: the first frame from ``first`` (with ``first_rounds`` pose/expression
     rounds), each later one from :func:`predict` of the two previous results.
 

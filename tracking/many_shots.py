@@ -83,8 +83,21 @@ SUMMARY_CSV = "track_many.csv"
 EXIT_AFTER_ENV = "FACESTUDIO_TRACK_MANY_EXIT_AFTER"
 #: A shot asks whether the batch was stopped at most this often (one scheduler round trip).
 STOP_POLL_S = 1.0
-_SUMMARY_COLUMNS = ["video", "out_dir", "status", "frames", "tracked", "resumed_from", "complete", "seconds",
-                    "fps", "diverged", "mean_rms", "worker", "error"]  # fmt: skip
+_SUMMARY_COLUMNS = [
+    "video",
+    "out_dir",
+    "status",
+    "frames",
+    "tracked",
+    "resumed_from",
+    "complete",
+    "seconds",
+    "fps",
+    "diverged",
+    "mean_rms",
+    "worker",
+    "error",
+]
 
 
 @dataclass
@@ -168,19 +181,26 @@ class BatchResult:
     def summary(self) -> dict:
         """The JSON-able summary (``track_many.json``): the batch's figures and every shot."""
         return {
-            "out_root": str(self.out_root), "workers": self.workers, "scheduler": self.scheduler,
-            "shots": len(self.shots), "failed": self.failed, "cancelled": self.cancelled,
-            "tracked_frames": self.tracked_frames, "startup_s": round(self.startup_s, 3),
+            "out_root": str(self.out_root),
+            "workers": self.workers,
+            "scheduler": self.scheduler,
+            "shots": len(self.shots),
+            "failed": self.failed,
+            "cancelled": self.cancelled,
+            "tracked_frames": self.tracked_frames,
+            "startup_s": round(self.startup_s, 3),
             "seconds": round(self.seconds, 3),
             "fps": round(self.tracked_frames / self.seconds, 3) if self.seconds > 0 else 0.0,
-            "by_status": {k: sum(s.status == k for s in self.shots) for k in ("tracked", "skipped", "cancelled",
-                                                                               "failed")},
+            "by_status": {
+                k: sum(s.status == k for s in self.shots) for k in ("tracked", "skipped", "cancelled", "failed")
+            },
             "shot_results": [asdict(s) | {"fps": round(s.fps, 3)} for s in self.shots],
-        }  # fmt: skip
+        }
 
 
-def plan_shots(project_path: str | os.PathLike, videos: Sequence[str | os.PathLike],
-               out_root: str | os.PathLike | None = None) -> list[Shot]:  # fmt: skip
+def plan_shots(
+    project_path: str | os.PathLike, videos: Sequence[str | os.PathLike], out_root: str | os.PathLike | None = None
+) -> list[Shot]:
     """The shots of ``videos``: each with its results folder ``<out_root>/track_<video stem>``
     (``out_root`` default ``<project folder>/results``: where ``facestudio track`` puts them).
 
@@ -195,8 +215,10 @@ def plan_shots(project_path: str | os.PathLike, videos: Sequence[str | os.PathLi
         video = Path(v).absolute()
         stem = video.stem
         if stem in seen:
-            raise FaceStudioError(f"{seen[stem]} and {video} would share the results folder {root / f'track_{stem}'}: "
-                                  f"rename one, or track them in two batches with different --out")  # fmt: skip
+            raise FaceStudioError(
+                f"{seen[stem]} and {video} would share the results folder {root / f'track_{stem}'}: "
+                f"rename one, or track them in two batches with different --out"
+            )
         seen[stem] = video
         shots.append(Shot(video, root / f"track_{stem}"))
     return shots
@@ -219,9 +241,15 @@ def finished(shot: Shot, max_frames: int | None, overlay: bool = True) -> ShotRe
     if overlay and not (shot.out_dir / "overlay.mp4").is_file():
         return None
     rms = [f["rms"] for f in doc["frames"]]
-    return ShotResult(str(shot.video), str(shot.out_dir), "skipped", frames=n, complete=bool(doc.get("complete")),
-                      diverged=sum(bool(f["diverged"]) for f in doc["frames"]),
-                      mean_rms=float(sum(rms) / len(rms)))  # fmt: skip
+    return ShotResult(
+        str(shot.video),
+        str(shot.out_dir),
+        "skipped",
+        frames=n,
+        complete=bool(doc.get("complete")),
+        diverged=sum(bool(f["diverged"]) for f in doc["frames"]),
+        mean_rms=float(sum(rms) / len(rms)),
+    )
 
 
 # ----------------------------------------------------------------------------- in the workers
@@ -308,9 +336,19 @@ def _reporter(topic: str | None, index: int, video: Path, stop_name: str | None)
     return progress, cancel
 
 
-def track_shot(project_path: str, video: str, out_dir: str, *, max_frames: int | None = None,
-               expressions: tuple | None = None, overlay: bool = True, save_every: int = SAVE_EVERY, index: int = 0,
-               topic: str | None = None, stop_name: str | None = None) -> ShotResult:  # fmt: skip
+def track_shot(
+    project_path: str,
+    video: str,
+    out_dir: str,
+    *,
+    max_frames: int | None = None,
+    expressions: tuple | None = None,
+    overlay: bool = True,
+    save_every: int = SAVE_EVERY,
+    index: int = 0,
+    topic: str | None = None,
+    stop_name: str | None = None,
+) -> ShotResult:
     """Track one shot in this (worker) process: :func:`tracking.run.track_video` into ``out_dir``,
     continuing what is there. A FaceStudioError (bad video, first pose, project) becomes a
     ``"failed"`` result naming it; other exceptions propagate (Dask retries them)."""
@@ -322,15 +360,34 @@ def track_shot(project_path: str, video: str, out_dir: str, *, max_frames: int |
     try:
         model, source = _worker_model(project_path, expressions)
         progress, cancel = _reporter(topic, index, video_path, stop_name)
-        res = track_video(project_path, video_path, out, model=model, model_source=source, max_frames=max_frames,
-                          overlay=overlay, save_every=save_every, progress=progress, cancel=cancel)  # fmt: skip
+        res = track_video(
+            project_path,
+            video_path,
+            out,
+            model=model,
+            model_source=source,
+            max_frames=max_frames,
+            overlay=overlay,
+            save_every=save_every,
+            progress=progress,
+            cancel=cancel,
+        )
     except FaceStudioError as exc:
         return ShotResult(video, out_dir, "failed", worker=worker, error=f"{type(exc).__name__}: {exc}")
     rms = [f["rms"] for f in res.frames]
-    return ShotResult(video, out_dir, "cancelled" if res.cancelled else "tracked", frames=len(res.frames),
-                      tracked=res.tracked, resumed_from=res.resumed_from, complete=res.complete, seconds=res.seconds,
-                      diverged=res.diverged, mean_rms=float(sum(rms) / len(rms)) if rms else None,
-                      worker=worker)  # fmt: skip
+    return ShotResult(
+        video,
+        out_dir,
+        "cancelled" if res.cancelled else "tracked",
+        frames=len(res.frames),
+        tracked=res.tracked,
+        resumed_from=res.resumed_from,
+        complete=res.complete,
+        seconds=res.seconds,
+        diverged=res.diverged,
+        mean_rms=float(sum(rms) / len(rms)) if rms else None,
+        worker=worker,
+    )
 
 
 # ----------------------------------------------------------------------------- in the parent
@@ -342,13 +399,17 @@ def _connect(workers: int | None, scheduler: str | None, threads: int | None, sh
     cluster or None, worker count)."""
     if scheduler:
         if workers is not None:
-            raise FaceStudioError("--workers is for the embedded cluster: with --scheduler the cluster's own "
-                                  "workers track the shots (start more with `dask worker`)")  # fmt: skip
+            raise FaceStudioError(
+                "--workers is for the embedded cluster: with --scheduler the cluster's own "
+                "workers track the shots (start more with `dask worker`)"
+            )
         try:
             client = Client(scheduler, timeout="20s")
         except (OSError, TimeoutError) as exc:
-            raise FaceStudioError(f"no Dask scheduler answers at {scheduler} ({exc}); start one with "
-                                  f"`dask scheduler` and workers with `dask worker {scheduler}`") from exc  # fmt: skip
+            raise FaceStudioError(
+                f"no Dask scheduler answers at {scheduler} ({exc}); start one with "
+                f"`dask scheduler` and workers with `dask worker {scheduler}`"
+            ) from exc
         client.register_plugin(PinThreads(threads or 1))
         return client, None, len(client.scheduler_info()["workers"])
     cores = os.cpu_count() or 1
@@ -356,22 +417,46 @@ def _connect(workers: int | None, scheduler: str | None, threads: int | None, sh
     if n < 1:
         raise FaceStudioError(f"--workers {n}: at least one worker")
     per = threads or max(1, cores // n)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR, env={"LP_NUM_THREADS": str(per)})  # fmt: skip
+    cluster = LocalCluster(
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=":0",
+        silence_logs=logging.ERROR,
+        env={"LP_NUM_THREADS": str(per)},
+    )
     client = Client(cluster)
     client.register_plugin(PinThreads(per))
     return client, cluster, n
 
 
-def _submit(client: Client, project: Path, shots: list[Shot], todo: list[int], options: dict, retries: int,
-            topic: str, stop_name: str) -> dict:  # fmt: skip
+def _submit(
+    client: Client,
+    project: Path,
+    shots: list[Shot],
+    todo: list[int],
+    options: dict,
+    retries: int,
+    topic: str,
+    stop_name: str,
+) -> dict:
     """One task per shot still to track; returns {future: shot index}."""
     futures = {}
     for i in todo:
         s = shots[i]
-        f = client.submit(track_shot, str(project), str(s.video), str(s.out_dir), index=i, topic=topic,
-                          stop_name=stop_name, retries=retries, pure=False, key=f"track-{i}-{s.video.name}-{topic}",
-                          **options)  # fmt: skip
+        f = client.submit(
+            track_shot,
+            str(project),
+            str(s.video),
+            str(s.out_dir),
+            index=i,
+            topic=topic,
+            stop_name=stop_name,
+            retries=retries,
+            pure=False,
+            key=f"track-{i}-{s.video.name}-{topic}",
+            **options,
+        )
         futures[f] = i
     return futures
 
@@ -385,12 +470,23 @@ def _outcome(future, shot: Shot) -> ShotResult:
         return ShotResult(str(shot.video), str(shot.out_dir), "failed", error=f"{type(exc).__name__}: {exc}")
 
 
-def track_many(project_path: str | os.PathLike, videos: Sequence[str | os.PathLike],
-               out_root: str | os.PathLike | None = None, *, workers: int | None = None, scheduler: str | None = None,
-               threads: int | None = None, max_frames: int | None = None, expressions: Sequence[str] | None = None,
-               overlay: bool = True, save_every: int = SAVE_EVERY, retries: int = 1,
-               progress: Callable[[BatchProgress], None] | None = None, stop: Callable[[], bool] | None = None,
-               poll_s: float = 0.25) -> BatchResult:  # fmt: skip
+def track_many(
+    project_path: str | os.PathLike,
+    videos: Sequence[str | os.PathLike],
+    out_root: str | os.PathLike | None = None,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    threads: int | None = None,
+    max_frames: int | None = None,
+    expressions: Sequence[str] | None = None,
+    overlay: bool = True,
+    save_every: int = SAVE_EVERY,
+    retries: int = 1,
+    progress: Callable[[BatchProgress], None] | None = None,
+    stop: Callable[[], bool] | None = None,
+    poll_s: float = 0.25,
+) -> BatchResult:
     """Track every video of ``videos`` with the project's face model, one Dask task per shot.
 
     Parameters
@@ -422,16 +518,27 @@ def track_many(project_path: str | os.PathLike, videos: Sequence[str | os.PathLi
         if todo:
             client, cluster, n = _connect(workers, scheduler, threads, len(todo))
             address, startup = client.scheduler.address, time.perf_counter() - t0
-            options = {"max_frames": max_frames, "overlay": overlay, "save_every": save_every,
-                       "expressions": None if expressions is None else tuple(expressions)}  # fmt: skip
+            options = {
+                "max_frames": max_frames,
+                "overlay": overlay,
+                "save_every": save_every,
+                "expressions": None if expressions is None else tuple(expressions),
+            }
             _run_tasks(client, project, shots, todo, options, retries, results, state, t0, progress, stop, poll_s)
     finally:
         if client is not None:
             client.close()
         if cluster is not None:
             cluster.close()
-    done = BatchResult(results, shots[0].out_dir.parent, n, address, startup, time.perf_counter() - t0,  # type: ignore[arg-type]
-                       cancelled=any(r.status == "cancelled" for r in results))  # fmt: skip
+    done = BatchResult(
+        results,
+        shots[0].out_dir.parent,
+        n,
+        address,
+        startup,
+        time.perf_counter() - t0,  # type: ignore[arg-type]
+        cancelled=any(r.status == "cancelled" for r in results),
+    )
     done.files = write_summary(done)
     return done
 

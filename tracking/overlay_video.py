@@ -39,8 +39,9 @@ def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=No
     model = fitter.model
     st = state_of(rec)
     Wv = model.vertex_weights(model.region_weights(st.alpha))
-    r = render_model(renderer or fitter.renderer, fitter.camera(st), model, model.blend_geometry(Wv), Wv,
-                     background=frame)  # fmt: skip
+    r = render_model(
+        renderer or fitter.renderer, fitter.camera(st), model, model.blend_geometry(Wv), Wv, background=frame
+    )
     out = frame.copy()
     m = r.mask
     out[m] = (1 - OVERLAY_ALPHA) * frame[m] + OVERLAY_ALPHA * r.image[m]
@@ -57,13 +58,22 @@ def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=No
     contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     color = (230, 40, 40) if rec["diverged"] else (40, 220, 60)
     cv2.drawContours(img, contours, -1, color, 1, cv2.LINE_AA)
-    cv2.putText(img, f"{rec['frame']}  rms {rec['rms']:.3f}", (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
-                (255, 255, 255), 1, cv2.LINE_AA)  # fmt: skip
+    cv2.putText(
+        img,
+        f"{rec['frame']}  rms {rec['rms']:.3f}",
+        (6, 16),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.45,
+        (255, 255, 255),
+        1,
+        cv2.LINE_AA,
+    )
     return img.astype(np.float32) / 255.0
 
 
-def write_overlay_video(path: str | os.PathLike, video: VideoFrames, fitter: FrameFitter, frames: list[dict],
-                        fps: float | None = None) -> np.ndarray | None:  # fmt: skip
+def write_overlay_video(
+    path: str | os.PathLike, video: VideoFrames, fitter: FrameFitter, frames: list[dict], fps: float | None = None
+) -> np.ndarray | None:
     """Write the overlay (:func:`overlay_frame`) of every tracked frame as an mp4 (OpenCV ``mp4v``),
     atomically (a temporary file moved into place). Returns the last overlay frame (RGB float) or None."""
     path = Path(path)

@@ -69,15 +69,23 @@ def blend_shapes(project, expressions=None) -> tuple[BlendShapes, FaceModel]:
     rig_names, rig_deltas = ([], np.zeros((0, *model.geometry.shape[1:])))
     if project.rig is not None:
         if project.rig.neutral != model.names[0]:
-            raise FaceStudioError(f"the rig was made on {project.rig.neutral!r} but the face model's neutral is "
-                                  f"{model.names[0]!r}; run `facestudio rig` again")  # fmt: skip
+            raise FaceStudioError(
+                f"the rig was made on {project.rig.neutral!r} but the face model's neutral is "
+                f"{model.names[0]!r}; run `facestudio rig` again"
+            )
         rig_names, rig_deltas = load_rig_shapes(project)
     texture = project.expression(model.names[0]).result.texture
     png = project.resolve(texture.image).read_bytes() if texture is not None else None
-    shapes = BlendShapes(neutral=model.geometry[0], faces=model.faces,
-                         deltas=np.concatenate([rig_deltas, deltas]), names=list(rig_names) + names,
-                         uv=model.uv[0] if png is not None else None, texture_png=png,
-                         rig_shapes=len(rig_names), photographed=len(names))  # fmt: skip
+    shapes = BlendShapes(
+        neutral=model.geometry[0],
+        faces=model.faces,
+        deltas=np.concatenate([rig_deltas, deltas]),
+        names=list(rig_names) + names,
+        uv=model.uv[0] if png is not None else None,
+        texture_png=png,
+        rig_shapes=len(rig_names),
+        photographed=len(names),
+    )
     return shapes, model
 
 
@@ -99,10 +107,15 @@ def track_performance(doc: dict, names: list[str]) -> Performance:
                 if i is not None:
                     W[f, i] = w
     cam = doc["camera"]
-    return Performance(times_s=np.array([r["frame"] for r in frames], float) / fps, weights=W,
-                       rotation=np.array([r["R"] for r in frames], float),
-                       translation_mm=np.array([r["t_mm"] for r in frames], float),
-                       focal_px=float(cam["focal_px"]), width=int(cam["width"]), height=int(cam["height"]))  # fmt: skip
+    return Performance(
+        times_s=np.array([r["frame"] for r in frames], float) / fps,
+        weights=W,
+        rotation=np.array([r["R"] for r in frames], float),
+        translation_mm=np.array([r["t_mm"] for r in frames], float),
+        focal_px=float(cam["focal_px"]),
+        width=int(cam["width"]),
+        height=int(cam["height"]),
+    )
 
 
 def arkit_weights(shapes: BlendShapes, weights: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:

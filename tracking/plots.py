@@ -27,8 +27,18 @@ import numpy as np
 __all__ = ["COLORS", "line_panel", "stack_panels", "nice_ticks", "track_plots"]
 
 #: Curve colours (RGB), in order.
-COLORS = [(31, 119, 180), (214, 39, 40), (44, 160, 44), (148, 103, 189), (255, 127, 14), (140, 86, 75),
-          (227, 119, 194), (127, 127, 127), (23, 190, 207), (188, 189, 34)]  # fmt: skip
+COLORS = [
+    (31, 119, 180),
+    (214, 39, 40),
+    (44, 160, 44),
+    (148, 103, 189),
+    (255, 127, 14),
+    (140, 86, 75),
+    (227, 119, 194),
+    (127, 127, 127),
+    (23, 190, 207),
+    (188, 189, 34),
+]
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 PANEL_SIZE = (860, 220)  # (width, height) px of one panel
 MARGINS = (74, 170, 30, 40)  # left, right (legend), top (title), bottom (x ticks) px
@@ -53,9 +63,18 @@ def _fmt(v: float, step: float) -> str:
     return f"{v:.{digits}f}"
 
 
-def line_panel(x: np.ndarray, series: list[tuple[str, np.ndarray]], *, title: str, ylabel: str = "",
-               xlabel: str = "frame", ylim: tuple | None = None, hline: float | None = None,
-               marks: np.ndarray | None = None, size: tuple = PANEL_SIZE) -> np.ndarray:  # fmt: skip
+def line_panel(
+    x: np.ndarray,
+    series: list[tuple[str, np.ndarray]],
+    *,
+    title: str,
+    ylabel: str = "",
+    xlabel: str = "frame",
+    ylim: tuple | None = None,
+    hline: float | None = None,
+    marks: np.ndarray | None = None,
+    size: tuple = PANEL_SIZE,
+) -> np.ndarray:
     """One plot: curves over ``x``.
 
     Parameters
@@ -173,8 +192,9 @@ def stack_panels(panels: list[np.ndarray]) -> np.ndarray:
     return np.concatenate(panels, axis=0)
 
 
-def track_plots(frames: list[dict], regions: list[str], expressions: list[str],
-                diverged_rms: float | None = None) -> dict[str, np.ndarray]:  # fmt: skip
+def track_plots(
+    frames: list[dict], regions: list[str], expressions: list[str], diverged_rms: float | None = None
+) -> dict[str, np.ndarray]:
     """The plots of a tracked sequence.
 
     Parameters
@@ -200,18 +220,27 @@ def track_plots(frames: list[dict], regions: list[str], expressions: list[str],
         out["weights.png"] = stack_panels(panels)
     rot = np.array([f["head_rotation_deg"] for f in frames], float).reshape(-1, 3)
     out["rotation.png"] = line_panel(
-        x, [(n, rot[:, i]) for i, n in enumerate(("pitch (x)", "yaw (y)", "roll (z)"))],
-        title="head rotation relative to facing the camera", ylabel="deg",
-    )  # fmt: skip
+        x,
+        [(n, rot[:, i]) for i, n in enumerate(("pitch (x)", "yaw (y)", "roll (z)"))],
+        title="head rotation relative to facing the camera",
+        ylabel="deg",
+    )
     cen = np.array([f["centre_mm"] for f in frames], float).reshape(-1, 3)
-    out["translation.png"] = stack_panels([
-        line_panel(x, [(f"{a} (mm)", cen[:, i])], title=f"model centre in camera space: {a} ({d})", ylabel="mm")
-        for i, (a, d) in enumerate((("x", "right"), ("y", "down"), ("z", "depth")))
-    ])  # fmt: skip
+    out["translation.png"] = stack_panels(
+        [
+            line_panel(x, [(f"{a} (mm)", cen[:, i])], title=f"model centre in camera space: {a} ({d})", ylabel="mm")
+            for i, (a, d) in enumerate((("x", "right"), ("y", "down"), ("z", "depth")))
+        ]
+    )
     rms = np.array([f["rms"] for f in frames], float)
     div = np.array([f["diverged"] for f in frames], bool)
     out["rms.png"] = line_panel(
-        x, [("image RMS", rms)], title="image RMS after fitting (intensity 0..1; red: diverged)", ylabel="RMS",
-        ylim=(0.0, float(np.nanmax(rms)) if rms.size else 0.1), hline=diverged_rms, marks=div,
-    )  # fmt: skip
+        x,
+        [("image RMS", rms)],
+        title="image RMS after fitting (intensity 0..1; red: diverged)",
+        ylabel="RMS",
+        ylim=(0.0, float(np.nanmax(rms)) if rms.size else 0.1),
+        hline=diverged_rms,
+        marks=div,
+    )
     return out

@@ -54,8 +54,13 @@ from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.texturing.job import stored_cylinder
 from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions, smooth_membership
 
-__all__ = ["MODEL_TEXTURE_SIZE", "face_model_from_project", "project_face_model", "model_expressions",
-           "register_expression"]
+__all__ = [
+    "MODEL_TEXTURE_SIZE",
+    "face_model_from_project",
+    "project_face_model",
+    "model_expressions",
+    "register_expression",
+]
 
 #: Texels per side of the textures in the tracking model (see the module notes).
 MODEL_TEXTURE_SIZE = 512
@@ -93,8 +98,10 @@ def model_expressions(project, names: Sequence[str] | None = None) -> list[str]:
             project.expression(n)  # ProjectError naming the known ones
     where = project.path if project.path is not None else project.name
     if not names:
-        raise ProjectError(f"{where}: tracking needs a face model of at least one expression (a neutral one; "
-                           f"more expressions add expression tracking); the project has none")  # fmt: skip
+        raise ProjectError(
+            f"{where}: tracking needs a face model of at least one expression (a neutral one; "
+            f"more expressions add expression tracking); the project has none"
+        )
     unfitted = [n for n in names if project.expression(n).result is None]
     untextured = [n for n in names if n not in unfitted and project.expression(n).result.texture is None]
     if unfitted or untextured:
@@ -103,8 +110,7 @@ def model_expressions(project, names: Sequence[str] | None = None) -> list[str]:
             parts.append(f"not fitted: {', '.join(unfitted)} (run `facestudio fit {where}`)")
         if untextured:
             parts.append(f"without a texture: {', '.join(untextured)} (run `facestudio texture {where}`)")
-        raise FitError(f"{where}: the face model needs every expression fitted and textured; "
-                       + "; ".join(parts))  # fmt: skip
+        raise FitError(f"{where}: the face model needs every expression fitted and textured; " + "; ".join(parts))
     return names
 
 
@@ -115,8 +121,10 @@ def _read_mesh(project, name: str) -> tuple[np.ndarray, np.ndarray]:
         raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
     path = project.resolve(rel)
     if not path.is_file():
-        raise ProjectError(f"expression {name!r}: the fitted mesh {rel} does not exist (looked for {path}); "
-                           f"run `facestudio fit {project.path}` again")  # fmt: skip
+        raise ProjectError(
+            f"expression {name!r}: the fitted mesh {rel} does not exist (looked for {path}); "
+            f"run `facestudio fit {project.path}` again"
+        )
     try:
         V, F = read_mesh(path)
     except Exception as exc:  # trimesh raises many kinds on a damaged file
@@ -131,8 +139,10 @@ def _read_texture(project, name: str, size: int) -> np.ndarray:
     rel = project.expression(name).result.texture.image
     path = project.resolve(rel)
     if not path.is_file():
-        raise ProjectError(f"expression {name!r}: the texture {rel} does not exist (looked for {path}); "
-                           f"run `facestudio texture {project.path}` again")  # fmt: skip
+        raise ProjectError(
+            f"expression {name!r}: the texture {rel} does not exist (looked for {path}); "
+            f"run `facestudio texture {project.path}` again"
+        )
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise ProjectError(f"expression {name!r}: the texture {rel} is not an image OpenCV can read")
@@ -148,8 +158,9 @@ def _texture_uv(project, name: str, V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return stored_cylinder(project.expression(name).result.texture, V, F).uv(V)
 
 
-def register_expression(E: np.ndarray, E1: np.ndarray, weight: np.ndarray, *, scale: bool,
-                        iterations: int = 8) -> tuple[np.ndarray, dict]:
+def register_expression(
+    E: np.ndarray, E1: np.ndarray, weight: np.ndarray, *, scale: bool, iterations: int = 8
+) -> tuple[np.ndarray, dict]:
     """``E`` (n, 3) mm moved onto ``E1`` (n, 3) by the robust least-squares motion of the vertices
     with ``weight`` (n,) > 0: rigid, or a similarity when ``scale``. Returns the moved vertices and a
     report: ``rms_mm`` over the vertices that agree after registration (within 2 mm: the skull's
@@ -180,14 +191,19 @@ def register_expression(E: np.ndarray, E1: np.ndarray, weight: np.ndarray, *, sc
     moved = E @ (s * R).T + t
     r = np.linalg.norm(moved - E1, axis=1)
     sel = (w0 > 0) & (r < 2.0)
-    report = {"rms_mm": float(np.sqrt(np.mean(r[sel] ** 2))) if sel.any() else float("nan"),
-              "agreeing": float(sel.sum() / np.count_nonzero(w0 > 0)), "scale": float(s),
-              "rotation_deg": float(rotation_angle_deg(R, np.eye(3))), "translation_mm": float(np.linalg.norm(t))}
+    report = {
+        "rms_mm": float(np.sqrt(np.mean(r[sel] ** 2))) if sel.any() else float("nan"),
+        "agreeing": float(sel.sum() / np.count_nonzero(w0 > 0)),
+        "scale": float(s),
+        "rotation_deg": float(rotation_angle_deg(R, np.eye(3))),
+        "translation_mm": float(np.linalg.norm(t)),
+    }
     return moved, report
 
 
-def face_model_from_project(project, names: Sequence[str] | None = None, *, texture_size: int = MODEL_TEXTURE_SIZE,
-                            basis: str = "gram_schmidt") -> tuple[FaceModel, dict]:
+def face_model_from_project(
+    project, names: Sequence[str] | None = None, *, texture_size: int = MODEL_TEXTURE_SIZE, basis: str = "gram_schmidt"
+) -> tuple[FaceModel, dict]:
     """The blend-shape face model (§6.1.1) of a project's fitted and textured expressions.
 
     Parameters
@@ -215,8 +231,10 @@ def face_model_from_project(project, names: Sequence[str] | None = None, *, text
     n = len(mesh.vertices)
     for name, (V, F) in zip(names, meshes, strict=True):
         if V.shape != (n, 3) or not np.array_equal(F, mesh.faces):
-            raise ProjectError(f"expression {name!r}: its fitted mesh has {len(V)} vertices and {len(F)} triangles "
-                               f"but the generic mesh {len(mesh.vertices)} and {len(mesh.faces)}; fit it again")
+            raise ProjectError(
+                f"expression {name!r}: its fitted mesh has {len(V)} vertices and {len(F)} triangles "
+                f"but the generic mesh {len(mesh.vertices)} and {len(mesh.faces)}; fit it again"
+            )
     E1 = meshes[0][0]
     regions = control_regions(mesh.regions, E1, mesh.landmarks)
     weight = mesh.face_mask.astype(float)
@@ -240,12 +258,19 @@ def face_model_from_project(project, names: Sequence[str] | None = None, *, text
         sel = (mu[:, r] > 0.5) & mesh.face_mask
         if sel.any():
             use[r, 1:] = np.percentile(motion[:, sel], 95, axis=1) >= MOVES_REGION_MM
-    model = build_face_model(names, E, faces, uv, textures, regions, face_mask=mesh.face_mask, basis=basis,
-                             region_expressions=use)
-    report = {"expressions": list(names), "registration": registration, "texture_size": int(texture_size),
-              "triangles": int(len(faces)),
-              "regions": {CONTROL_REGIONS[r]: [n for n, u in zip(names[1:], use[r, 1:], strict=True) if u]
-                          for r in range(1, len(CONTROL_REGIONS))}}
+    model = build_face_model(
+        names, E, faces, uv, textures, regions, face_mask=mesh.face_mask, basis=basis, region_expressions=use
+    )
+    report = {
+        "expressions": list(names),
+        "registration": registration,
+        "texture_size": int(texture_size),
+        "triangles": int(len(faces)),
+        "regions": {
+            CONTROL_REGIONS[r]: [n for n, u in zip(names[1:], use[r, 1:], strict=True) if u]
+            for r in range(1, len(CONTROL_REGIONS))
+        },
+    }
     return model, report
 
 
@@ -262,8 +287,10 @@ def project_face_model(project, names=None) -> tuple[FaceModel, str]:
     """
     model, report = face_model_from_project(project, names)
     reg = "; ".join(f"{n} {r['rms_mm']:.2f} mm" for n, r in report["registration"].items())
-    return model, (f"project: the expressions {', '.join(model.names)} fitted and textured from the project's "
-                   f"photos (§6.1.1), registered onto {model.names[0]} by their rest of the face (RMS: {reg})")
+    return model, (
+        f"project: the expressions {', '.join(model.names)} fitted and textured from the project's "
+        f"photos (§6.1.1), registered onto {model.names[0]} by their rest of the face (RMS: {reg})"
+    )
 
 
 def _shares_cameras(project, name: str, source: str) -> bool:

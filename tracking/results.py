@@ -57,8 +57,15 @@ def default_out_dir(project_path: str | os.PathLike, video: str | os.PathLike) -
     return Path(project_path).absolute().parent / "results" / f"track_{Path(video).absolute().stem}"
 
 
-def new_results(project_path: str | os.PathLike, video, model: FaceModel, model_source: str, first_pose,
-                options: TrackOptions, max_frames: int | None) -> dict:  # fmt: skip
+def new_results(
+    project_path: str | os.PathLike,
+    video,
+    model: FaceModel,
+    model_source: str,
+    first_pose,
+    options: TrackOptions,
+    max_frames: int | None,
+) -> dict:
     """The ``track.json`` document of a run with no frames yet: its settings.
 
     ``video``: the :class:`tracking.video.VideoFrames` tracked; ``first_pose``: its
@@ -69,14 +76,28 @@ def new_results(project_path: str | os.PathLike, video, model: FaceModel, model_
         "format": FORMAT,
         "version": VERSION,
         "project": str(Path(project_path).absolute()),
-        "video": {"path": str(video.path), "kind": "frames" if video.is_folder else "file",
-                  "width": video.width, "height": video.height, "fps": video.fps,
-                  "frames": video.count},  # fmt: skip
-        "camera": {"focal_px": first_pose.focal_px, "width": video.width, "height": video.height,
-                   "convention": "X_cam = R X + t (head frame, mm); pixel centres at integers"},  # fmt: skip
-        "model": {"source": model_source, "expressions": list(model.names), "regions": list(CONTROL_REGIONS),
-                  "regions_with_parameters": regions, "n_alpha": list(model.n_alpha),
-                  "centre_mm": np.asarray(model.centre, float).tolist()},  # fmt: skip
+        "video": {
+            "path": str(video.path),
+            "kind": "frames" if video.is_folder else "file",
+            "width": video.width,
+            "height": video.height,
+            "fps": video.fps,
+            "frames": video.count,
+        },
+        "camera": {
+            "focal_px": first_pose.focal_px,
+            "width": video.width,
+            "height": video.height,
+            "convention": "X_cam = R X + t (head frame, mm); pixel centres at integers",
+        },
+        "model": {
+            "source": model_source,
+            "expressions": list(model.names),
+            "regions": list(CONTROL_REGIONS),
+            "regions_with_parameters": regions,
+            "n_alpha": list(model.n_alpha),
+            "centre_mm": np.asarray(model.centre, float).tolist(),
+        },
         "first_pose": {"source": first_pose.source, "spec": first_pose.spec},
         "options": asdict(options),
         "max_frames": max_frames,
@@ -95,8 +116,10 @@ def continue_results(doc: dict, old: dict, path: Path) -> None:
     """
     differ = _settings_differ(old, doc)
     if differ:
-        raise FaceStudioError(f"{path} holds tracking with other settings (different "
-                              f"{', '.join(differ)}); pass --restart to start over or choose another --out")
+        raise FaceStudioError(
+            f"{path} holds tracking with other settings (different "
+            f"{', '.join(differ)}); pass --restart to start over or choose another --out"
+        )
     doc["frames"] = old["frames"]
     doc["first_pose"] = old["first_pose"]  # the same JSON: keep naming the file it first came from
     doc["corrections"] = _check_corrections(old.get("corrections"), path)
@@ -134,7 +157,7 @@ def _check_corrections(corrections, path: Path) -> list[dict]:
     ok = isinstance(corrections, list) and all(
         isinstance(c, dict) and type(c.get("frame")) is int and c["frame"] >= 0 and isinstance(c.get("spec"), dict)
         for c in corrections
-    )  # fmt: skip
+    )
     if not ok:
         raise FaceStudioError(f"{path}: 'corrections' must be a list of {{frame, source, spec}}; pass --restart")
     return sorted(corrections, key=lambda c: c["frame"])
@@ -142,10 +165,23 @@ def _check_corrections(corrections, path: Path) -> list[dict]:
 
 #: Columns of ``track.csv`` before the weights (``w_<region>_<expression>``) and after them.
 CSV_COLUMNS = (
-    ["frame", "rx_rad", "ry_rad", "rz_rad", "pitch_deg", "yaw_deg", "roll_deg", "tx_mm", "ty_mm", "tz_mm",
-     "cx_mm", "cy_mm", "cz_mm"],
+    [
+        "frame",
+        "rx_rad",
+        "ry_rad",
+        "rz_rad",
+        "pitch_deg",
+        "yaw_deg",
+        "roll_deg",
+        "tx_mm",
+        "ty_mm",
+        "tz_mm",
+        "cx_mm",
+        "cy_mm",
+        "cz_mm",
+    ],
     ["rms", "pixels", "diverged", "steps", "evaluations", "seconds", "start"],
-)  # fmt: skip
+)
 #: Where a frame's fit started (a record's ``start``): the first pose (frame 0), the prediction from
 #: the frames before (§6.2), a pose the user gave for that frame (a correction), or the landmark
 #: detector's pose when the track had lost the face (:mod:`tracking.detected_pose`).
@@ -180,8 +216,11 @@ def frame_record(index: int, result, model: FaceModel, seconds: float, start: st
         "centre_mm": np.asarray(st.t, float).tolist(),
         "head_rotation_deg": np.degrees(rotation_vector(R @ FACING.T)).tolist(),
         "alpha": np.asarray(st.alpha, float).tolist(),
-        "weights": {r: dict(zip(model.names, map(float, result.weights[i]), strict=True))
-                    for i, r in enumerate(CONTROL_REGIONS) if i},  # fmt: skip
+        "weights": {
+            r: dict(zip(model.names, map(float, result.weights[i]), strict=True))
+            for i, r in enumerate(CONTROL_REGIONS)
+            if i
+        },
         "rms": float(result.rms),
         "pixels": int(result.pixels),
         "diverged": bool(result.diverged),
@@ -205,8 +244,15 @@ def csv_bytes(frames: list[dict], regions: list[str], names: list[str]) -> bytes
     for f in frames:
         row = [f["frame"], *f["rotation_vector"], *f["head_rotation_deg"], *f["t_mm"], *f["centre_mm"]]
         row += [f["weights"][r][e] for r, e in wcols]
-        row += [f["rms"], f["pixels"], int(f["diverged"]), f["steps"], f["evaluations"], f["seconds"],
-                f.get("start", "")]
+        row += [
+            f["rms"],
+            f["pixels"],
+            int(f["diverged"]),
+            f["steps"],
+            f["evaluations"],
+            f["seconds"],
+            f.get("start", ""),
+        ]
         w.writerow([repr(v) if isinstance(v, float) else v for v in row])
     return buf.getvalue().encode()
 
@@ -235,6 +281,7 @@ def load_track_results(out_dir: str | os.PathLike) -> dict | None:
     if not isinstance(doc, dict) or doc.get("format") != FORMAT or not isinstance(doc.get("frames"), list):
         raise FaceStudioError(f"{path}: not a Face Studio tracking file; choose another --out or pass --restart")
     if doc.get("version") != VERSION:
-        raise FaceStudioError(f"{path}: tracking file version {doc.get('version')} (this Face Studio writes "
-                              f"{VERSION}); pass --restart")  # fmt: skip
+        raise FaceStudioError(
+            f"{path}: tracking file version {doc.get('version')} (this Face Studio writes {VERSION}); pass --restart"
+        )
     return doc

@@ -55,8 +55,9 @@ class TrackReview:
             except FaceStudioError as exc:
                 self.footage_error = str(exc)
         regions = doc["model"]["regions_with_parameters"]
-        self.plots = track_plots(self.records, regions, doc["model"]["expressions"], DIVERGED_RMS) \
-            if self.records else {}  # fmt: skip
+        self.plots = (
+            track_plots(self.records, regions, doc["model"]["expressions"], DIVERGED_RMS) if self.records else {}
+        )
 
     @classmethod
     def open(cls, out_dir: str | os.PathLike) -> TrackReview:
@@ -110,5 +111,9 @@ class TrackReview:
         """The :func:`tracking.run.track_video` arguments that re-track these results (a correction):
         ``video``, ``expressions``, ``first_pose`` (the recorded JSON) and ``focal_px``."""
         d = self.doc
-        return {"video": Path(d["video"]["path"]), "expressions": list(d["model"]["expressions"]),
-                "first_pose": d["first_pose"]["spec"], "focal_px": float(d["camera"]["focal_px"])}  # fmt: skip
+        return {
+            "video": Path(d["video"]["path"]),
+            "expressions": list(d["model"]["expressions"]),
+            "first_pose": d["first_pose"]["spec"],
+            "focal_px": float(d["camera"]["focal_px"]),
+        }

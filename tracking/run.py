@@ -213,8 +213,9 @@ def track_video(
     KeyboardInterrupt after saving the frames tracked so far.
     """
     _check_request(correct_frame, correct_pose, restart)
-    run = _Run.open(project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames,
-                    options)  # fmt: skip
+    run = _Run.open(
+        project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames, options
+    )
     run.redetect = int(redetect)
     doc = new_results(project_path, run.video, run.model, run.model_source, run.first, run.options, max_frames)
     _take_earlier_results(run, doc, restart, correct_frame)
@@ -229,8 +230,19 @@ def track_video(
     ended, cancelled, seconds = _fit_frames(run, doc, fitter, starts, start, save_every, progress, cancel)
     files = _write_outputs(run, doc, fitter, ended, plots, overlay)
     records = doc["frames"]
-    return TrackResult(run.out, records, start, len(records) - start, ended, cancelled, seconds, files, correct_frame,
-                       list(run.video.ignored), doc["first_pose"]["source"])  # fmt: skip
+    return TrackResult(
+        run.out,
+        records,
+        start,
+        len(records) - start,
+        ended,
+        cancelled,
+        seconds,
+        files,
+        correct_frame,
+        list(run.video.ignored),
+        doc["first_pose"]["source"],
+    )
 
 
 def _check_request(correct_frame, correct_pose, restart: bool) -> None:
@@ -258,8 +270,9 @@ class _Run:
     work_factor: int = 1
 
     @classmethod
-    def open(cls, project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames,
-             options) -> _Run:  # fmt: skip
+    def open(
+        cls, project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames, options
+    ) -> _Run:
         """The project, the footage, the face model, the first pose and the output folder of
         :func:`track_video`'s arguments (the same names); raises what they raise."""
         project = load_project(project_path)
@@ -286,8 +299,9 @@ class _Run:
     def pose(self, spec: dict, where: str, frame: int) -> FirstPose:
         """Frame ``frame``'s pose from a parsed pose JSON (:func:`tracking.first_pose.pose_from_spec`),
         with the run's camera."""
-        return pose_from_spec(spec, where, self.project, self.model, self.video.width, self.video.height,
-                              self.first.focal_px, frame)  # fmt: skip
+        return pose_from_spec(
+            spec, where, self.project, self.model, self.video.width, self.video.height, self.first.focal_px, frame
+        )
 
 
 def _detected_first_pose(project, model: FaceModel, video: VideoFrames, focal_px: float | None) -> FirstPose:
@@ -299,12 +313,16 @@ def _detected_first_pose(project, model: FaceModel, video: VideoFrames, focal_px
     frame = next(video.frames(0, 1))[1]
     spec = detected_spec(frame, project, focal_px)
     if spec is None:
-        raise FitError(f"no face found in frame 0 of {video.path} by the landmark detector (or fewer than six of the "
-                       f"pose features): write the first frame's clicks into "
-                       f"{default_first_pose_path(video.path)} or pass --first-pose (see docs/tracking.md)")
+        raise FitError(
+            f"no face found in frame 0 of {video.path} by the landmark detector (or fewer than six of the "
+            f"pose features): write the first frame's clicks into "
+            f"{default_first_pose_path(video.path)} or pass --first-pose (see docs/tracking.md)"
+        )
     fp = pose_from_spec(spec, "first pose", project, model, video.width, video.height, None, 0)
-    fp.source = (f"landmark detector on frame 0: {len(spec['clicks'])} pose features, pose by "
-                 f"tracking.frame_fit.pose_from_clicks; focal length {focal_px:.1f} px, {focal_source}")
+    fp.source = (
+        f"landmark detector on frame 0: {len(spec['clicks'])} pose features, pose by "
+        f"tracking.frame_fit.pose_from_clicks; focal length {focal_px:.1f} px, {focal_source}"
+    )
     return fp
 
 
@@ -325,8 +343,10 @@ def _check_correct_frame(frame, tracked: int, max_frames: int | None, path: Path
     if tracked == 0:
         raise FaceStudioError(f"{path}: no frames tracked yet, nothing to correct; track the video first")
     if not 0 <= frame < tracked:
-        raise FaceStudioError(f"frame {frame} is out of range: {path} holds frames 0..{tracked - 1}; correct one of "
-                              f"those (track further first to reach a later frame)")  # fmt: skip
+        raise FaceStudioError(
+            f"frame {frame} is out of range: {path} holds frames 0..{tracked - 1}; correct one of "
+            f"those (track further first to reach a later frame)"
+        )
     if max_frames is not None and frame >= max_frames:
         raise FaceStudioError(f"frame {frame} is beyond the frame limit {max_frames} (frames 0..{max_frames - 1})")
     return frame
@@ -340,8 +360,10 @@ def _apply_correction(run: _Run, doc: dict, frame, pose) -> int:
     given = spec_focal(spec, where, run.video.width)
     focal = run.first.focal_px
     if given is not None and abs(given - focal) > 1e-9 * focal:
-        raise FitError(f"{where}: focal length {given} px, but the video camera of these results has "
-                       f"{focal} px (one camera per video; leave the focal length out)")  # fmt: skip
+        raise FitError(
+            f"{where}: focal length {given} px, but the video camera of these results has "
+            f"{focal} px (one camera per video; leave the focal length out)"
+        )
     cp = run.pose(spec, where, frame)
     record_correction(doc, frame, cp.source, cp.spec)
     return frame
@@ -357,13 +379,16 @@ def _fit_starts(run: _Run, doc: dict, start: int) -> dict[int, tuple[str, FirstP
         starts[c["frame"]] = ("user", None)
     for c in doc["corrections"]:
         if c["frame"] >= start:
-            starts[c["frame"]] = ("user", run.pose(c["spec"], f"{run.json_path}: correction of frame {c['frame']}",
-                                                   c["frame"]))  # fmt: skip
+            starts[c["frame"]] = (
+                "user",
+                run.pose(c["spec"], f"{run.json_path}: correction of frame {c['frame']}", c["frame"]),
+            )
     return starts
 
 
-def _fit_frames(run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: int, save_every: int,
-                  progress, cancel) -> tuple[bool, bool, float]:  # fmt: skip
+def _fit_frames(
+    run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: int, save_every: int, progress, cancel
+) -> tuple[bool, bool, float]:
     """Fit frames ``start`` .. (to the end or the frame limit) into ``doc["frames"]``, saving every
     ``save_every`` frames and on Ctrl-C (re-raised). Returns (ended: the loop ran out of frames,
     cancelled, seconds of fitting)."""
@@ -431,8 +456,9 @@ def _work_frame(frame: np.ndarray, work: FrameFitter) -> np.ndarray:
     return cv2.resize(frame[: h * k, : w * k], (w, h), interpolation=cv2.INTER_AREA)
 
 
-def _fit_frame(run: _Run, fitter: FrameFitter, watch: Redetector, i: int, frame: np.ndarray, starts: dict,
-               states: list) -> tuple:  # fmt: skip
+def _fit_frame(
+    run: _Run, fitter: FrameFitter, watch: Redetector, i: int, frame: np.ndarray, starts: dict, states: list
+) -> tuple:
     """Fit frame ``i`` (on the reduced frame of ``run.work``): from a start pose (frame 0, a
     correction; several rounds), else from the prediction of ``states`` — and again from the
     detector's pose when the detector says the track lost the face
@@ -454,8 +480,9 @@ def _fit_frame(run: _Run, fitter: FrameFitter, watch: Redetector, i: int, frame:
     return again, "detected", []
 
 
-def _write_outputs(run: _Run, doc: dict, fitter: FrameFitter, ended: bool, plots: bool,
-                   overlay: bool) -> dict[str, Path]:  # fmt: skip
+def _write_outputs(
+    run: _Run, doc: dict, fitter: FrameFitter, ended: bool, plots: bool, overlay: bool
+) -> dict[str, Path]:
     """The final ``track.json``/``track.csv`` (``complete`` when the whole video is tracked), the
     plots, and the overlay video once the loop ``ended``; returns {name: path} of the files written."""
     records = doc["frames"]

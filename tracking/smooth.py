@@ -242,13 +242,24 @@ def _refit_pose(fitter: FrameFitter, frame: np.ndarray, state: FrameState, itera
     fitter._sigma2 = {}
     fitter._weighted = True
     o = fitter.options
-    ev = fitter._lm(np.asarray(frame, np.float32), state, np.arange(6), iterations, o.pose_jacobian,
-                    o.bandpass is not None, [], None, o.step_tolerance_mm, False)  # fmt: skip
+    ev = fitter._lm(
+        np.asarray(frame, np.float32),
+        state,
+        np.arange(6),
+        iterations,
+        o.pose_jacobian,
+        o.bandpass is not None,
+        [],
+        None,
+        o.step_tolerance_mm,
+        False,
+    )
     return ev.state
 
 
-def smooth_clip(fitter: FrameFitter, frames, states, options: SmoothOptions | None = None,
-                progress=None) -> SmoothResult:  # fmt: skip
+def smooth_clip(
+    fitter: FrameFitter, frames, states, options: SmoothOptions | None = None, progress=None
+) -> SmoothResult:
     """Re-estimate the expression parameters of a tracked clip jointly (§3.1.4, Eq. 15–23),
     alternating with the frames' poses (module docstring).
 

@@ -74,8 +74,18 @@ from photomodel.photos.intake import new_project_from_photos
 from photomodel.project import FILE_SUFFIX, CurveDef, Feature, Project, save_project
 from tracking.video import VideoFrames, frame_uint8
 
-__all__ = ["FrameLook", "StillsError", "choose_stills", "look_at_clip", "look_at_frame", "new_project_from_video",
-           "occlusion_scores", "remove_stills", "stills_folder", "write_stills"]
+__all__ = [
+    "FrameLook",
+    "StillsError",
+    "choose_stills",
+    "look_at_clip",
+    "look_at_frame",
+    "new_project_from_video",
+    "occlusion_scores",
+    "remove_stills",
+    "stills_folder",
+    "write_stills",
+]
 
 #: Frames looked at over a clip when ``every`` is not given (a 640×360 frame costs ~70 ms).
 FRAMES_LOOKED_AT = 150
@@ -181,13 +191,15 @@ def look_from_face(frame: int, face: Face468, image: np.ndarray) -> FrameLook:
     corners = (q[_MOUTH_CORNERS[0], 1] + q[_MOUTH_CORNERS[1], 1]) / 2.0
     spread = face.spread if face.spread is not None else np.zeros(len(face.points))
     return FrameLook(
-        frame=int(frame), yaw_deg=float(estimate_yaw_deg(face.points)),
+        frame=int(frame),
+        yaw_deg=float(estimate_yaw_deg(face.points)),
         lips_apart=float(max(0.0, q[_INNER_LIPS[1], 1] - q[_INNER_LIPS[0], 1])),
         corner_offset=float(abs(meet - corners)),
         eye_opening=float(np.mean([q[lo, 1] - q[up, 1] for up, lo in _LIDS])),
         spread_pct=float(np.mean(spread[list(_LOWER_FACE)]) / d * 100.0),
-        lip_contrast=lip_contrast(image, face.points), eye_px=d,
-    )  # fmt: skip
+        lip_contrast=lip_contrast(image, face.points),
+        eye_px=d,
+    )
 
 
 def look_at_frame(frame: int, image: np.ndarray) -> FrameLook | None:
@@ -352,24 +364,47 @@ def new_project_from_video(
     report = None if progress is None else (lambda stage, f: progress(stage, 0.8 * f))
     looks, looked_at = look_at_clip(video, every=every, progress=report)
     if not looks:
-        raise StillsError(f"no face found in any of the {looked_at} frames looked at in {video.path}; "
-                          "pick frames by hand: facestudio new --photos DIR")
+        raise StillsError(
+            f"no face found in any of the {looked_at} frames looked at in {video.path}; "
+            "pick frames by hand: facestudio new --photos DIR"
+        )
     chosen, occluded = choose_stills(looks, count, video.fps)
     if not chosen:
-        raise StillsError(f"every frame with a face in {video.path} looks occluded ({len(occluded)} frames); "
-                          "pick frames by hand: facestudio new --photos DIR")
+        raise StillsError(
+            f"every frame with a face in {video.path} looks occluded ({len(occluded)} frames); "
+            "pick frames by hand: facestudio new --photos DIR"
+        )
     written = write_stills(video, [lk.frame for lk in chosen], Path(folder or stills_folder(project_path)))
     try:
         project, warnings = new_project_from_photos(
-            written, project_path, features=features, curves=curves, expression=expression,
-            camera_group=camera_group or video.path.stem, progress=progress)
+            written,
+            project_path,
+            features=features,
+            curves=curves,
+            expression=expression,
+            camera_group=camera_group or video.path.stem,
+            progress=progress,
+        )
         save_project(project, project_path)
     except BaseException:  # cancelled or failed: the stills written for it go too
         remove_stills(written)
         raise
-    summary = {"path": str(video.path), "frames": video.count or 0, "fps": video.fps,
-               "frames_looked_at": looked_at, "frames_with_face": len(looks), "frames_occluded": len(occluded),
-               "stills": [{"frame": lk.frame, "file": p.name, "yaw_deg": round(lk.yaw_deg, 2),
-                           "expression": round(lk.expression, 4), "occlusion": round(lk.occlusion, 3)}
-                          for lk, p in zip(chosen, written, strict=True)]}
+    summary = {
+        "path": str(video.path),
+        "frames": video.count or 0,
+        "fps": video.fps,
+        "frames_looked_at": looked_at,
+        "frames_with_face": len(looks),
+        "frames_occluded": len(occluded),
+        "stills": [
+            {
+                "frame": lk.frame,
+                "file": p.name,
+                "yaw_deg": round(lk.yaw_deg, 2),
+                "expression": round(lk.expression, 4),
+                "occlusion": round(lk.occlusion, 3),
+            }
+            for lk, p in zip(chosen, written, strict=True)
+        ],
+    }
     return project, warnings, summary

@@ -93,8 +93,9 @@ class VideoFrames:
         if self.is_folder:
             images = files_in_folder(self.path, IMAGE_SUFFIXES)  # hidden files are not frames
             if not images:
-                raise VideoError(f"the frame folder {self.path} holds no images "
-                                 f"(looked for {', '.join(IMAGE_SUFFIXES)})")
+                raise VideoError(
+                    f"the frame folder {self.path} holds no images (looked for {', '.join(IMAGE_SUFFIXES)})"
+                )
             self.files, self.ignored = frame_files(images)
             self.count: int | None = len(self.files)
             first = self._read_image(self.files[0])
@@ -118,8 +119,10 @@ class VideoFrames:
         cap = cv2.VideoCapture(str(self.path))
         if not cap.isOpened():
             cap.release()
-            raise VideoError(f"the video {self.path} cannot be opened by OpenCV (corrupt or unknown format); "
-                             f"a folder of PNG/JPG frames works too")  # fmt: skip
+            raise VideoError(
+                f"the video {self.path} cannot be opened by OpenCV (corrupt or unknown format); "
+                f"a folder of PNG/JPG frames works too"
+            )
         return cap
 
     def _read_image(self, path: Path) -> np.ndarray:
@@ -134,8 +137,10 @@ class VideoFrames:
             for i in range(start, len(self.files) if stop is None else min(stop, len(self.files))):
                 bgr = self._read_image(self.files[i])
                 if bgr.shape[:2] != (self.height, self.width):
-                    raise VideoError(f"the frame {self.files[i]} is {bgr.shape[1]}x{bgr.shape[0]}, but the first "
-                                     f"frame is {self.width}x{self.height}")  # fmt: skip
+                    raise VideoError(
+                        f"the frame {self.files[i]} is {bgr.shape[1]}x{bgr.shape[0]}, but the first "
+                        f"frame is {self.width}x{self.height}"
+                    )
                 yield i, _to_rgb(bgr)
             return
         cap = self._open()

@@ -28,15 +28,19 @@ class SetPointCommand(QUndoCommand):
     automatic click with its confidence.
     """
 
-    def __init__(self, model: StudioModel, expression: str, photo_id: str, feature: str, uv,
-                 old_uv=None, text: str | None = None):
+    def __init__(
+        self, model: StudioModel, expression: str, photo_id: str, feature: str, uv, old_uv=None, text: str | None = None
+    ):
         photo = model.photo(photo_id, expression)
         self.model, self.expression, self.photo_id, self.feature = model, expression, photo_id, feature
         self.new = None if uv is None else np.asarray(uv, dtype=float).reshape(2).copy()
         # a drag moves the marker before the command exists: its start is passed in
         current = photo.points.get(feature)
-        self.old = (np.asarray(old_uv, float).reshape(2).copy() if old_uv is not None
-                    else (None if current is None else current.copy()))
+        self.old = (
+            np.asarray(old_uv, float).reshape(2).copy()
+            if old_uv is not None
+            else (None if current is None else current.copy())
+        )
         self.was_hidden = feature in photo.hidden
         # an automatic click the artist moves becomes theirs; undo makes it automatic again
         self.old_source = (photo.click_source(feature), photo.confidence.get(feature))
@@ -61,8 +65,9 @@ class SetPointCommand(QUndoCommand):
 
     def undo(self):
         source, confidence = self.old_source
-        self.model.set_point(self.expression, self.photo_id, self.feature, self.old, source=source,
-                             confidence=confidence)
+        self.model.set_point(
+            self.expression, self.photo_id, self.feature, self.old, source=source, confidence=confidence
+        )
         if self.new is not None and self.was_hidden:
             self.model.set_hidden(self.expression, self.photo_id, self.feature, True)
         if self.define is not None:
@@ -212,8 +217,9 @@ class SetCameraGroupCommand(QUndoCommand):
     ``None`` clears it."""
 
     def __init__(self, model: StudioModel, expression: str, photo_id: str, group: str | None):
-        super().__init__(f"Set camera group of {photo_id} to {group}" if group is not None
-                         else f"Clear camera group of {photo_id}")
+        super().__init__(
+            f"Set camera group of {photo_id} to {group}" if group is not None else f"Clear camera group of {photo_id}"
+        )
         self.model, self.expression, self.photo_id, self.group = model, expression, photo_id, group
         self.old = model.photo(photo_id, expression).camera_group
 

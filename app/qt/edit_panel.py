@@ -143,8 +143,10 @@ class CurvePlot(QWidget):
             y = self._to_y(v, lo, hi)
             p.drawLine(QPointF(self.MARGIN, y), QPointF(self.width() - self.MARGIN, y))
             p.drawText(QPointF(4, y + 4), f"{v:g}")
-        for curve, pen in ((self.original, QPen(ORIGINAL_COLOR, 2, Qt.PenStyle.DashLine)),
-                           (self.edited, QPen(EDITED_COLOR, 2.5))):  # fmt: skip
+        for curve, pen in (
+            (self.original, QPen(ORIGINAL_COLOR, 2, Qt.PenStyle.DashLine)),
+            (self.edited, QPen(EDITED_COLOR, 2.5)),
+        ):
             path = QPainterPath()
             for t, v in enumerate(curve):
                 pt = QPointF(self.to_x(t), self._to_y(float(v), lo, hi))
@@ -375,8 +377,15 @@ class EditPanel(QWidget):
         if factor is not None:
             self.factor_box.setValue(float(factor))
         a, b = self.span
-        return self._edit({"op": "scale", "expression": self.expression, "factor": float(self.factor_box.value()),
-                           "span": [a, b], "ramp": int(self.ramp_box.value())})  # fmt: skip
+        return self._edit(
+            {
+                "op": "scale",
+                "expression": self.expression,
+                "factor": float(self.factor_box.value()),
+                "span": [a, b],
+                "ramp": int(self.ramp_box.value()),
+            }
+        )
 
     def apply_replace(self, frame: int | None = None) -> bool:
         """Replace the span by an interpolation through ``frame``'s expression (default the frame box)."""
@@ -432,9 +441,12 @@ class EditPanel(QWidget):
         self.plot.span = self.span
         self.plot.frame = self.slider.value()
         self.plot.set_curves(before, after, f"{self.region_box.currentText()}: {self.expression}")
-        ops = [f"{e['op']} {e.get('expression', '')} ×{e['factor']:g} {e['span'][0]}–{e['span'][1]}"
-               if e["op"] == "scale" else f"replace {e['span'][0]}–{e['span'][1]} @ {e['frame']}"
-               for e in s.edits]  # fmt: skip
+        ops = [
+            f"{e['op']} {e.get('expression', '')} ×{e['factor']:g} {e['span'][0]}–{e['span'][1]}"
+            if e["op"] == "scale"
+            else f"replace {e['span'][0]}–{e['span'][1]} @ {e['frame']}"
+            for e in s.edits
+        ]
         self.edits_label.setText("edits: " + "; ".join(ops) if ops else "no edits")
 
     def _show_frame(self, index: int) -> None:
@@ -447,8 +459,13 @@ class EditPanel(QWidget):
         self.index_label.setText(f"frame {index} / {s.frame_count - 1}" + ("  edited" if changed else ""))
         for i, (img, lab) in enumerate(((self.original, self.original_label), (self.edited, self.edited_label))):
             self._pixmaps[i] = QPixmap.fromImage(to_qimage(np.round(np.clip(img, 0, 1) * 255).astype(np.uint8)))
-            lab.setPixmap(self._pixmaps[i].scaled(lab.contentsRect().size(), Qt.AspectRatioMode.KeepAspectRatio,
-                                                  Qt.TransformationMode.FastTransformation))  # fmt: skip
+            lab.setPixmap(
+                self._pixmaps[i].scaled(
+                    lab.contentsRect().size(),
+                    Qt.AspectRatioMode.KeepAspectRatio,
+                    Qt.TransformationMode.FastTransformation,
+                )
+            )
         self.plot.frame = index
         self.plot.update()
 
@@ -476,8 +493,9 @@ class EditPanel(QWidget):
             return False
         if out is None:
             start = str(self.review.out_dir / "edited.mp4")
-            out, _ = QFileDialog.getSaveFileName(self, "Export the edited clip", start,
-                                                 "Video (*.mp4);;PNG frames folder (*)")  # fmt: skip
+            out, _ = QFileDialog.getSaveFileName(
+                self, "Export the edited clip", start, "Video (*.mp4);;PNG frames folder (*)"
+            )
             if not out:
                 return False
         # a snapshot: later edits on the GUI thread do not reach the running export
@@ -485,8 +503,9 @@ class EditPanel(QWidget):
         snap.edits = [dict(e) for e in s.edits]
         track_dir = self.review.out_dir
         self.jobs.start(lambda progress, cancel: export_session(snap, track_dir, out, progress, cancel))
-        self._progress = open_progress(self, "Export", f"Exporting the edited clip to {Path(out).name}…",
-                                       self.jobs.cancel)  # fmt: skip
+        self._progress = open_progress(
+            self, "Export", f"Exporting the edited clip to {Path(out).name}…", self.jobs.cancel
+        )
         self.last_message = f"exporting to {out}…"
         return True
 

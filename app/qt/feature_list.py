@@ -192,8 +192,12 @@ class FeaturePanel(QWidget):
                     item = QTreeWidgetItem([name, f"{n}/{k}", "" if r is None else f"{r:.2f}"])
                     if n < min(2, k):
                         item.setForeground(1, QBrush(QColor(220, 120, 0)))
-                        item.setToolTip(1, "a feature needs clicks in at least two photos" if k > 1
-                                        else "not clicked in the photo yet")
+                        item.setToolTip(
+                            1,
+                            "a feature needs clicks in at least two photos"
+                            if k > 1
+                            else "not clicked in the photo yet",
+                        )
                     groups["pose" if pose else "other"].addChild(item)
                 else:
                     item = QTreeWidgetItem([name, "", ""])
@@ -266,8 +270,10 @@ class FeaturePanel(QWidget):
             return None
         menu = QMenu(self)
         pose = m.project.feature(name).pose
-        menu.addAction(f"Unflag {name} as a pose feature" if pose else f"Flag {name} as a pose feature",
-                       lambda: self.set_pose(name, not pose))
+        menu.addAction(
+            f"Unflag {name} as a pose feature" if pose else f"Flag {name} as a pose feature",
+            lambda: self.set_pose(name, not pose),
+        )
         if m.expression is not None and m.photos:
             sub = menu.addMenu("Leave out of photo")
             for p in m.photos:
@@ -299,8 +305,11 @@ class FeaturePanel(QWidget):
         items = self.model.checklist()
         one = len(self.model.photos) == 1
         if not items:
-            done = QListWidgetItem("✓ enough clicks in the photo (one photo: depth from the generic head)" if one
-                                   else "✓ every pose feature is clicked in 2+ photos")
+            done = QListWidgetItem(
+                "✓ enough clicks in the photo (one photo: depth from the generic head)"
+                if one
+                else "✓ every pose feature is clicked in 2+ photos"
+            )
             done.setFlags(Qt.ItemFlag.ItemIsEnabled)
             done.setForeground(QBrush(QColor(60, 160, 60)))
             self.todo.addItem(done)
@@ -373,10 +382,16 @@ class FeaturePanel(QWidget):
         rep = fit.report
         when = "" if fit.elapsed_s is None else f" in {fit.elapsed_s * 1000:.0f} ms"
         prior = uses_person_prior(rep.get("camera_solve"))
-        self.summary.setText(f"reprojection RMS <b>{rep.get('rms_px', float('nan')):.2f} px</b> "
-                             f"(pose features {rep.get('pose', {}).get('rms_px', float('nan')):.2f} px){when}"
-                             + ("<br>the most probable face: automatic clicks count as far as the detector is "
-                                "sure of them, so the RMS against them is about its error" if prior else ""))
+        self.summary.setText(
+            f"reprojection RMS <b>{rep.get('rms_px', float('nan')):.2f} px</b> "
+            f"(pose features {rep.get('pose', {}).get('rms_px', float('nan')):.2f} px){when}"
+            + (
+                "<br>the most probable face: automatic clicks count as far as the detector is "
+                "sure of them, so the RMS against them is about its error"
+                if prior
+                else ""
+            )
+        )
         for v in rep.get("views", []):
             rms = "–" if v.get("rms_px") is None else f"{v['rms_px']:.2f}"
             item = QTreeWidgetItem([v["photo"], rms, str(v.get("points", "")), f"{v.get('focal_mm', 0):.0f} mm"])
@@ -387,8 +402,10 @@ class FeaturePanel(QWidget):
             item = QListWidgetItem(f"⚠ {c['error_px']:5.1f} px   {c['feature']}  @ {c['photo']}  (suspect, not used)")
             item.setData(_NAME_ROLE, (c["photo"], c["feature"]))
             item.setForeground(QBrush(QColor(200, 30, 30)))
-            item.setToolTip("The fit found this click inconsistent with the others and left it out. "
-                            "Drag it to the right place (or hide it) and refit.")
+            item.setToolTip(
+                "The fit found this click inconsistent with the others and left it out. "
+                "Drag it to the right place (or hide it) and refit."
+            )
             self.worst.addItem(item)
             suspect.add((c["photo"], c["feature"]))
         for photo_id, why in (rep.get("photos_left_out") or {}).items():

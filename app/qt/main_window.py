@@ -136,6 +136,8 @@ def lock_recovery_file(path) -> QLockFile | None:
     lock = QLockFile(str(path) + ".lock")
     lock.setStaleLockTime(0)
     return lock if lock.tryLock(0) else None
+
+
 PROJECT_FILTER = f"Face Studio projects (*{FILE_SUFFIX});;JSON files (*.json);;All files (*)"
 IMAGE_FILTER = "Images (" + " ".join(f"*{s}" for s in IMAGE_SUFFIXES) + ");;All files (*)"
 
@@ -173,8 +175,14 @@ class MainWindow(QMainWindow):
 
     unexpected_error = Signal(str)
 
-    def __init__(self, model: StudioModel | None = None, settings: QSettings | None = None,
-                 autosave_interval_ms: int = AUTOSAVE_INTERVAL_MS, recovery_file=None, recovery_folder=None):
+    def __init__(
+        self,
+        model: StudioModel | None = None,
+        settings: QSettings | None = None,
+        autosave_interval_ms: int = AUTOSAVE_INTERVAL_MS,
+        recovery_file=None,
+        recovery_folder=None,
+    ):
         check_pyside()
         super().__init__()
         self.model = model if model is not None else StudioModel()
@@ -256,8 +264,9 @@ class MainWindow(QMainWindow):
         dockw.hide()  # shown by the first texture
 
         self.expressions_view = ExpressionsView(self.model)
-        docke = self.expressions_dock = self._dock("Expressions side by side", "expressions",
-                                                   self.expressions_view, bottom)
+        docke = self.expressions_dock = self._dock(
+            "Expressions side by side", "expressions", self.expressions_view, bottom
+        )
         docke.hide()
 
         self.tracking_view = TrackingView(self.model)
@@ -315,7 +324,6 @@ class MainWindow(QMainWindow):
         for ended in (track.finished, track.failed, track.cancelled):
             ended.connect(self._on_tracking_ended)
 
-
     # ------------------------------------------------------------------ actions and menus
     def _action(self, text, slot=None, shortcut=None, checkable=False, checked=False, tip=None) -> QAction:
         a = QAction(text, self)
@@ -337,20 +345,35 @@ class MainWindow(QMainWindow):
         self.act_open = A("&Open…", self.open_dialog, QKeySequence.StandardKey.Open)
         self.act_save = A("&Save", self.save, QKeySequence.StandardKey.Save)
         self.act_save_as = A("Save &as…", self.save_as, QKeySequence.StandardKey.SaveAs)
-        self.act_add_photos = A("Add &photos…", self.add_photos_dialog, "Ctrl+Shift+P",
-                                tip="add photographs of the current expression (or drop image files on the window)")
-        self.act_new_from_photos = A("New from p&hotos…", lambda: self.importer.new_from_photos_dialog(),
-                                     tip="a new project from a folder of photos, with automatic landmarks")
-        self.act_new_from_video = A("New from &video…", lambda: self.importer.new_from_video_dialog(),
-                                    tip="a new project from stills of a video of the person (the clearest, least "
-                                        "expressive frames across the head's turn), with automatic landmarks")
-        self.act_add_photos_auto = A("Add photos with automatic &landmarks…", self.add_photos_auto_dialog,
-                                     tip="add photographs of the current expression and place their landmarks")
+        self.act_add_photos = A(
+            "Add &photos…",
+            self.add_photos_dialog,
+            "Ctrl+Shift+P",
+            tip="add photographs of the current expression (or drop image files on the window)",
+        )
+        self.act_new_from_photos = A(
+            "New from p&hotos…",
+            lambda: self.importer.new_from_photos_dialog(),
+            tip="a new project from a folder of photos, with automatic landmarks",
+        )
+        self.act_new_from_video = A(
+            "New from &video…",
+            lambda: self.importer.new_from_video_dialog(),
+            tip="a new project from stills of a video of the person (the clearest, least "
+            "expressive frames across the head's turn), with automatic landmarks",
+        )
+        self.act_add_photos_auto = A(
+            "Add photos with automatic &landmarks…",
+            self.add_photos_auto_dialog,
+            tip="add photographs of the current expression and place their landmarks",
+        )
         self.act_remove_photo = A("Remove current photo", self.remove_current_photo)
         self.act_quit = A("&Quit", self.close, QKeySequence.StandardKey.Quit)
-        self.act_build_rig = A("&Build rig", self.run_build_rig,
-                               tip="ARKit's blend shapes on the fitted neutral (as `facestudio rig`), written next to "
-                                   "the project")
+        self.act_build_rig = A(
+            "&Build rig",
+            self.run_build_rig,
+            tip="ARKit's blend shapes on the fitted neutral (as `facestudio rig`), written next to the project",
+        )
         self.act_undo = self.undo_stack.createUndoAction(self, "&Undo")
         self.act_undo.setShortcut(QKeySequence.StandardKey.Undo)
         self.act_redo = self.undo_stack.createRedoAction(self, "&Redo")
@@ -363,41 +386,81 @@ class MainWindow(QMainWindow):
         self.act_delete = A("Delete click of the active feature", self._delete_click, tip="Delete key in a photo")
         self.act_hide = A("Hide / show the active feature in this photo", self._toggle_hidden, tip="H in a photo")
         self.act_new_expr = A("New &expression…", self.new_expression_dialog)
-        self.act_fit = A("&Fit", self.run_fit, "Ctrl+R",
-                         tip="recover the cameras, deform the generic mesh and refine it (§5.1)")
-        self.act_auto = A("&Auto-refit after each edit", self._set_auto_refit, checkable=True, checked=True,
-                          tip="refit after every edit while a refit takes less than 0.3 s")
+        self.act_fit = A(
+            "&Fit", self.run_fit, "Ctrl+R", tip="recover the cameras, deform the generic mesh and refine it (§5.1)"
+        )
+        self.act_auto = A(
+            "&Auto-refit after each edit",
+            self._set_auto_refit,
+            checkable=True,
+            checked=True,
+            tip="refit after every edit while a refit takes less than 0.3 s",
+        )
         self.act_overlay = A("Fitted &wireframe overlay", self._set_overlay, "W", checkable=True, checked=True)
         self.act_curves = A("Drawn &curves", self._set_curves, checkable=True, checked=True)
         self.act_fit_view = A("Fit photo to window", self._fit_photo_view, "F")
-        self.act_mode_points = A("Click &points", lambda on: on and self.set_mode(POINTS), "P", checkable=True,
-                                 checked=True, tip="left-click places the active feature; drag a marker to move it")
-        self.act_mode_curve = A("Draw &curve", lambda on: on and self.set_mode(CURVE), "C", checkable=True,
-                                tip="click successive points (or drag) along a brow, lid or lip; Enter finishes")
+        self.act_mode_points = A(
+            "Click &points",
+            lambda on: on and self.set_mode(POINTS),
+            "P",
+            checkable=True,
+            checked=True,
+            tip="left-click places the active feature; drag a marker to move it",
+        )
+        self.act_mode_curve = A(
+            "Draw &curve",
+            lambda on: on and self.set_mode(CURVE),
+            "C",
+            checkable=True,
+            tip="click successive points (or drag) along a brow, lid or lip; Enter finishes",
+        )
         group = QActionGroup(self)
         group.addAction(self.act_mode_points)
         group.addAction(self.act_mode_curve)
-        self.act_texture = A("Extract &texture", self.run_texture, "Ctrl+T",
-                             tip="blend the photos into a cylindrical texture of the fitted mesh (§5.2.2)")
+        self.act_texture = A(
+            "Extract &texture",
+            self.run_texture,
+            "Ctrl+T",
+            tip="blend the photos into a cylindrical texture of the fitted mesh (§5.2.2)",
+        )
         self.act_texture_size = A("Texture si&ze…", self.texture_size_dialog)
         self.act_tex_modes = {
             "untextured": A("&Untextured", lambda on: on and self.set_texture_mode("untextured"), checkable=True),
-            "cylindrical": A("&Cylindrical texture", lambda on: on and self.set_texture_mode("cylindrical"),
-                             checkable=True, checked=True, tip="the view-independent texture map (§5.2.2)"),
-            "view_dependent": A("&View-dependent texture", lambda on: on and self.set_texture_mode("view_dependent"),
-                                checkable=True, tip="blend the two photos nearest the 3D view's direction (§5.2.3)"),
+            "cylindrical": A(
+                "&Cylindrical texture",
+                lambda on: on and self.set_texture_mode("cylindrical"),
+                checkable=True,
+                checked=True,
+                tip="the view-independent texture map (§5.2.2)",
+            ),
+            "view_dependent": A(
+                "&View-dependent texture",
+                lambda on: on and self.set_texture_mode("view_dependent"),
+                checkable=True,
+                tip="blend the two photos nearest the 3D view's direction (§5.2.3)",
+            ),
         }
         tgroup = QActionGroup(self)
         for a in self.act_tex_modes.values():
             tgroup.addAction(a)
-        self.act_side_by_side = A("Expressions &side by side", self.show_expressions,
-                                  tip="every fitted expression from the same camera, with its RMS")
-        self.act_track_video = A("&Track video…", self.track_video_dialog,
-                                 tip="estimate head pose and expression weights in every frame of a video (§6.2)")
-        self.act_first_pose = A("Set &first pose…", lambda: self.tracking_view.first_pose_dialog(),
-                                tip="click the pose features in frame 0 of a video (the pose tracking starts from)")
-        self.act_open_tracking = A("&Open results…", self.open_tracking_dialog,
-                                   tip="show the tracking results of a folder (its track.json)")
+        self.act_side_by_side = A(
+            "Expressions &side by side",
+            self.show_expressions,
+            tip="every fitted expression from the same camera, with its RMS",
+        )
+        self.act_track_video = A(
+            "&Track video…",
+            self.track_video_dialog,
+            tip="estimate head pose and expression weights in every frame of a video (§6.2)",
+        )
+        self.act_first_pose = A(
+            "Set &first pose…",
+            lambda: self.tracking_view.first_pose_dialog(),
+            tip="click the pose features in frame 0 of a video (the pose tracking starts from)",
+        )
+        self.act_open_tracking = A(
+            "&Open results…", self.open_tracking_dialog, tip="show the tracking results of a folder (its track.json)"
+        )
 
     def _build_menus(self):
         mb = self.menuBar()
@@ -486,7 +549,8 @@ class MainWindow(QMainWindow):
         self.camera_group_edit.setMaximumWidth(140)
         self.camera_group_edit.setToolTip(
             "photos with the same camera group were taken with one camera and lens (frames of a video, "
-            "a fixed lens) and share one focal length; empty: a camera of its own")
+            "a fixed lens) and share one focal length; empty: a camera of its own"
+        )
         self.camera_group_edit.editingFinished.connect(self._on_camera_group_edited)
         tb.addWidget(self.camera_group_edit)
         tb.addAction(self.act_add_photos)
@@ -546,9 +610,12 @@ class MainWindow(QMainWindow):
         if not self.model.modified:
             return True
         answer = QMessageBox.question(
-            self, "Unsaved changes", f"Save the changes to {self.model.project.name!r}?",
+            self,
+            "Unsaved changes",
+            f"Save the changes to {self.model.project.name!r}?",
             QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard | QMessageBox.StandardButton.Cancel,
-            QMessageBox.StandardButton.Save)
+            QMessageBox.StandardButton.Save,
+        )
         if answer == QMessageBox.StandardButton.Save:
             return self.save()
         if answer == QMessageBox.StandardButton.Discard:
@@ -605,10 +672,13 @@ class MainWindow(QMainWindow):
         auto = newer_autosave(path)
         if auto is not None:
             answer = QMessageBox.question(
-                self, "Recover autosave",
+                self,
+                "Recover autosave",
                 f"{auto.name} is newer than {path.name}: it holds changes that were not saved "
                 "(e.g. before a crash). Recover them?",
-                QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
+                QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+                QMessageBox.StandardButton.Yes,
+            )
             recover = answer == QMessageBox.StandardButton.Yes
         before = self.model.project
         try:
@@ -617,10 +687,13 @@ class MainWindow(QMainWindow):
                 self._replace_project(lambda: self.model.open(path, recover=recover))
             except MissingPhotos as exc:
                 answer = QMessageBox.question(
-                    self, "Missing photos",
+                    self,
+                    "Missing photos",
                     f"{exc}\n\nOpen the project anyway? The missing photos are shown as grey placeholders; "
                     "their clicks are kept.",
-                    QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.No)
+                    QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+                    QMessageBox.StandardButton.No,
+                )
                 if answer != QMessageBox.StandardButton.Yes:
                     self._status(f"{path.name} not opened: photos are missing")
                     return False
@@ -720,10 +793,13 @@ class MainWindow(QMainWindow):
     def _offer_one_recovery(self, f: Path, lock: QLockFile | None) -> bool:
         when = QDateTime.fromSecsSinceEpoch(int(f.stat().st_mtime)).toString("yyyy-MM-dd hh:mm")
         answer = QMessageBox.question(
-            self, "Recover unsaved project",
+            self,
+            "Recover unsaved project",
             f"A project that was never saved was autosaved at {when} (e.g. before a crash). Recover it?\n\n"
             f"(No deletes {f})",
-            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+            QMessageBox.StandardButton.Yes,
+        )
         if answer != QMessageBox.StandardButton.Yes:
             f.unlink(missing_ok=True)
             if lock is not None:
@@ -1137,8 +1213,10 @@ class MainWindow(QMainWindow):
         if not self.model.apply_texture(job, vertices):
             self._status("the expression was refitted meanwhile: the texture was discarded")
             return
-        self._status(f"texture of {job.expression!r}: {job.report['coverage']:.1%} of the surface seen, "
-                     f"{job.report['extract_s']:.2f} s; it is written with the project")
+        self._status(
+            f"texture of {job.expression!r}: {job.report['coverage']:.1%} of the surface seen, "
+            f"{job.report['extract_s']:.2f} s; it is written with the project"
+        )
         self.weights_dock.show()
         self._show_weights_for_stored = False
 
@@ -1180,8 +1258,10 @@ class MainWindow(QMainWindow):
             return
         self.rig_dock.show()
         self.rig_dock.raise_()
-        self._status(f"rig of {neutral!r}: {len(rig.names)} ARKit shapes in {self.model.project.rig.file}; "
-                     "save the project to keep it")
+        self._status(
+            f"rig of {neutral!r}: {len(rig.names)} ARKit shapes in {self.model.project.rig.file}; "
+            "save the project to keep it"
+        )
 
     def _on_rig_failed(self, message: str):
         self._close_rig_progress()
@@ -1255,15 +1335,19 @@ class MainWindow(QMainWindow):
             return False
         if self.model.modified:  # the face model is built from the saved fits and textures
             answer = QMessageBox.question(
-                self, "Save before tracking",
+                self,
+                "Save before tracking",
                 "Tracking builds the face model from the saved project (its fitted meshes and textures). "
                 "Save the changes now?",
-                QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Cancel, QMessageBox.StandardButton.Save)
+                QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Cancel,
+                QMessageBox.StandardButton.Save,
+            )
             if answer != QMessageBox.StandardButton.Save or not self.save():
                 return False
         start = str(Path(self.model.path).parent / "video")
-        path, _ = QFileDialog.getOpenFileName(self, "Track video", start,
-                                              "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)")
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Track video", start, "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)"
+        )
         if not path:
             return False
         self.show_tracking()

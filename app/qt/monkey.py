@@ -41,10 +41,25 @@ from photomodel.project.codec import project_from_dict, project_to_dict
 
 #: Action kinds and their weights (relative frequencies) in a sequence.
 ACTIONS = {
-    "expression": 4, "tab": 8, "click": 14, "drag": 8, "delete": 4, "hide": 3, "curve": 5, "undo": 9,
-    "redo": 5, "fit": 3, "cancel": 2, "texture": 3, "new": 1, "open": 3, "save": 2, "close": 1,
-    "add_photos": 2, "remove_photo": 1,
-}  # fmt: skip
+    "expression": 4,
+    "tab": 8,
+    "click": 14,
+    "drag": 8,
+    "delete": 4,
+    "hide": 3,
+    "curve": 5,
+    "undo": 9,
+    "redo": 5,
+    "fit": 3,
+    "cancel": 2,
+    "texture": 3,
+    "new": 1,
+    "open": 3,
+    "save": 2,
+    "close": 1,
+    "add_photos": 2,
+    "remove_photo": 1,
+}
 #: The longest an action may wait for a worker (fit, texture) before it counts as hung (s).
 WORKER_TIMEOUT_S = 120.0
 #: Every this many actions :meth:`Monkey.check` also writes and validates the whole project
@@ -72,8 +87,13 @@ def comparable(project, target: Path) -> dict:
 
 
 @contextmanager
-def scripted_dialogs(rng: np.random.Generator, open_choices: Callable[[], list[str]], save_target: Callable[[], str],
-                     photo_choices: Callable[[], list[str]], log: list):
+def scripted_dialogs(
+    rng: np.random.Generator,
+    open_choices: Callable[[], list[str]],
+    save_target: Callable[[], str],
+    photo_choices: Callable[[], list[str]],
+    log: list,
+):
     """Every modal dialog answered at once: message boxes recorded in ``log`` as ``(kind, title,
     text)`` and answered with a random button they offer; file dialogs pick from the choices."""
 
@@ -95,8 +115,10 @@ def scripted_dialogs(rng: np.random.Generator, open_choices: Callable[[], list[s
         return ([photos[i] for i in rng.choice(len(photos), size=min(k, len(photos)), replace=False)], "")
 
     patches = {
-        (QMessageBox, "critical"): box("critical"), (QMessageBox, "warning"): box("warning"),
-        (QMessageBox, "information"): box("information"), (QMessageBox, "question"): box("question"),
+        (QMessageBox, "critical"): box("critical"),
+        (QMessageBox, "warning"): box("warning"),
+        (QMessageBox, "information"): box("information"),
+        (QMessageBox, "question"): box("question"),
         (QFileDialog, "getOpenFileName"): staticmethod(open_file),
         (QFileDialog, "getOpenFileNames"): staticmethod(open_files),
         (QFileDialog, "getSaveFileName"): staticmethod(lambda *a, **k: (save_target(), "")),
@@ -104,7 +126,7 @@ def scripted_dialogs(rng: np.random.Generator, open_choices: Callable[[], list[s
         (QInputDialog, "getText"): staticmethod(lambda *a, **k: ("", False)),
         (QInputDialog, "getItem"): staticmethod(lambda *a, **k: ("", False)),
         (QInputDialog, "getInt"): staticmethod(lambda *a, **k: (MONKEY_TEXTURE_SIZE, False)),
-    }  # fmt: skip
+    }
     saved = {key: key[0].__dict__.get(key[1]) for key in patches}
     for (cls, name), value in patches.items():
         setattr(cls, name, value)
@@ -159,8 +181,15 @@ class Monkey:
     weights : action kind → weight (default :data:`ACTIONS`).
     """
 
-    def __init__(self, make_window, seed: int, workdir: Path, project: Path | None, photos: list[Path],
-                 weights: dict | None = None):
+    def __init__(
+        self,
+        make_window,
+        seed: int,
+        workdir: Path,
+        project: Path | None,
+        photos: list[Path],
+        weights: dict | None = None,
+    ):
         self.make_window, self.rng = make_window, np.random.default_rng(seed)
         self.workdir = Path(workdir)
         self.photos = [str(p) for p in photos]
@@ -187,8 +216,9 @@ class Monkey:
     # ------------------------------------------------------------------ running
     def run(self, actions: int, on_step: Callable[[str], None] | None = None) -> Counter:
         """``actions`` random actions, each followed by :meth:`check`; then :meth:`check_undo_all`."""
-        with scripted_dialogs(self.rng, lambda: [*self.opens, *self.saved, ""], self._save_target,
-                              lambda: self.photos, self.messages):  # fmt: skip
+        with scripted_dialogs(
+            self.rng, lambda: [*self.opens, *self.saved, ""], self._save_target, lambda: self.photos, self.messages
+        ):
             for _ in range(actions):
                 kind = self.kinds[int(self.rng.choice(len(self.kinds), p=self.p))]
                 if on_step is not None:
@@ -323,8 +353,12 @@ class Monkey:
     def _do_tab(self):
         bar = self.window.tabs.tabBar()
         if bar.count():
-            QTest.mouseClick(bar, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                             bar.tabRect(int(self.rng.integers(bar.count()))).center())  # fmt: skip
+            QTest.mouseClick(
+                bar,
+                Qt.MouseButton.LeftButton,
+                Qt.KeyboardModifier.NoModifier,
+                bar.tabRect(int(self.rng.integers(bar.count()))).center(),
+            )
 
     def _do_click(self):
         view = self._view()
@@ -332,8 +366,12 @@ class Monkey:
             return
         self._points_mode()
         self._pick_feature()
-        QTest.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                         self._pos_of(view, self._random_uv(view)))  # fmt: skip
+        QTest.mouseClick(
+            view.viewport(),
+            Qt.MouseButton.LeftButton,
+            Qt.KeyboardModifier.NoModifier,
+            self._pos_of(view, self._random_uv(view)),
+        )
 
     def _do_drag(self):
         view = self._view()
@@ -372,8 +410,12 @@ class Monkey:
             panel.curves.setCurrentItem(item)
         self.window.act_mode_curve.trigger()
         for _ in range(int(self.rng.integers(1, 6))):
-            QTest.mouseClick(view.viewport(), Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier,
-                             self._pos_of(view, self._random_uv(view)))  # fmt: skip
+            QTest.mouseClick(
+                view.viewport(),
+                Qt.MouseButton.LeftButton,
+                Qt.KeyboardModifier.NoModifier,
+                self._pos_of(view, self._random_uv(view)),
+            )
         self._key(Qt.Key.Key_Escape if self.rng.random() < 0.15 else Qt.Key.Key_Return)
         self._points_mode()
 

@@ -84,8 +84,9 @@ class PhotoImporter(QObject):
         features, curves = default_features(self.window.model.mesh)
 
         def work(progress, cancel):
-            project, warnings = new_project_from_photos(folder, path, features=features, curves=curves,
-                                                        progress=_cancellable(progress, cancel))
+            project, warnings = new_project_from_photos(
+                folder, path, features=features, curves=curves, progress=_cancellable(progress, cancel)
+            )
             save_project(project, path)  # a new file nobody else has open
             return warnings
 
@@ -108,18 +109,23 @@ class PhotoImporter(QObject):
         features, curves = default_features(self.window.model.mesh)
 
         def work(progress, cancel):
-            _, warnings, summary = new_project_from_video(clip, path, features=features, curves=curves, count=count,
-                                                          progress=_cancellable(progress, cancel))
+            _, warnings, summary = new_project_from_video(
+                clip, path, features=features, curves=curves, count=count, progress=_cancellable(progress, cancel)
+            )
             frames = ", ".join(str(st["frame"]) for st in summary["stills"])
-            return [f"stills: frames {frames} ({summary['frames_occluded']} of {summary['frames_looked_at']} "
-                    "frames looked at were occluded)", *warnings]
+            return [
+                f"stills: frames {frames} ({summary['frames_occluded']} of {summary['frames_looked_at']} "
+                "frames looked at were occluded)",
+                *warnings,
+            ]
 
         return self._start(work, ("new", path), f"Looking at {clip.name} for stills…")
 
     def _ask_project_path(self, default: Path) -> Path | None:
         """Where to save a new project (the save dialog, starting at ``default``); None if cancelled."""
-        path, _ = QFileDialog.getSaveFileName(self.window, "Save the new project as", str(default),
-                                              f"Face Studio project (*{FILE_SUFFIX})")
+        path, _ = QFileDialog.getSaveFileName(
+            self.window, "Save the new project as", str(default), f"Face Studio project (*{FILE_SUFFIX})"
+        )
         return Path(path) if path else None
 
     def _new_project_path(self, path) -> Path | None:
@@ -147,8 +153,9 @@ class PhotoImporter(QObject):
 
         def work(progress, cancel):
             # a drop of many files: one that cannot be read is named, the others still come in
-            warnings = add_photos(snapshot, expression, files, progress=_cancellable(progress, cancel),
-                                  skip_unreadable=True)
+            warnings = add_photos(
+                snapshot, expression, files, progress=_cancellable(progress, cancel), skip_unreadable=True
+            )
             new = [p for p in snapshot.expression(expression).photos if p.id not in before]
             return snapshot, new, warnings
 
@@ -218,5 +225,8 @@ def _cancellable(progress, cancel):
 
 def _summary(warnings: list[str], what: str) -> str:
     """The core's warnings (no face, several faces, duplicates) in one status line."""
-    return what + ("; " + "; ".join(map(str, warnings)) if warnings else "; automatic clicks are violet: "
-                   "drag the ones that are off, then Fit")
+    return what + (
+        "; " + "; ".join(map(str, warnings))
+        if warnings
+        else "; automatic clicks are violet: drag the ones that are off, then Fit"
+    )

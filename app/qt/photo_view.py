@@ -323,7 +323,6 @@ class PhotoView(QGraphicsView):
         self._freehand = False
         self.detached = False  # set by detach(): the model may no longer hold this photo
 
-
         self.setScene(QGraphicsScene(self))
         # ~200 items: a linear scan beats keeping a BSP index up to date after every refit
         self.scene().setItemIndexMethod(QGraphicsScene.ItemIndexMethod.NoIndex)
@@ -436,8 +435,11 @@ class PhotoView(QGraphicsView):
                 self._items[feature] = item
             item.setPos(QPointF(float(uv[0]), float(uv[1])))
             item.set_auto(photo.click_source(feature) == "auto", photo.confidence.get(feature))
-            item.set_state(self._residuals().get(feature), active=feature == self.model.active_feature,
-                           hidden=feature in photo.hidden)
+            item.set_state(
+                self._residuals().get(feature),
+                active=feature == self.model.active_feature,
+                hidden=feature in photo.hidden,
+            )
 
     def _on_fit_changed(self, expression):
         if expression != self.expression:
@@ -638,8 +640,13 @@ class PhotoView(QGraphicsView):
             if name != self.model.active_feature:
                 self._set_active(name)
             item = self._items[name]
-            self._drag = {"name": name, "old": self.photo.points[name].copy(), "item": item,
-                          "offset": np.array([item.pos().x(), item.pos().y()]) - uv, "moved": False}
+            self._drag = {
+                "name": name,
+                "old": self.photo.points[name].copy(),
+                "item": item,
+                "offset": np.array([item.pos().x(), item.pos().y()]) - uv,
+                "moved": False,
+            }
             return
         feature = self.model.active_feature
         if feature is None:
@@ -657,8 +664,13 @@ class PhotoView(QGraphicsView):
             return
         item = self._items.get(feature)
         if item is not None:  # keep dragging the new marker while the button is held
-            self._drag = {"name": feature, "old": np.asarray(uv, float).copy(), "item": item,
-                          "offset": np.zeros(2), "moved": False}
+            self._drag = {
+                "name": feature,
+                "old": np.asarray(uv, float).copy(),
+                "item": item,
+                "offset": np.zeros(2),
+                "moved": False,
+            }
 
     def _set_active(self, name):
         try:
@@ -705,8 +717,11 @@ class PhotoView(QGraphicsView):
             new = np.array([item.pos().x(), item.pos().y()])
             if drag["moved"] and not np.allclose(new, drag["old"]):
                 try:
-                    self.undo_stack.push(SetPointCommand(self.model, self.expression, self.photo_id, drag["name"],
-                                                         new, old_uv=drag["old"]))
+                    self.undo_stack.push(
+                        SetPointCommand(
+                            self.model, self.expression, self.photo_id, drag["name"], new, old_uv=drag["old"]
+                        )
+                    )
                 except FaceStudioError as exc:
                     self.status_message.emit(str(exc))
                     item.setPos(QPointF(*drag["old"]))
@@ -738,8 +753,9 @@ class PhotoView(QGraphicsView):
         if self._drawing is None:
             self._drawing = [p]
             self._freehand = True
-            self.status_message.emit(f"drawing {self.model.active_curve}: click more points, Enter to finish, "
-                                     "Esc to cancel")
+            self.status_message.emit(
+                f"drawing {self.model.active_curve}: click more points, Enter to finish, Esc to cancel"
+            )
         else:
             self._drawing.append(p)
             self._freehand = False
@@ -846,19 +862,29 @@ class PhotoView(QGraphicsView):
         photo = self.photo
         if name is not None:
             self._set_active(name)
-            menu.addAction(f"Delete {name} here", lambda: self.undo_stack.push(
-                SetPointCommand(self.model, self.expression, self.photo_id, name, None)))
+            menu.addAction(
+                f"Delete {name} here",
+                lambda: self.undo_stack.push(SetPointCommand(self.model, self.expression, self.photo_id, name, None)),
+            )
             hidden = name in photo.hidden
-            menu.addAction(f"{'Show' if hidden else 'Hide'} {name} in this photo", lambda: self.undo_stack.push(
-                SetHiddenCommand(self.model, self.expression, self.photo_id, name, not hidden)))
+            menu.addAction(
+                f"{'Show' if hidden else 'Hide'} {name} in this photo",
+                lambda: self.undo_stack.push(
+                    SetHiddenCommand(self.model, self.expression, self.photo_id, name, not hidden)
+                ),
+            )
         else:
             act = self.model.active_feature
             if act is not None and self.model.has_feature(act):
                 hidden = act in photo.hidden
                 menu.addAction(f"{'Show' if hidden else 'Hide'} {act} in this photo", self.toggle_active_hidden)
             for curve in list(photo.curves):
-                menu.addAction(f"Delete curve {curve} here", lambda c=curve: self.undo_stack.push(
-                    SetCurveCommand(self.model, self.expression, self.photo_id, c, None)))
+                menu.addAction(
+                    f"Delete curve {curve} here",
+                    lambda c=curve: self.undo_stack.push(
+                        SetCurveCommand(self.model, self.expression, self.photo_id, c, None)
+                    ),
+                )
         menu.addSeparator()
         menu.addAction("Fit photo to window (F)", lambda: (setattr(self, "user_zoomed", False), self.fit_photo()))
         if not menu.isEmpty():

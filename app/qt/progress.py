@@ -8,8 +8,9 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QProgressDialog, QWidget
 
 
-def open_progress(parent: QWidget, title: str, label: str, on_cancel: Callable[[], None],
-                  min_duration_ms: int = 300) -> QProgressDialog:
+def open_progress(
+    parent: QWidget, title: str, label: str, on_cancel: Callable[[], None], min_duration_ms: int = 300
+) -> QProgressDialog:
     """A window-modal 0–100 % dialog whose Cancel button calls ``on_cancel``; it stays open until
     :func:`close_progress` (no auto close/reset, so a late progress report cannot reopen it)."""
     dlg = QProgressDialog(label, "Cancel", 0, 100, parent)

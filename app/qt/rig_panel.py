@@ -25,8 +25,10 @@ from app.model import StudioModel
 
 #: Slider steps over the weight range [0, 1].
 STEPS = 100
-NO_RIG_HINT = ("<b>No rig in this project.</b><br>Make one with <tt>facestudio rig PROJECT</tt>, "
-               "or Rig ▸ Build rig (after the neutral is fitted).")
+NO_RIG_HINT = (
+    "<b>No rig in this project.</b><br>Make one with <tt>facestudio rig PROJECT</tt>, "
+    "or Rig ▸ Build rig (after the neutral is fitted)."
+)
 
 
 class RigPanel(QWidget):
@@ -85,8 +87,10 @@ class RigPanel(QWidget):
         self.scroll.setVisible(has)
         if has:
             photographed = len(rig.names) - rig.arkit
-            self.title.setText(f"<b>{rig.arkit} ARKit shapes</b> on {rig.neutral!r}"
-                               + (f" + {photographed} photographed" if photographed else ""))
+            self.title.setText(
+                f"<b>{rig.arkit} ARKit shapes</b> on {rig.neutral!r}"
+                + (f" + {photographed} photographed" if photographed else "")
+            )
             row = 0
             for i, name in enumerate(rig.names):
                 if i == 0 or i == rig.arkit:

@@ -91,15 +91,21 @@ class WeightMapPanel(QWidget):
             return
         job = tex.job
         r = job.report
-        self.caption.setText(f"<b>{job.expression}</b>: {job.size}×{job.size} texture from "
-                             f"{len(job.inputs.photo_ids)} photos, {r.get('coverage', 0.0):.1%} of the surface "
-                             f"seen, {r.get('extract_s', 0.0):.2f} s")
+        self.caption.setText(
+            f"<b>{job.expression}</b>: {job.size}×{job.size} texture from "
+            f"{len(job.inputs.photo_ids)} photos, {r.get('coverage', 0.0):.1%} of the surface "
+            f"seen, {r.get('extract_s', 0.0):.2f} s"
+        )
         side = min(260, max(120, self.width() - 16))
-        self.texture_label.setPixmap(QPixmap.fromImage(to_qimage(job.texture.image)).scaled(
-            side, side, Qt.AspectRatioMode.KeepAspectRatio, Qt.TransformationMode.SmoothTransformation))
+        self.texture_label.setPixmap(
+            QPixmap.fromImage(to_qimage(job.texture.image)).scaled(
+                side, side, Qt.AspectRatioMode.KeepAspectRatio, Qt.TransformationMode.SmoothTransformation
+            )
+        )
         for pid, w in zip(job.inputs.photo_ids, job.texture.weight_maps, strict=True):
-            icon = QPixmap.fromImage(to_qimage(w)).scaled(THUMB_PX, THUMB_PX, Qt.AspectRatioMode.KeepAspectRatio,
-                                                          Qt.TransformationMode.SmoothTransformation)
+            icon = QPixmap.fromImage(to_qimage(w)).scaled(
+                THUMB_PX, THUMB_PX, Qt.AspectRatioMode.KeepAspectRatio, Qt.TransformationMode.SmoothTransformation
+            )
             item = QListWidgetItem(QIcon(icon), pid)
             item.setData(Qt.ItemDataRole.UserRole, pid)
             item.setToolTip(f"{pid}: mean weight {float(w[job.texture.surface].mean()):.2f} on the surface")
@@ -176,8 +182,15 @@ class ExpressionsView(QWidget):
 
     def camera(self, vertices: np.ndarray):
         target = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
-        return orbit_camera(TILE_AZIMUTH_DEG, TILE_W, TILE_H, distance_mm=TILE_DISTANCE_MM, focal_mm=TILE_FOCAL_MM,
-                            elevation_deg=TILE_ELEVATION_DEG, target=target)
+        return orbit_camera(
+            TILE_AZIMUTH_DEG,
+            TILE_W,
+            TILE_H,
+            distance_mm=TILE_DISTANCE_MM,
+            focal_mm=TILE_FOCAL_MM,
+            elevation_deg=TILE_ELEVATION_DEG,
+            target=target,
+        )
 
     def render(self, vertices: np.ndarray, camera) -> QImage:
 

@@ -87,8 +87,12 @@ __all__ = ["MARKER_COLOR", "plot_with_marker", "TrackingView", "ClickCanvas", "F
 #: Colour (RGB) of the current-frame marker on the plots.
 MARKER_COLOR = (255, 120, 0)
 #: Order and titles of the plot tabs (file names of :func:`tracking.plots.track_plots`).
-PLOT_TABS = (("weights.png", "Weights"), ("rotation.png", "Rotation"), ("translation.png", "Translation"),
-             ("rms.png", "RMS"))  # fmt: skip
+PLOT_TABS = (
+    ("weights.png", "Weights"),
+    ("rotation.png", "Rotation"),
+    ("translation.png", "Translation"),
+    ("rms.png", "RMS"),
+)
 
 
 def plot_with_marker(image: np.ndarray, frames: np.ndarray, frame: int) -> np.ndarray:
@@ -163,9 +167,11 @@ class TrackingView(QWidget):
         self.index_label.setMinimumWidth(150)
         self.overlay_box = QCheckBox("model overlay")
         self.overlay_box.setChecked(True)
-        self.overlay_box.setToolTip("the face model drawn over the frame at its tracked pose and expression; outline "
-                                    "green (red: the frame diverged); magenta: pixels the tracker takes for not the "
-                                    "face (a hand, hair, a reflection) and leaves out of the fit")
+        self.overlay_box.setToolTip(
+            "the face model drawn over the frame at its tracked pose and expression; outline "
+            "green (red: the frame diverged); magenta: pixels the tracker takes for not the "
+            "face (a hand, hair, a reflection) and leaves out of the fit"
+        )
         self.overlay_box.toggled.connect(lambda *_: self._show_frame(self.slider.value()))
         self.limit_box = QSpinBox()
         self.limit_box.setRange(0, 1_000_000)
@@ -176,8 +182,10 @@ class TrackingView(QWidget):
         self.first_pose_button.clicked.connect(lambda: self.first_pose_dialog())
         self.first_pose_dialog_widget: FirstPoseDialog | None = None
         self.correct_button = QPushButton("Correct pose here…")
-        self.correct_button.setToolTip("the shown frame's pose is wrong (diverged, drifted): drag its pose features "
-                                       "into place, then re-track from this frame on")  # fmt: skip
+        self.correct_button.setToolTip(
+            "the shown frame's pose is wrong (diverged, drifted): drag its pose features "
+            "into place, then re-track from this frame on"
+        )
         self.correct_button.clicked.connect(lambda: self.correct_pose_dialog())
         self.correct_button.setEnabled(False)
         self.correct_dialog_widget: FirstPoseDialog | None = None
@@ -224,7 +232,8 @@ class TrackingView(QWidget):
         self.edit_panel = EditPanel(self.model)
         self.plot_tabs.addTab(self.edit_panel, "Edit")
         self.plot_tabs.currentChanged.connect(
-            lambda i: self.edit_panel.refresh() if self.plot_tabs.widget(i) is self.edit_panel else None)
+            lambda i: self.edit_panel.refresh() if self.plot_tabs.widget(i) is self.edit_panel else None
+        )
         split = QSplitter(Qt.Orientation.Horizontal)
         split.addWidget(left)
         split.addWidget(self.plot_tabs)
@@ -322,8 +331,16 @@ class TrackingView(QWidget):
         settings = self.review.correction_settings()
         video = settings.pop("video")
         self._pending_frame = int(frame)
-        self._run(project_path, video, self.out_dir, max_frames, f"Re-tracking {video.name} from frame {frame}…",
-                  correct_frame=int(frame), correct_pose=pose, **settings)  # fmt: skip
+        self._run(
+            project_path,
+            video,
+            self.out_dir,
+            max_frames,
+            f"Re-tracking {video.name} from frame {frame}…",
+            correct_frame=int(frame),
+            correct_pose=pose,
+            **settings,
+        )
         return True
 
     def _run(self, project_path, video: Path, out: Path, max_frames: int | None, label: str, **kwargs) -> None:
@@ -338,8 +355,9 @@ class TrackingView(QWidget):
                 frac = done / total if total else 0.0
                 progress(f"tracked frame {done} of {total if total else '?'}", frac)
 
-            return track_video(project_path, video, out, max_frames=max_frames, progress=report, cancel=cancel,
-                               **kwargs)  # fmt: skip
+            return track_video(
+                project_path, video, out, max_frames=max_frames, progress=report, cancel=cancel, **kwargs
+            )
 
         self.jobs.start(work)
         self._progress = open_progress(self, "Tracking", label, self.jobs.cancel)
@@ -371,9 +389,16 @@ class TrackingView(QWidget):
             return None
         try:
             clicks = self.tracked_feature_positions(frame)
-            dlg = FirstPoseDialog(self.model.project, self.doc["video"]["path"], parent=self, frame=frame,
-                                  clicks=clicks, focal_px=float(self.doc["camera"]["focal_px"]),
-                                  model=self.review.fitter().model, correct=True)  # fmt: skip
+            dlg = FirstPoseDialog(
+                self.model.project,
+                self.doc["video"]["path"],
+                parent=self,
+                frame=frame,
+                clicks=clicks,
+                focal_px=float(self.doc["camera"]["focal_px"]),
+                model=self.review.fitter().model,
+                correct=True,
+            )
         except FaceStudioError as exc:
             self._error("Cannot correct the pose", str(exc))
             return None
@@ -396,8 +421,9 @@ class TrackingView(QWidget):
         """
         if video is None:
             start = str(Path(self.model.path).parent / "video") if self.model.path is not None else ""
-            video, _ = QFileDialog.getOpenFileName(self, "Set the first pose of a video", start,
-                                                   "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)")
+            video, _ = QFileDialog.getOpenFileName(
+                self, "Set the first pose of a video", start, "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)"
+            )
             if not video:
                 return None
         try:
@@ -423,8 +449,10 @@ class TrackingView(QWidget):
     def _on_finished(self, result):
         self._close_progress()
         self.load_results(result.out_dir)
-        self.last_message = (f"tracked {result.tracked} frames ({result.fps:.1f} frames/s), "
-                             f"{result.diverged} diverged; results in {result.out_dir}")  # fmt: skip
+        self.last_message = (
+            f"tracked {result.tracked} frames ({result.fps:.1f} frames/s), "
+            f"{result.diverged} diverged; results in {result.out_dir}"
+        )
         if result.corrected is not None:
             self.last_message = f"frame {result.corrected} corrected: re-{self.last_message}"
             self.set_frame(result.corrected)
@@ -445,8 +473,7 @@ class TrackingView(QWidget):
             if self._pending_frame is not None:
                 self.set_frame(self._pending_frame)
         self._pending_frame = None
-        self.last_message = (f"tracking cancelled after {self.frame_count} frames; a new run continues "
-                             f"from there")  # fmt: skip
+        self.last_message = f"tracking cancelled after {self.frame_count} frames; a new run continues from there"
         self.caption.setText(self._caption() + f" — {self.last_message}")
 
     def _error(self, title: str, message: str) -> None:
@@ -486,8 +513,9 @@ class TrackingView(QWidget):
         """The frame scaled to the label (aspect kept, nearest pixel: the footage's pixels stay visible)."""
         if self._pixmap is not None:
             size = self.frame_label.contentsRect().size()
-            self.frame_label.setPixmap(self._pixmap.scaled(size, Qt.AspectRatioMode.KeepAspectRatio,
-                                                           Qt.TransformationMode.FastTransformation))
+            self.frame_label.setPixmap(
+                self._pixmap.scaled(size, Qt.AspectRatioMode.KeepAspectRatio, Qt.TransformationMode.FastTransformation)
+            )
 
     def resizeEvent(self, event):
         super().resizeEvent(event)
@@ -503,9 +531,11 @@ class TrackingView(QWidget):
             return
         index = int(np.clip(index, 0, len(self._records) - 1))
         rec = self._records[index]
-        self.index_label.setText(f"frame {index} / {len(self._records) - 1}   rms {rec['rms']:.3f}"
-                                 + ("  DIVERGED" if rec["diverged"] else "")
-                                 + ("  corrected" if rec.get("start") == "user" else ""))  # fmt: skip
+        self.index_label.setText(
+            f"frame {index} / {len(self._records) - 1}   rms {rec['rms']:.3f}"
+            + ("  DIVERGED" if rec["diverged"] else "")
+            + ("  corrected" if rec.get("start") == "user" else "")
+        )
         frame = self.review.footage_frame(index)
         if frame is not None:
             if self.overlay_box.isChecked():
@@ -660,9 +690,19 @@ class FirstPoseDialog(QDialog):
     last_message : str
     """
 
-    def __init__(self, project, video: str | Path, path: str | Path | None = None, parent=None, *, frame: int = 0,
-                 clicks: dict | None = None, focal_px: float | None = None, model=None,
-                 correct: bool = False):  # fmt: skip
+    def __init__(
+        self,
+        project,
+        video: str | Path,
+        path: str | Path | None = None,
+        parent=None,
+        *,
+        frame: int = 0,
+        clicks: dict | None = None,
+        focal_px: float | None = None,
+        model=None,
+        correct: bool = False,
+    ):
         super().__init__(parent)
 
         self.project = project
@@ -682,8 +722,11 @@ class FirstPoseDialog(QDialog):
             raise VideoError(f"frame {self.frame} of {self.video} cannot be read (the video is shorter)")
         self.frame_image = shown[1]
         self.width, self.height = frames.width, frames.height
-        self.setWindowTitle(f"Correct the pose of frame {self.frame} — {self.video.name}" if self.correct
-                            else f"First pose — {self.video.name}")  # fmt: skip
+        self.setWindowTitle(
+            f"Correct the pose of frame {self.frame} — {self.video.name}"
+            if self.correct
+            else f"First pose — {self.video.name}"
+        )
 
         self.canvas = ClickCanvas()
         self.canvas.set_image(np.round(self.frame_image * 255).astype(np.uint8))
@@ -709,9 +752,12 @@ class FirstPoseDialog(QDialog):
         self.save_button.clicked.connect(self._confirm)
         close = QPushButton("Close")
         close.clicked.connect(self.reject)
-        self.info = QLabel(f"drag the features that are off in frame {self.frame} (≥ 6 placed), Solve to preview, "
-                           f"then Re-track from here" if self.correct
-                           else "click each feature's position in frame 0 (≥ 6), then Solve")  # fmt: skip
+        self.info = QLabel(
+            f"drag the features that are off in frame {self.frame} (≥ 6 placed), Solve to preview, "
+            f"then Re-track from here"
+            if self.correct
+            else "click each feature's position in frame 0 (≥ 6), then Solve"
+        )
         self.info.setWordWrap(True)
 
         side = QVBoxLayout()
@@ -767,8 +813,10 @@ class FirstPoseDialog(QDialog):
         """The first-pose JSON object: ``{"focal_px": f, "clicks": {name: [u, v]}}`` (clicks of
         :attr:`frame`; when correcting, ``f`` is the run's focal length exactly)."""
         focal = self._focal if self.correct and self._focal is not None else float(self.focal_box.value())
-        return {"focal_px": focal,
-                "clicks": {n: [round(u, 3), round(v, 3)] for n, (u, v) in self.canvas.clicks.items()}}  # fmt: skip
+        return {
+            "focal_px": focal,
+            "clicks": {n: [round(u, 3), round(v, 3)] for n, (u, v) in self.canvas.clicks.items()},
+        }
 
     def solve(self) -> bool:
         """Pose from the clicks (:func:`tracking.frame_fit.pose_from_clicks`) and its overlay on the frame.
@@ -786,8 +834,14 @@ class FirstPoseDialog(QDialog):
             state = pose_from_clicks(model, vertices, uv, focal, self.width, self.height)
             if self._fitter is None or self._fitter.f != focal:
                 self._fitter = FrameFitter(model, focal, self.width, self.height)
-            rec = {"R": state.R.tolist(), "centre_mm": state.t.tolist(), "alpha": state.alpha.tolist(),
-                   "frame": self.frame, "rms": 0.0, "diverged": False}  # fmt: skip
+            rec = {
+                "R": state.R.tolist(),
+                "centre_mm": state.t.tolist(),
+                "alpha": state.alpha.tolist(),
+                "frame": self.frame,
+                "rms": 0.0,
+                "diverged": False,
+            }
             overlay = overlay_frame(self._fitter, self.frame_image, rec)
         except (FaceStudioError, cv2.error) as exc:
             return self._fail(f"no pose from these clicks: {exc}")
@@ -829,7 +883,6 @@ class FirstPoseDialog(QDialog):
 
     def _face_model(self):
         if self._model is None:
-
             self._model, _ = project_face_model(self.project)
         return self._model
 
@@ -869,8 +922,10 @@ class FirstPoseDialog(QDialog):
         else:
             for name, uv in spec["clicks"].items():
                 self.set_click(name, uv)
-            self.last_message = (f"{len(spec['clicks'])} features placed by the landmark detector (check them, "
-                                 f"drag any that are off); focal length: {source}")  # fmt: skip
+            self.last_message = (
+                f"{len(spec['clicks'])} features placed by the landmark detector (check them, "
+                f"drag any that are off); focal length: {source}"
+            )
         self.info.setText(self.last_message)
 
     def _select(self, row: int) -> None:

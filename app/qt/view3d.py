@@ -90,8 +90,14 @@ class View3D(QWidget):
         self.setMinimumSize(160, 160)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setMouseTracking(False)
-        for sig in (model.project_replaced, model.expression_changed, model.fit_changed, model.features_changed,
-                    model.rig_changed, model.rig_weights_changed):
+        for sig in (
+            model.project_replaced,
+            model.expression_changed,
+            model.fit_changed,
+            model.features_changed,
+            model.rig_changed,
+            model.rig_weights_changed,
+        ):
             sig.connect(self.invalidate)
         model.active_feature_changed.connect(lambda *_: self.update())
         model.points_changed.connect(lambda *_: self.update())  # the next feature to click may change
@@ -111,13 +117,24 @@ class View3D(QWidget):
             return posed, f"rig on {rig.neutral} — {', '.join(moved[:3])}{more}"
         fit = self.model.fit()
         if fit is not None and fit.vertices is not None:
-            how = (" — view-dependent texture" if self.view_dependent is not None
-                   else " — cylindrical texture" if self.texture is not None else "")
+            how = (
+                " — view-dependent texture"
+                if self.view_dependent is not None
+                else " — cylindrical texture"
+                if self.texture is not None
+                else ""
+            )
             return fit.vertices, f"fitted mesh — {self.model.expression_name}{how}"
         return self.model.mesh.vertices, "generic mesh (not fitted yet)"
 
-    def set_texture(self, uv: np.ndarray | None, image: np.ndarray | None, *, vertex_index: np.ndarray | None = None,
-                    faces: np.ndarray | None = None) -> None:
+    def set_texture(
+        self,
+        uv: np.ndarray | None,
+        image: np.ndarray | None,
+        *,
+        vertex_index: np.ndarray | None = None,
+        faces: np.ndarray | None = None,
+    ) -> None:
         """Render with a texture; ``uv=None`` clears it.
 
         ``uv`` (N, 2) per mesh vertex with ``image`` (H, W, 3) uint8; or, for a mesh whose
@@ -165,7 +182,8 @@ class View3D(QWidget):
             QTimer.singleShot(0, lambda: self._prepare_registration(texture, stop, k + 1))
             return
         self.registration_thread = threading.Thread(
-            target=texture.register_pairs, kwargs={"cancel": stop.is_set}, name="vd-registration", daemon=True)
+            target=texture.register_pairs, kwargs={"cancel": stop.is_set}, name="vd-registration", daemon=True
+        )
         self.registration_thread.start()
 
     def invalidate(self, *args) -> None:
@@ -175,8 +193,15 @@ class View3D(QWidget):
     def camera(self, width: int, height: int):
         V, _ = self.vertices()
         target = 0.5 * (V.min(axis=0) + V.max(axis=0))
-        cam = orbit_camera(self.azimuth_deg, width, height, distance_mm=self.distance_mm, focal_mm=self.focal_mm,
-                           elevation_deg=self.elevation_deg, target=target)
+        cam = orbit_camera(
+            self.azimuth_deg,
+            width,
+            height,
+            distance_mm=self.distance_mm,
+            focal_mm=self.focal_mm,
+            elevation_deg=self.elevation_deg,
+            target=target,
+        )
         cam.f = focal_mm_to_px(self.focal_mm, min(width, height))  # a tall dock still frames the head
         return cam
 
@@ -229,8 +254,11 @@ class View3D(QWidget):
                 except Exception as exc:  # no OpenGL: say so in the view instead of failing the window
                     p.fillRect(self.rect(), QColor(40, 40, 40))
                     p.setPen(QColor(230, 230, 230))
-                    p.drawText(self.rect(), Qt.AlignmentFlag.AlignCenter | Qt.TextFlag.TextWordWrap,
-                               f"3D view unavailable:\n{exc}")
+                    p.drawText(
+                        self.rect(),
+                        Qt.AlignmentFlag.AlignCenter | Qt.TextFlag.TextWordWrap,
+                        f"3D view unavailable:\n{exc}",
+                    )
                     return
             p.drawImage(0, 0, self._image)
             p.setRenderHint(QPainter.RenderHint.Antialiasing)
@@ -241,8 +269,11 @@ class View3D(QWidget):
             p.setPen(QColor(220, 220, 220))
             p.drawText(QRectF(8, 4, self.width() - 16, 20), Qt.AlignmentFlag.AlignLeft, caption)
             p.setPen(QColor(160, 160, 160))
-            p.drawText(QRectF(8, self.height() - 22, self.width() - 16, 18), Qt.AlignmentFlag.AlignLeft,
-                       "drag: orbit · wheel: zoom · click: pick feature")
+            p.drawText(
+                QRectF(8, self.height() - 22, self.width() - 16, 18),
+                Qt.AlignmentFlag.AlignLeft,
+                "drag: orbit · wheel: zoom · click: pick feature",
+            )
         finally:
             p.end()
 
@@ -300,8 +331,11 @@ class View3D(QWidget):
         if ok:
             p.drawEllipse(QPointF(*uv), 12, 12)
             p.drawText(QPointF(uv[0] + 14, uv[1] + 16), f"next: {name}")
-        p.drawText(QRectF(8, 24, self.width() - 16, 20), Qt.AlignmentFlag.AlignLeft,
-                   f"next to click: {name}" + ("" if ok else " (turn the head to see it)"))
+        p.drawText(
+            QRectF(8, 24, self.width() - 16, 20),
+            Qt.AlignmentFlag.AlignLeft,
+            f"next to click: {name}" + ("" if ok else " (turn the head to see it)"),
+        )
 
     # ------------------------------------------------------------------ interaction
     def pick(self, x: float, y: float) -> str | None:

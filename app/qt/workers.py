@@ -108,7 +108,10 @@ class FitTask(_CancellableTask):
 
     def _compute(self):  # worker thread
         result, seconds, cold = self.model.compute_fit(
-            self.snapshot, self.expression, previous=self.previous, progress=self._progress,
+            self.snapshot,
+            self.expression,
+            previous=self.previous,
+            progress=self._progress,
             cancel=self._cancel.is_set,
         )
         overlays = {}
@@ -167,8 +170,12 @@ class FitController(QObject):
     def auto_refit_possible(self, expression: str | None = None) -> bool:
         """Whether an edit would trigger a refit now: enabled, fitted before, fast enough."""
         name = expression or self.model.expression_name
-        return (self.auto_refit and name is not None and self.model.fit(name) is not None
-                and (self.last_warm_s is None or self.last_warm_s < AUTO_REFIT_MAX_S))
+        return (
+            self.auto_refit
+            and name is not None
+            and self.model.fit(name) is not None
+            and (self.last_warm_s is None or self.last_warm_s < AUTO_REFIT_MAX_S)
+        )
 
     def start(self, expression: str | None = None, *, warm: bool = False) -> FitTask | None:
         """Start fitting ``expression`` (default: current); returns the task, None if busy."""
@@ -180,7 +187,8 @@ class FitController(QObject):
         task = FitTask(self.model, name, warm, self.overlay_photos(name) if self.overlay_photos else ())
         task.signals.progress.connect(self.progress)
         task.signals.finished.connect(
-            lambda result, s, cold, overlays, t=task: self._on_finished(t, result, s, cold, overlays))
+            lambda result, s, cold, overlays, t=task: self._on_finished(t, result, s, cold, overlays)
+        )
         task.signals.failed.connect(lambda msg, t=task: self._on_ended(t, failed=msg))
         task.signals.cancelled.connect(lambda t=task: self._on_ended(t, cancelled=True))
         self.task = task
@@ -267,7 +275,6 @@ class FitController(QObject):
         self.pool.waitForDone(int(timeout_s * 1000))
 
 
-
 class _JobSignals(QObject):
     progress = Signal(str, float)
     finished = Signal(object)
@@ -287,8 +294,9 @@ class JobTask(_CancellableTask):
         self.function, self.generation = function, generation
 
     def run(self) -> None:  # worker thread
-        self._guarded(lambda: self.function(progress=self._progress, cancel=self._cancel.is_set),
-                      self.signals.finished.emit)
+        self._guarded(
+            lambda: self.function(progress=self._progress, cancel=self._cancel.is_set), self.signals.finished.emit
+        )
 
 
 class JobController(QObject):

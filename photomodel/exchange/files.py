@@ -31,8 +31,7 @@ STALE_TEMP_S = 600.0
 _TEMP_NAME = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp$")
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, backup: bool = False,
-                       mode: int | None = None) -> Path:
+def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, backup: bool = False, mode: int | None = None) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file + fsync + :func:`os.replace`).
 
     Missing parent folders are created; on any error (or interruption) the destination is

@@ -88,8 +88,7 @@ class GlbDocument:
         self.gltf.bufferViews.append(view)
         return len(self.gltf.bufferViews) - 1
 
-    def add_accessor(self, array: np.ndarray, *, target: int | None = gl.ARRAY_BUFFER,
-                     bounds: bool = False) -> int:
+    def add_accessor(self, array: np.ndarray, *, target: int | None = gl.ARRAY_BUFFER, bounds: bool = False) -> int:
         """Store a ``(count,)`` or ``(count, k)`` array (k = 2, 3, 4) as an accessor; its index.
 
         The component type follows the dtype (float32, uint32, uint16, uint8); ``bounds`` adds
@@ -101,8 +100,12 @@ class GlbDocument:
         k = 1 if a.ndim == 1 else a.shape[1]
         if a.ndim > 2 or k not in _TYPES or len(a) == 0:
             raise ValueError(f"an accessor needs a non-empty (count,) or (count, 2|3|4) array, got {a.shape}")
-        acc = gl.Accessor(bufferView=self.add_buffer_view(a.tobytes(), target),
-                          componentType=_COMPONENT_TYPES[a.dtype], count=len(a), type=_TYPES[k])
+        acc = gl.Accessor(
+            bufferView=self.add_buffer_view(a.tobytes(), target),
+            componentType=_COMPONENT_TYPES[a.dtype],
+            count=len(a),
+            type=_TYPES[k],
+        )
         if bounds:
             flat = a.reshape(len(a), k)
             acc.min = flat.min(axis=0).tolist()
@@ -110,15 +113,18 @@ class GlbDocument:
         self.gltf.accessors.append(acc)
         return len(self.gltf.accessors) - 1
 
-    def add_png_texture(self, png: bytes, *, wrap_s: int = gl.CLAMP_TO_EDGE, wrap_t: int = gl.CLAMP_TO_EDGE,
-                        name: str | None = None) -> int:
+    def add_png_texture(
+        self, png: bytes, *, wrap_s: int = gl.CLAMP_TO_EDGE, wrap_t: int = gl.CLAMP_TO_EDGE, name: str | None = None
+    ) -> int:
         """Embed PNG bytes as image + sampler (bilinear, mip-mapped) + texture; the texture index."""
         image = gl.Image(bufferView=self.add_buffer_view(png), mimeType=gl.IMAGEPNG, name=name)
         self.gltf.images.append(image)
-        self.gltf.samplers.append(gl.Sampler(magFilter=gl.LINEAR, minFilter=gl.LINEAR_MIPMAP_LINEAR,
-                                             wrapS=wrap_s, wrapT=wrap_t))
-        self.gltf.textures.append(gl.Texture(sampler=len(self.gltf.samplers) - 1,
-                                             source=len(self.gltf.images) - 1, name=name))
+        self.gltf.samplers.append(
+            gl.Sampler(magFilter=gl.LINEAR, minFilter=gl.LINEAR_MIPMAP_LINEAR, wrapS=wrap_s, wrapT=wrap_t)
+        )
+        self.gltf.textures.append(
+            gl.Texture(sampler=len(self.gltf.samplers) - 1, source=len(self.gltf.images) - 1, name=name)
+        )
         return len(self.gltf.textures) - 1
 
     def to_bytes(self) -> bytes:
@@ -158,8 +164,9 @@ def encode_glb(vertices, faces, *, uv=None, texture=None, name: str = "face", un
     return doc.to_bytes()
 
 
-def add_face_mesh(doc: GlbDocument, vertices, faces, *, uv=None, texture=None, name: str = "face",
-                  unlit: bool = True) -> tuple[gl.Primitive, np.ndarray]:
+def add_face_mesh(
+    doc: GlbDocument, vertices, faces, *, uv=None, texture=None, name: str = "face", unlit: bool = True
+) -> tuple[gl.Primitive, np.ndarray]:
     """Add the (textured) face to ``doc`` as one mesh and one node (:func:`encode_glb`'s parameters).
 
     Returns the triangle primitive and ``source`` (n',) int: the mesh vertex each file vertex is
@@ -180,8 +187,7 @@ def add_face_mesh(doc: GlbDocument, vertices, faces, *, uv=None, texture=None, n
         v, normals = v[source], normals[source]
         texcoord = np.column_stack([uv_out[:, 0], 1.0 - uv_out[:, 1]]).astype(np.float32)
         attributes.TEXCOORD_0 = doc.add_accessor(texcoord)
-        pbr.baseColorTexture = gl.TextureInfo(index=doc.add_png_texture(_texture_png(texture),
-                                                                        name=f"{name}_texture"))
+        pbr.baseColorTexture = gl.TextureInfo(index=doc.add_png_texture(_texture_png(texture), name=f"{name}_texture"))
     else:
         pbr.baseColorFactor = [0.8, 0.8, 0.8, 1.0]
     attributes.POSITION = doc.add_accessor((v * METRES_PER_MM).astype(np.float32), bounds=True)
@@ -194,8 +200,9 @@ def add_face_mesh(doc: GlbDocument, vertices, faces, *, uv=None, texture=None, n
         if UNLIT not in doc.gltf.extensionsUsed:
             doc.gltf.extensionsUsed.append(UNLIT)
     doc.gltf.materials.append(material)
-    primitive = gl.Primitive(attributes=attributes, indices=indices, material=len(doc.gltf.materials) - 1,
-                             mode=gl.TRIANGLES)  # fmt: skip
+    primitive = gl.Primitive(
+        attributes=attributes, indices=indices, material=len(doc.gltf.materials) - 1, mode=gl.TRIANGLES
+    )
     doc.gltf.meshes.append(gl.Mesh(name=name, primitives=[primitive]))
     doc.gltf.nodes.append(gl.Node(name=name, mesh=len(doc.gltf.meshes) - 1))
     return primitive, source
@@ -215,8 +222,9 @@ def _texture_png(texture) -> bytes:
     return encode_png(check_texture(texture))
 
 
-def write_glb(path: str | os.PathLike, vertices, faces, *, uv=None, texture=None, name: str = "face",
-              unlit: bool = True) -> Path:
+def write_glb(
+    path: str | os.PathLike, vertices, faces, *, uv=None, texture=None, name: str = "face", unlit: bool = True
+) -> Path:
     """:func:`encode_glb` written atomically to ``path`` (``*.glb``); returns the path."""
     path = Path(path)
     if path.suffix.lower() != ".glb":

@@ -93,22 +93,32 @@ def _add_animation(doc: GlbDocument, node: int, perf: Performance, k: int) -> No
     R = GLTF_FROM_CAMERA @ np.asarray(perf.rotation, float)
     tr = np.asarray(perf.translation_mm, float) @ GLTF_FROM_CAMERA.T * METRES_PER_MM
     times = doc.add_accessor(t, target=None, bounds=True)
-    outputs = [(W.reshape(-1), "weights"), (quaternion_xyzw(R).astype(np.float32), "rotation"),
-               (tr.astype(np.float32), "translation")]  # fmt: skip
+    outputs = [
+        (W.reshape(-1), "weights"),
+        (quaternion_xyzw(R).astype(np.float32), "rotation"),
+        (tr.astype(np.float32), "translation"),
+    ]
     anim = gl.Animation(name="performance")
     for i, (data, path) in enumerate(outputs):
-        anim.samplers.append(gl.AnimationSampler(input=times, output=doc.add_accessor(data, target=None),
-                                                 interpolation="LINEAR"))  # fmt: skip
+        anim.samplers.append(
+            gl.AnimationSampler(input=times, output=doc.add_accessor(data, target=None), interpolation="LINEAR")
+        )
         anim.channels.append(gl.AnimationChannel(sampler=i, target=gl.AnimationChannelTarget(node=node, path=path)))
     doc.gltf.animations.append(anim)
     yfov = 2.0 * np.arctan(perf.height / (2.0 * perf.focal_px))
-    doc.gltf.cameras.append(gl.Camera(type="perspective", name="video_camera", perspective=gl.Perspective(
-        yfov=float(yfov), aspectRatio=perf.width / perf.height, znear=0.01)))
+    doc.gltf.cameras.append(
+        gl.Camera(
+            type="perspective",
+            name="video_camera",
+            perspective=gl.Perspective(yfov=float(yfov), aspectRatio=perf.width / perf.height, znear=0.01),
+        )
+    )
     doc.gltf.nodes.append(gl.Node(name="video_camera", camera=len(doc.gltf.cameras) - 1))
 
 
-def encode_rigged_glb(vertices, faces, deltas, names, *, uv=None, texture=None, performance: Performance | None = None,
-                      name: str = "face") -> bytes:  # fmt: skip
+def encode_rigged_glb(
+    vertices, faces, deltas, names, *, uv=None, texture=None, performance: Performance | None = None, name: str = "face"
+) -> bytes:
     """Encode a face with blend shapes (and a performance) as a binary glTF file.
 
     Parameters

@@ -22,14 +22,29 @@ from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.rig.ict import ARKIT_SHAPES
 
-__all__ = ["BLENDSHAPE_COLUMNS", "ROTATION_COLUMNS", "livelink_csv_bytes", "write_livelink_csv",
-           "read_livelink_csv", "timecode"]  # fmt: skip
+__all__ = [
+    "BLENDSHAPE_COLUMNS",
+    "ROTATION_COLUMNS",
+    "livelink_csv_bytes",
+    "write_livelink_csv",
+    "read_livelink_csv",
+    "timecode",
+]
 
 #: The 52 weight columns, in ARKit's order, capitalised as Live Link Face writes them.
 BLENDSHAPE_COLUMNS = tuple(s[0].upper() + s[1:] for s in ARKIT_SHAPES)
 #: Head and eye rotations (radians) after the weights.
-ROTATION_COLUMNS = ("HeadYaw", "HeadPitch", "HeadRoll", "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll",
-                    "RightEyeYaw", "RightEyePitch", "RightEyeRoll")  # fmt: skip
+ROTATION_COLUMNS = (
+    "HeadYaw",
+    "HeadPitch",
+    "HeadRoll",
+    "LeftEyeYaw",
+    "LeftEyePitch",
+    "LeftEyeRoll",
+    "RightEyeYaw",
+    "RightEyePitch",
+    "RightEyeRoll",
+)
 #: Decimals written: weights equal to 1e-7 after a round trip.
 DECIMALS = 7
 

@@ -62,9 +62,16 @@ class TexturedObj:
         return write_files(self.files)
 
 
-def encode_textured_obj(path: str | os.PathLike, vertices, faces, uv, texture,
-                        *, texture_path: str | os.PathLike | None = None,
-                        check_exists: bool = True) -> TexturedObj:
+def encode_textured_obj(
+    path: str | os.PathLike,
+    vertices,
+    faces,
+    uv,
+    texture,
+    *,
+    texture_path: str | os.PathLike | None = None,
+    check_exists: bool = True,
+) -> TexturedObj:
     """Encode a textured mesh as OBJ + MTL (+ PNG) without touching the disk.
 
     Parameters
@@ -115,35 +122,39 @@ def encode_textured_obj(path: str | os.PathLike, vertices, faces, uv, texture,
     normals = vertex_normals(v, f)
 
     idx = np.stack([f + 1, corner_vt + 1, f + 1], axis=2).reshape(len(f), 9)  # v/vt/vn, 1-based
-    text = "".join([
-        "# Face Studio textured mesh\n",
-        f"# {len(v)} vertices, {len(f)} triangles, {len(vt)} texture coordinates (v up)\n",
-        f"mtllib {mtl_path.name}\n",
-        ("v %.6f %.6f %.6f\n" * len(v)) % tuple(v.ravel()),
-        ("vt %.7f %.7f\n" * len(vt)) % tuple(vt.ravel()),
-        ("vn %.6f %.6f %.6f\n" * len(v)) % tuple(normals.ravel()),
-        f"usemtl {MATERIAL_NAME}\n",
-        ("f %d/%d/%d %d/%d/%d %d/%d/%d\n" * len(f)) % tuple(idx.ravel().tolist()),
-    ])
-    mtl = "".join([
-        "# Face Studio material: colour from the texture only (no specular: the photographs' shading\n",
-        "# is already in the texture)\n",
-        f"newmtl {MATERIAL_NAME}\n",
-        "Ka 1.000000 1.000000 1.000000\n",
-        "Kd 1.000000 1.000000 1.000000\n",
-        "Ks 0.000000 0.000000 0.000000\n",
-        "d 1.0\n",
-        "illum 1\n",
-        f"map_Kd {rel}\n",
-    ])
+    text = "".join(
+        [
+            "# Face Studio textured mesh\n",
+            f"# {len(v)} vertices, {len(f)} triangles, {len(vt)} texture coordinates (v up)\n",
+            f"mtllib {mtl_path.name}\n",
+            ("v %.6f %.6f %.6f\n" * len(v)) % tuple(v.ravel()),
+            ("vt %.7f %.7f\n" * len(vt)) % tuple(vt.ravel()),
+            ("vn %.6f %.6f %.6f\n" * len(v)) % tuple(normals.ravel()),
+            f"usemtl {MATERIAL_NAME}\n",
+            ("f %d/%d/%d %d/%d/%d %d/%d/%d\n" * len(f)) % tuple(idx.ravel().tolist()),
+        ]
+    )
+    mtl = "".join(
+        [
+            "# Face Studio material: colour from the texture only (no specular: the photographs' shading\n",
+            "# is already in the texture)\n",
+            f"newmtl {MATERIAL_NAME}\n",
+            "Ka 1.000000 1.000000 1.000000\n",
+            "Kd 1.000000 1.000000 1.000000\n",
+            "Ks 0.000000 0.000000 0.000000\n",
+            "d 1.0\n",
+            "illum 1\n",
+            f"map_Kd {rel}\n",
+        ]
+    )
     files[mtl_path] = mtl.encode()
     files[obj_path] = text.encode()
-    return TexturedObj(obj_path=obj_path, mtl_path=mtl_path, png_path=png_path, files=files,
-                       n_texcoords=len(vt))
+    return TexturedObj(obj_path=obj_path, mtl_path=mtl_path, png_path=png_path, files=files, n_texcoords=len(vt))
 
 
-def write_textured_obj(path: str | os.PathLike, vertices, faces, uv, texture,
-                       *, texture_path: str | os.PathLike | None = None) -> TexturedObj:
+def write_textured_obj(
+    path: str | os.PathLike, vertices, faces, uv, texture, *, texture_path: str | os.PathLike | None = None
+) -> TexturedObj:
     """:func:`encode_textured_obj` then write the files atomically (PNG, MTL, OBJ in that order)."""
     out = encode_textured_obj(path, vertices, faces, uv, texture, texture_path=texture_path)
     out.write()
@@ -155,8 +166,10 @@ def _relative_reference(target: Path, folder: Path) -> str:
     try:
         rel = Path(os.path.abspath(target)).relative_to(os.path.abspath(folder))
     except ValueError:
-        raise ValueError(f"{target}: the texture must be in the OBJ's folder ({folder}) or below it, "
-                         f"since the MTL refers to it by a relative name") from None
+        raise ValueError(
+            f"{target}: the texture must be in the OBJ's folder ({folder}) or below it, "
+            f"since the MTL refers to it by a relative name"
+        ) from None
     name = PurePosixPath(*rel.parts).as_posix()
     if re.search(r"\s", name):
         raise ValueError(f"{target}: texture file names must not contain whitespace (MTL splits on it)")

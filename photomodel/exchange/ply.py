@@ -79,11 +79,11 @@ def encode_colored_ply(vertices, faces, colors=None, *, uv=None, texture=None, u
     return header + vert.tobytes() + face.tobytes()
 
 
-def write_colored_ply(path: str | os.PathLike, vertices, faces, colors=None, *, uv=None, texture=None,
-                      units: str = "mm") -> Path:
+def write_colored_ply(
+    path: str | os.PathLike, vertices, faces, colors=None, *, uv=None, texture=None, units: str = "mm"
+) -> Path:
     """:func:`encode_colored_ply` written atomically to ``path`` (``*.ply``); returns the path."""
     path = Path(path)
     if path.suffix.lower() != ".ply":
         raise ValueError(f"{path}: a PLY file name must end in .ply")
-    return atomic_write_bytes(path, encode_colored_ply(vertices, faces, colors, uv=uv, texture=texture,
-                                                       units=units))
+    return atomic_write_bytes(path, encode_colored_ply(vertices, faces, colors, uv=uv, texture=texture, units=units))

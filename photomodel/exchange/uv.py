@@ -38,8 +38,9 @@ def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
             raise ValueError(f"faces must hold integer vertex indices, got {f.dtype} values")
     f = f.astype(np.int64)
     if f.min() < 0 or f.max() >= len(v):
-        raise ValueError(f"faces refer to vertex {f.min() if f.min() < 0 else f.max()}, "
-                         f"but there are only {len(v)} vertices")
+        raise ValueError(
+            f"faces refer to vertex {f.min() if f.min() < 0 else f.max()}, but there are only {len(v)} vertices"
+        )
     return v, f
 
 
@@ -47,8 +48,9 @@ def check_uv(uv, n_vertices: int, n_faces: int) -> np.ndarray:
     """Validated texture coordinates: ``(n, 2)`` per vertex or ``(m, 3, 2)`` per corner, float64."""
     t = np.asarray(uv, dtype=float)
     if not (t.shape == (n_vertices, 2) or t.shape == (n_faces, 3, 2)):
-        raise ValueError(f"uv must be per vertex ({n_vertices}, 2) or per face corner ({n_faces}, 3, 2), "
-                         f"got shape {t.shape}")
+        raise ValueError(
+            f"uv must be per vertex ({n_vertices}, 2) or per face corner ({n_faces}, 3, 2), got shape {t.shape}"
+        )
     if not np.isfinite(t).all():
         raise ValueError("uv contains NaN or infinity")
     return t
@@ -70,8 +72,7 @@ def corner_uvs(faces: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return uv if uv.ndim == 3 else uv[np.asarray(faces)]
 
 
-def split_uv_seams(n_vertices: int, faces: np.ndarray, uv: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def split_uv_seams(n_vertices: int, faces: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One vertex per distinct ``(vertex, uv)`` pair, for formats with a single index per vertex.
 
     Parameters
@@ -108,8 +109,7 @@ def split_uv_seams(n_vertices: int, faces: np.ndarray, uv: np.ndarray
     return source, uv_out, index[inverse.reshape(-1)].reshape(faces.shape)
 
 
-def merge_uv_seams(faces: np.ndarray, source: np.ndarray, split_faces: np.ndarray,
-                   split_uv: np.ndarray) -> np.ndarray:
+def merge_uv_seams(faces: np.ndarray, source: np.ndarray, split_faces: np.ndarray, split_uv: np.ndarray) -> np.ndarray:
     """Per-corner texture coordinates of ``faces`` from a seam-split copy of the mesh.
 
     The inverse of :func:`split_uv_seams`, also when the split mesh lists the triangles in
@@ -143,8 +143,7 @@ def merge_uv_seams(faces: np.ndarray, source: np.ndarray, split_faces: np.ndarra
     return out
 
 
-def vertex_colors_from_texture(texture: np.ndarray, faces: np.ndarray, uv: np.ndarray,
-                               n_vertices: int) -> np.ndarray:
+def vertex_colors_from_texture(texture: np.ndarray, faces: np.ndarray, uv: np.ndarray, n_vertices: int) -> np.ndarray:
     """Per-vertex colour: the texture at the vertex's ``uv`` (mean over its corners if per-corner).
 
     Parameters
@@ -168,7 +167,6 @@ def vertex_colors_from_texture(texture: np.ndarray, faces: np.ndarray, uv: np.nd
         corner = sample_texture(img, uv.reshape(-1, 2))
         idx = np.asarray(faces).reshape(-1)
         count = np.bincount(idx, minlength=n_vertices).astype(float)
-        col = np.stack([np.bincount(idx, corner[:, c], minlength=n_vertices) for c in range(corner.shape[1])],
-                       axis=1)
+        col = np.stack([np.bincount(idx, corner[:, c], minlength=n_vertices) for c in range(corner.shape[1])], axis=1)
         col = np.divide(col, count[:, None], out=np.zeros_like(col), where=count[:, None] > 0)
     return np.clip(np.round(col * scale), 0, 255).astype(np.uint8)

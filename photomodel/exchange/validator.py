@@ -27,8 +27,13 @@ def validate_glb(path: str | Path, timeout_s: float = 120.0) -> dict | None:
     """The validator's JSON report of ``path``, or None when the validator is not installed."""
     if not validator_available():
         return None
-    run = subprocess.run(["node", str(VALIDATOR_DIR / "validate.js"), str(Path(path).absolute())],
-                         capture_output=True, text=True, timeout=timeout_s, check=False)  # fmt: skip
+    run = subprocess.run(
+        ["node", str(VALIDATOR_DIR / "validate.js"), str(Path(path).absolute())],
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
+        check=False,
+    )
     if run.returncode != 0:
         raise RuntimeError(f"the glTF validator failed on {path}: {run.stderr.strip()}")
     return json.loads(run.stdout)

@@ -97,10 +97,15 @@ def placement_from_face(face: Face468, feature_names: Sequence[str]) -> Placemen
     yaw = estimate_yaw_deg(face.points)
     points, confidence = features_from_mesh(face.points, yaw, feature_names)
     return Placement(
-        points=points, confidence=confidence, preset=preset_for_yaw(yaw), yaw_deg=yaw,
-        faces_found=face.faces_found, face_score=face.score, box=face.box,
+        points=points,
+        confidence=confidence,
+        preset=preset_for_yaw(yaw),
+        yaw_deg=yaw,
+        faces_found=face.faces_found,
+        face_score=face.score,
+        box=face.box,
         curves=curves_from_mesh(face.points, yaw),
-    )  # fmt: skip
+    )
 
 
 def place_landmarks(image: np.ndarray, feature_names: Sequence[str], *, name: str = "the photo") -> Placement:

@@ -85,8 +85,16 @@ FLIP_AVERAGE = False  #: average each pass with its mirror image's (off: see the
 #: crop's side (along and across the eye line) and the points averaged with the unshifted
 #: pass's: a face mesh's points move by a few pixels with where the crop falls, and the mean
 #: over nine crops is steadier (measured in the module docstring). Empty: one crop.
-SHIFT_AVERAGE = ((0.03, 0.03), (-0.03, 0.03), (0.03, -0.03), (-0.03, -0.03),
-                 (0.04, 0.0), (-0.04, 0.0), (0.0, 0.04), (0.0, -0.04))
+SHIFT_AVERAGE = (
+    (0.03, 0.03),
+    (-0.03, 0.03),
+    (0.03, -0.03),
+    (-0.03, -0.03),
+    (0.04, 0.0),
+    (-0.04, 0.0),
+    (0.0, 0.04),
+    (0.0, -0.04),
+)
 
 _lock = threading.Lock()  # cv2.dnn nets are not safe to run from several threads at once
 
@@ -169,9 +177,13 @@ def _crop(image: np.ndarray, matrix: np.ndarray, out: int) -> np.ndarray:
     if scale > ALIAS_FREE_SCALE:
         image, matrix = _reduced_footprint(image, matrix, out, scale)
     crop = cv2.warpAffine(
-        image, matrix, (out, out), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-        borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0),
-    )  # fmt: skip
+        image,
+        matrix,
+        (out, out),
+        flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=(0, 0, 0),
+    )
     return crop.astype(np.float32) / 255.0
 
 
@@ -398,8 +410,13 @@ def _face_mesh(image: np.ndarray, box: np.ndarray, keypoints: np.ndarray):
         centre, size, angle = _roi_from_points(points)
         along = np.array([np.cos(angle), np.sin(angle)])  # the eye line
         across = np.array([-along[1], along[0]])
-        runs = np.array([points] + [_mesh_pass(image, centre + (dx * along + dy * across) * size, size, angle)[0]
-                                    for dx, dy in SHIFT_AVERAGE])
+        runs = np.array(
+            [points]
+            + [
+                _mesh_pass(image, centre + (dx * along + dy * across) * size, size, angle)[0]
+                for dx, dy in SHIFT_AVERAGE
+            ]
+        )
         points = runs.mean(axis=0)
         spread = np.sqrt(np.mean(np.sum((runs[:, :, :2] - points[:, :2]) ** 2, axis=-1), axis=0))
     return points, score, spread
@@ -421,8 +438,9 @@ def detect_468_near(image: np.ndarray, box: tuple, angle: float) -> Face468 | No
     if score < MIN_FACE_SCORE:
         return None
     lo, hi = points[:, :2].min(0), points[:, :2].max(0)
-    return Face468(points=points, score=score, box=(float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])),
-                   faces_found=1)  # fmt: skip
+    return Face468(
+        points=points, score=score, box=(float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])), faces_found=1
+    )
 
 
 def detect_468(image: np.ndarray, *, name: str = "the photo") -> Face468:

@@ -111,13 +111,19 @@ JAW_CONFIDENCE = 0.2
 #: is, not a point of the skin.
 OUTLINE_CONFIDENCE = 0.1
 _CONFIDENCE = np.array(
-    [JAW_CONFIDENCE] * 8 + [0.3] + [JAW_CONFIDENCE] * 8  # jaw; the chin a little better
+    [JAW_CONFIDENCE] * 8
+    + [0.3]
+    + [JAW_CONFIDENCE] * 8  # jaw; the chin a little better
     + [0.6] * 10  # brows: a band, not a point
-    + [0.7] * 4 + [0.8] * 5  # nose line, nose base
+    + [0.7] * 4
+    + [0.8] * 5  # nose line, nose base
     + [0.9, 0.8, 0.8, 0.9, 0.8, 0.8] * 2  # eyes: corners, lids
-    + [0.9] + [0.8] * 5 + [0.9] + [0.8] * 5  # outer lip: corners, contour
+    + [0.9]
+    + [0.8] * 5
+    + [0.9]
+    + [0.8] * 5  # outer lip: corners, contour
     + [0.7] * 8  # inner lip
-)  # fmt: skip
+)
 
 #: Largest yaw (degrees) towards the far side at which each iBUG point is still placed in a
 #: profile view (|yaw| ≥ :data:`PROFILE_FROM_DEG`); up to there every point is placed.
@@ -136,10 +142,18 @@ FAR_SIDE_LIMIT_DEG = np.array(
 #: Which side each iBUG point is on: -1 the subject's right (hidden when the camera moves to
 #: the subject's left, yaw > limit), +1 the left, 0 the midline.
 _SIDE = np.array(
-    [-1] * 8 + [0] + [1] * 8 + [-1] * 5 + [1] * 5 + [0] * 4 + [-1, -1, 0, 1, 1]
-    + [-1] * 6 + [1] * 6 + [-1, -1, -1, 0, 1, 1, 1, 1, 1, 0, -1, -1]
+    [-1] * 8
+    + [0]
+    + [1] * 8
+    + [-1] * 5
+    + [1] * 5
+    + [0] * 4
+    + [-1, -1, 0, 1, 1]
+    + [-1] * 6
+    + [1] * 6
+    + [-1, -1, -1, 0, 1, 1, 1, 1, 1, 0, -1, -1]
     + [-1, -1, 0, 1, 1, 1, 0, -1]
-)  # fmt: skip
+)
 
 #: Face-mesh points whose depth difference gives the yaw: the two sides of the face outline
 #: at the height of the eyes (subject's right, left).

@@ -57,7 +57,7 @@ MEDIAPIPE = PackageFiles(
         "3.11",
         "--platform",
         "manylinux_2_28_x86_64",
-    ),  # fmt: skip
+    ),
     env_archive="FACESTUDIO_MEDIAPIPE_WHEEL",
 )
 

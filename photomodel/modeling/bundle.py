@@ -40,6 +40,7 @@ from photomodel.modeling.pose import rodrigues_batch
 
 __all__ = ["BundleState", "BundleProblem"]
 
+
 @dataclass
 class BundleState:
     """Unknowns: ``R`` (k,3,3), ``t2`` = (t_x, t_y) (k,2) mm, ``s`` (k,) image scale px/mm,
@@ -74,8 +75,9 @@ class BundleProblem:
         :meth:`evaluate` are scaled).
     """
 
-    def __init__(self, obs, valid, principal_points, groups, focal_free=True, prior_points=None, prior_weight=0.0,
-                 weights=None):
+    def __init__(
+        self, obs, valid, principal_points, groups, focal_free=True, prior_points=None, prior_weight=0.0, weights=None
+    ):
         k, n = valid.shape
         self.k, self.n = k, n
         self.valid = np.asarray(valid, bool)
@@ -235,8 +237,11 @@ class BundleProblem:
         W3 = W2.reshape(Ct, n, 3)
         Vinv = _inv3(Vp + (lam * np.diagonal(Vp, 0, 1, 2) + 1e-12)[:, :, None] * np.eye(3))
         # Y = W V⁻¹ with V block-diagonal (3 × 3 per point), as three broadcast products
-        Y2 = (W3[:, :, 0, None] * Vinv[None, :, 0, :] + W3[:, :, 1, None] * Vinv[None, :, 1, :]
-              + W3[:, :, 2, None] * Vinv[None, :, 2, :]).reshape(Ct, 3 * n)
+        Y2 = (
+            W3[:, :, 0, None] * Vinv[None, :, 0, :]
+            + W3[:, :, 1, None] * Vinv[None, :, 1, :]
+            + W3[:, :, 2, None] * Vinv[None, :, 2, :]
+        ).reshape(Ct, 3 * n)
         S = U - Y2 @ W2.T
         S.flat[:: Ct + 1] += lam * np.diagonal(U) + 1e-12
         rhs = Y2 @ gp.reshape(-1) - gc

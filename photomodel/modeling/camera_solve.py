@@ -303,8 +303,9 @@ def _pnp(X, x, f, pp):
     points in front of the camera."""
     K = np.array([[f, 0.0, pp[0]], [0.0, f, pp[1]], [0.0, 0.0, 1.0]])
     try:
-        ok, rvec, tvec = cv2.solvePnP(np.ascontiguousarray(X, np.float64), np.ascontiguousarray(x, np.float64),
-                                      K, None, flags=cv2.SOLVEPNP_SQPNP)
+        ok, rvec, tvec = cv2.solvePnP(
+            np.ascontiguousarray(X, np.float64), np.ascontiguousarray(x, np.float64), K, None, flags=cv2.SOLVEPNP_SQPNP
+        )
     except cv2.error:
         return None
     if not ok:
@@ -359,8 +360,9 @@ def plausibility_problem(cameras, points, generic_points, names=None, view_names
     if not np.all(depth_all > 0):
         j = int(np.flatnonzero(~np.all(depth_all > 0, axis=1))[0])  # the first photo, in order
         i = int(np.argmin(depth_all[j]))
-        return (f"feature {names[i]!r} ended up behind the camera of photo {vnames[j]!r} "
-                f"(depth {depth_all[j, i]:.3g} mm)")
+        return (
+            f"feature {names[i]!r} ended up behind the camera of photo {vnames[j]!r} (depth {depth_all[j, i]:.3g} mm)"
+        )
     for j, c in enumerate(cameras):
         fmm = focal_px_to_mm(c.f, c.width)
         if not FOCAL_MM_RANGE[0] <= fmm <= FOCAL_MM_RANGE[1]:
@@ -372,11 +374,15 @@ def plausibility_problem(cameras, points, generic_points, names=None, view_names
     misfit = float(np.sqrt(((aligned - gen) ** 2).sum(1).mean()))
     ratio = _depth_ratio(aligned, gen)
     if not DEPTH_RATIO_RANGE[0] <= ratio <= DEPTH_RATIO_RANGE[1]:
-        return (f"the face came out {ratio * np.ptp(gen[:, 2]):.0f} mm deep after scaling to the generic head "
-                f"(the generic head's features span {np.ptp(gen[:, 2]):.0f} mm)")
+        return (
+            f"the face came out {ratio * np.ptp(gen[:, 2]):.0f} mm deep after scaling to the generic head "
+            f"(the generic head's features span {np.ptp(gen[:, 2]):.0f} mm)"
+        )
     if misfit > SHAPE_MISFIT_MAX * size:
-        return (f"the recovered features do not have a face's shape (they lie {misfit:.0f} mm from the "
-                f"generic head's on average, whose size is {size:.0f} mm)")
+        return (
+            f"the recovered features do not have a face's shape (they lie {misfit:.0f} mm from the "
+            f"generic head's on average, whose size is {size:.0f} mm)"
+        )
     return None
 
 
@@ -508,16 +514,31 @@ def _solve(obs, initial_cameras, points, groups, fixed_focal, robust, prior, nam
                     final, fcams = depth
                     tag += " + generic-head depth"
             if why is None:
-                return _solution(obs, valid, outside, fidx, fcams, final.m, used, sigma, tag, sweeps, its,
-                                 vname, pname, weights)
+                return _solution(
+                    obs, valid, outside, fidx, fcams, final.m, used, sigma, tag, sweeps, its, vname, pname, weights
+                )
             failures.append((tag, why, (fcams, final.m)))
     if prior:
-        found = _generic_depth_attempts(prob, prepared, [label for label, _ in starts], o, v, p0, robust, cams,
-                                        fixed_focal, wsub, failures, [pname[i] for i in fidx], vname)
+        found = _generic_depth_attempts(
+            prob,
+            prepared,
+            [label for label, _ in starts],
+            o,
+            v,
+            p0,
+            robust,
+            cams,
+            fixed_focal,
+            wsub,
+            failures,
+            [pname[i] for i in fidx],
+            vname,
+        )
         if found is not None:
             fcams, final, used, sigma, tag, sweeps, its = found
-            return _solution(obs, valid, outside, fidx, fcams, final.m, used, sigma, tag, sweeps, its,
-                             vname, pname, weights)
+            return _solution(
+                obs, valid, outside, fidx, fcams, final.m, used, sigma, tag, sweeps, its, vname, pname, weights
+            )
     raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
 
 
@@ -568,8 +589,9 @@ def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, conf
         why = plausibility_problem(fcams, final.m, p0, [pname[i] for i in fidx], vname)
         tag = f"one photo: {label} + {DEPTH_HELD} + lens guess"
         if why is None:
-            return _solution(obs, valid, outside, fidx, fcams, final.m, v, ONE_VIEW_CLICK_SIGMA_PX, tag, 0, its,
-                             vname, pname)
+            return _solution(
+                obs, valid, outside, fidx, fcams, final.m, v, ONE_VIEW_CLICK_SIGMA_PX, tag, 0, its, vname, pname
+            )
         failures.append((tag, why, (fcams, final.m)))
     raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
 
@@ -584,8 +606,9 @@ def _person_prior(prob: BundleProblem, p0: np.ndarray, depth_axis: np.ndarray) -
     prob.depth_gain = (PERSON_SIGMA_MM / PERSON_DEPTH_SIGMA_MM) ** 2 - 1.0
 
 
-def _map_estimate(obs, sol: CameraSolution, initial_cameras, points, groups, fixed_focal, confidence, names,
-                  view_names) -> CameraSolution:
+def _map_estimate(
+    obs, sol: CameraSolution, initial_cameras, points, groups, fixed_focal, confidence, names, view_names
+) -> CameraSolution:
     """Several photos with automatic clicks (*beyond the paper*): from the solve's answer ``sol``,
     the most probable face and cameras under the same two Gaussians as :func:`_solve_one_view` —
     each automatic click off by the detector's error (:func:`_detector_weights`, per photo at its
@@ -616,11 +639,12 @@ def _map_estimate(obs, sol: CameraSolution, initial_cameras, points, groups, fix
     m0 = sol.points[fidx]
     w = np.ones(used.shape)
     for j, cam in enumerate(sol.cameras):
-        wj = _detector_weights(conf[j:j + 1], cam, m0)
+        wj = _detector_weights(conf[j : j + 1], cam, m0)
         if wj is not None:
             w[j] = wj[0]
-    prob = BundleProblem(o, used, np.stack([c.principal_point for c in cams]), _group_index(groups, k),
-                         not fixed_focal, weights=w)
+    prob = BundleProblem(
+        o, used, np.stack([c.principal_point for c in cams]), _group_index(groups, k), not fixed_focal, weights=w
+    )
     st = prob.state_from_cameras(sol.cameras, m0)
     _, R, _ = similarity_transform(m0, p0)
     _person_prior(prob, p0, R.T @ np.array([0.0, 0.0, 1.0]))
@@ -630,8 +654,21 @@ def _map_estimate(obs, sol: CameraSolution, initial_cameras, points, groups, fix
     if plausibility_problem(fcams, final.m, p0, [pname[i] for i in fidx], vname) is not None:
         return sol
     _, outside, valid = _clicks_inside(obs, cams)
-    out = _solution(obs, valid, outside, fidx, fcams, final.m, used, sol.sigma_px,
-                    f"{sol.start} + {PERSON_PRIOR}", sol.sweeps, sol.iterations + its, vname, pname)
+    out = _solution(
+        obs,
+        valid,
+        outside,
+        fidx,
+        fcams,
+        final.m,
+        used,
+        sol.sigma_px,
+        f"{sol.start} + {PERSON_PRIOR}",
+        sol.sweeps,
+        sol.iterations + its,
+        vname,
+        pname,
+    )
     # the suspects are the solve's: a click the prior keeps off is not a wrong click
     return replace(out, suspects=sol.suspects)
 
@@ -667,8 +704,9 @@ def _detector_weights(confidence, camera: Camera, points: np.ndarray) -> np.ndar
     return np.where(np.isfinite(confidence), (ONE_VIEW_CLICK_SIGMA_PX / sigma) ** 2, 1.0)
 
 
-def _generic_depth_attempts(prob, prepared, labels, o, v, p0, robust, cams, fixed_focal, weights, failures, names,
-                            vname):
+def _generic_depth_attempts(
+    prob, prepared, labels, o, v, p0, robust, cams, fixed_focal, weights, failures, names, vname
+):
     """The last resort, when neither the clicks alone nor the isotropic prior gave a face: the views
     cannot measure its depth at all (nearly one viewpoint, e.g. frames of a clip facing the
     camera), so the generic head's depth holds it (:func:`_polish_generic_depth`) — and, where the
@@ -680,8 +718,11 @@ def _generic_depth_attempts(prob, prepared, labels, o, v, p0, robust, cams, fixe
     lens = np.log([c.f for c in cams])
     lens = np.array([lens[prob.groups == g].mean() for g in range(prob.G)])  # per camera group
     for lens_guess in (False, True) if not fixed_focal else (False,):
-        p = prob if not lens_guess else BundleProblem(
-            o, v, np.stack([c.principal_point for c in cams]), prob.groups, False, weights=weights)
+        p = (
+            prob
+            if not lens_guess
+            else BundleProblem(o, v, np.stack([c.principal_point for c in cams]), prob.groups, False, weights=weights)
+        )
         for label in labels:
             st0, sweeps = prepared[label]
             st = st0.copy()
@@ -825,8 +866,9 @@ def _depth_from_prior(prob, st, used, sigma, p0, template, names, vname):
     return alt, cams
 
 
-def _blame(cameras, obs: np.ndarray, v: np.ndarray, suspect: np.ndarray, sigma: float,
-           sqrt_w: np.ndarray | None = None) -> np.ndarray:
+def _blame(
+    cameras, obs: np.ndarray, v: np.ndarray, suspect: np.ndarray, sigma: float, sqrt_w: np.ndarray | None = None
+) -> np.ndarray:
     """Which click of a feature is the wrong one.
 
     The robust fit flags the clicks with large residuals, but a wrong click can pull its 3D point
@@ -911,9 +953,19 @@ def _solution(obs, valid, outside, fidx, cams, m, used_sub, sigma, label, sweeps
         suspects.append({"photo": vname[j], "feature": pname[i], "error_px": round(err, 2)})
     suspects.sort(key=lambda d: -d["error_px"])
     return CameraSolution(
-        cameras=cams, points=pts, used=used, residuals_px=res, rms_px=rms, rms_all_px=rms_all,
-        per_view_rms_px=per_view, per_point_rms_px=per_point, sigma_px=float(sigma), suspects=suspects,
-        start=label, sweeps=int(sweeps), iterations=int(its),
+        cameras=cams,
+        points=pts,
+        used=used,
+        residuals_px=res,
+        rms_px=rms,
+        rms_all_px=rms_all,
+        per_view_rms_px=per_view,
+        per_point_rms_px=per_point,
+        sigma_px=float(sigma),
+        suspects=suspects,
+        start=label,
+        sweeps=int(sweeps),
+        iterations=int(its),
     )
 
 

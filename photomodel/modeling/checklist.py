@@ -63,13 +63,15 @@ class ChecklistItem:
         return asdict(self)
 
 
-def _feature_hint(name: str, clicked: list[str], hidden: list[str], others: list[str],
-                  needed: int = NEEDED_PHOTOS) -> str:
+def _feature_hint(
+    name: str, clicked: list[str], hidden: list[str], others: list[str], needed: int = NEEDED_PHOTOS
+) -> str:
     where = f"clicked only in {', '.join(map(repr, clicked))}" if clicked else "not clicked yet"
     if hidden:
         where += f", hidden in {', '.join(map(repr, hidden))}"
-    todo = (f"click it in {needed - len(clicked)} more photo(s) where it shows"
-            + (f" ({', '.join(map(repr, others))})" if clicked and others else ""))
+    todo = f"click it in {needed - len(clicked)} more photo(s) where it shows" + (
+        f" ({', '.join(map(repr, others))})" if clicked and others else ""
+    )
     return f"{where}; {todo}, or leave it out of the pose features (unflag it)"
 
 
@@ -91,8 +93,11 @@ def _feature_items(project, expression_name: str) -> list[ChecklistItem]:
         clicked = [p.id for p, s in zip(photos, seen[:, i], strict=True) if s]
         hidden = [p.id for p in photos if name in p.hidden]
         others = [p.id for p in photos if p.id not in clicked and p.id not in hidden]
-        items.append(ChecklistItem(name, None, len(clicked), needed,
-                                   _feature_hint(name, clicked, hidden, others, needed), clicked, hidden))
+        items.append(
+            ChecklistItem(
+                name, None, len(clicked), needed, _feature_hint(name, clicked, hidden, others, needed), clicked, hidden
+            )
+        )
     return items
 
 
@@ -105,17 +110,30 @@ def _photo_items(project, expression_name: str, pose_only: bool) -> list[Checkli
         n = int(seen[0].sum())
         if n >= MIN_POINTS:
             return []
-        return [ChecklistItem(None, photos[0].id, n, MIN_POINTS,
-                              f"the only photo: its camera is placed against the generic head from {MIN_POINTS} "
-                              f"clicks of {which}, not all on one line — click more of them here (or add photos)")]
+        return [
+            ChecklistItem(
+                None,
+                photos[0].id,
+                n,
+                MIN_POINTS,
+                f"the only photo: its camera is placed against the generic head from {MIN_POINTS} "
+                f"clicks of {which}, not all on one line — click more of them here (or add photos)",
+            )
+        ]
     shared = seen & (seen.sum(0) >= NEEDED_PHOTOS)[None]
     items = []
     for photo, n in zip(photos, shared.sum(1), strict=True):
         if n < MIN_POINTS_PER_VIEW:
-            items.append(ChecklistItem(
-                None, photo.id, int(n), MIN_POINTS_PER_VIEW,
-                f"a camera needs {MIN_POINTS_PER_VIEW} clicks of {which} also clicked in another photo, "
-                "not all on one line — click more of them here"))
+            items.append(
+                ChecklistItem(
+                    None,
+                    photo.id,
+                    int(n),
+                    MIN_POINTS_PER_VIEW,
+                    f"a camera needs {MIN_POINTS_PER_VIEW} clicks of {which} also clicked in another photo, "
+                    "not all on one line — click more of them here",
+                )
+            )
     return items
 
 
@@ -151,15 +169,25 @@ def require_clicks(project, expression_name: str, *, pose_only: bool = False) ->
     short = [it for it in items if it.feature is not None]
     placed = n_pose - len(short)
     photos = project.expression(expression_name).photos
-    fails = (any(it.photo is not None for it in items)
-             or placed < (MIN_POINTS if pose_only else MIN_POSE_FEATURES)
-             or (pose_only and short))
+    fails = (
+        any(it.photo is not None for it in items)
+        or placed < (MIN_POINTS if pose_only else MIN_POSE_FEATURES)
+        or (pose_only and short)
+    )
     if fails:
         note = None
         if photos and not any(p.points for p in photos):
             where = f" (`facestudio studio {project.path}`)" if project.path is not None else ""
-            note = (f"no photo has a click yet — in a project `facestudio new` made, no face was found "
-                    f"automatically in any photo: click the features by hand in the studio{where}")
-        raise MissingClicks(expression_name, [it.to_dict() for it in items], placed=placed, pose_features=n_pose,
-                            note=note, needed_photos=_needed_photos(photos))
+            note = (
+                f"no photo has a click yet — in a project `facestudio new` made, no face was found "
+                f"automatically in any photo: click the features by hand in the studio{where}"
+            )
+        raise MissingClicks(
+            expression_name,
+            [it.to_dict() for it in items],
+            placed=placed,
+            pose_features=n_pose,
+            note=note,
+            needed_photos=_needed_photos(photos),
+        )
     return items

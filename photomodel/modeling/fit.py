@@ -330,8 +330,7 @@ class _CameraStage:
         if self.anchor_idx is None:
             return idx_all, pts_all
         free = ~np.isin(self.anchor_idx, idx_all)
-        return (np.concatenate([idx_all, self.anchor_idx[free]]),
-                np.concatenate([pts_all, self.anchor_points[free]]))
+        return (np.concatenate([idx_all, self.anchor_idx[free]]), np.concatenate([pts_all, self.anchor_points[free]]))
 
 
 def _check_inputs(project, expr, mesh, curve_mesh) -> tuple[dict, np.ndarray | None]:
@@ -346,9 +345,7 @@ def _check_inputs(project, expr, mesh, curve_mesh) -> tuple[dict, np.ndarray | N
     feat_vertex = {f.name: int(f.vertex) for f in project.features}
     bad = [n for n, v in feat_vertex.items() if not 0 <= v < n_vertices]
     if bad:
-        raise FitError(
-            f"feature(s) {', '.join(bad)} refer to vertices outside the generic mesh (0..{n_vertices - 1})"
-        )
+        raise FitError(f"feature(s) {', '.join(bad)} refer to vertices outside the generic mesh (0..{n_vertices - 1})")
     if not any(f.pose for f in project.features):
         raise FitError("no feature is marked for pose recovery (features[].pose = true)")
     return feat_vertex, curve_mesh
@@ -384,14 +381,15 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
         names=all_names,
         view_names=[p.id for p in photos],
         weights=click_weights(photos, all_names) if weighted else None,
-        confidence=_auto_confidence(photos, all_names) if (weighted and opt.person_prior) or len(photos) == 1
-        else None,
+        confidence=_auto_confidence(photos, all_names) if (weighted and opt.person_prior) or len(photos) == 1 else None,
     )
     solved = np.isfinite(sol.points[:, 0])
     col = {n: i for i, n in enumerate(all_names)}
     dropped = [
         f"pose feature {n!r}: clicked in {int(np.isfinite(obs_all[:, col[n], 0]).sum())} photo(s), "
-        f"needs {min(2, len(photos))} to be placed" for n in pose_names if not solved[col[n]]
+        f"needs {min(2, len(photos))} to be placed"
+        for n in pose_names
+        if not solved[col[n]]
     ]
     pose_names = [n for n in pose_names if solved[col[n]]]
     if len(photos) == 1:
@@ -413,7 +411,10 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
     pose_points = sol.points[pose_cols] @ (s * R).T + t
     base = sol.pose_result()
     pose = replace(
-        base, cameras=cameras, points=pose_points, per_point_rms_px=base.per_point_rms_px[pose_cols],
+        base,
+        cameras=cameras,
+        points=pose_points,
+        per_point_rms_px=base.per_point_rms_px[pose_cols],
         residuals_px=base.residuals_px[:, pose_cols],
     )
     anchor_idx = anchor_points = None
@@ -422,11 +423,22 @@ def _cameras_robust(project, expression_name, mesh, opt, feat_vertex) -> _Camera
         sa, Ra, ta = similarity_transform(mesh.vertices[pose_idx], pose_points)
         anchor_points = mesh.vertices[anchor_idx] @ (sa * Ra).T + ta
     return _CameraStage(
-        cameras, pose, pose_names, pose_idx, pose_points, dropped, anchor_idx=anchor_idx, anchor_points=anchor_points,
+        cameras,
+        pose,
+        pose_names,
+        pose_idx,
+        pose_points,
+        dropped,
+        anchor_idx=anchor_idx,
+        anchor_points=anchor_points,
         suspects=sol.suspects,
         excluded=~sol.used & np.isfinite(obs_all[..., 0]),
-        camera_report={"start": sol.start, "sigma_px": sol.sigma_px, "rms_all_px": sol.rms_all_px,
-                       "weighted_auto_clicks": bool(weighted)},
+        camera_report={
+            "start": sol.start,
+            "sigma_px": sol.sigma_px,
+            "rms_all_px": sol.rms_all_px,
+            "weighted_auto_clicks": bool(weighted),
+        },
         bundle_report={"rms_px": float(sol.rms_px), "points": int(solved.sum())},
     )
 
@@ -464,8 +476,9 @@ def _depth_unmeasured(stage: _CameraStage) -> np.ndarray | None:
     return np.mean([c.R[2] for c in stage.cameras], axis=0)
 
 
-def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, curve_mesh, deform, progress,
-            check_cancel):
+def _refine(
+    project, expression_name, mesh, opt, stage: _CameraStage, vertices, curve_mesh, deform, progress, check_cancel
+):
     """§5.1.3 with the cameras fixed: triangulate the other features and the curves, re-run the
     RBF from the generic mesh with every constraint; curves re-parameterised on the refined mesh
     ``curve_passes`` times. Returns ``(vertices, feature names, points (n, 3), dropped, curve report)``."""
@@ -490,9 +503,13 @@ def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, 
         # curves are parameterised on the current fitted mesh, so later passes see a better one
         param_mesh = curve_mesh if (n_pass == 0 and curve_mesh is not None) else vertices
         targets = refine_points(
-            stage.cameras, param_mesh,
-            point_vertices=extra_idx if extra else None, point_observations=obs_extra,
-            curves=curve_args, point_names=extra_names, curve_names=[c.name for c in curves],
+            stage.cameras,
+            param_mesh,
+            point_vertices=extra_idx if extra else None,
+            point_observations=obs_extra,
+            curves=curve_args,
+            point_names=extra_names,
+            curve_names=[c.name for c in curves],
             depth_reference=None if axis is None else (base, axis),
         )
         keep = np.array([v not in pose_set for v in targets.vertices.tolist()], dtype=bool)
@@ -500,8 +517,11 @@ def _refine(project, expression_name, mesh, opt, stage: _CameraStage, vertices, 
         vertices = deform(mesh.vertices, *stage.constraints(targets.vertices[keep], goals[keep]))
         check_cancel()
     vertex_of = {int(v): i for i, v in enumerate(targets.vertices.tolist())}
-    got = [(n, vertex_of[int(v)]) for n, v in zip(extra_names, extra_idx, strict=True)
-           if int(v) in vertex_of and int(v) not in pose_set]
+    got = [
+        (n, vertex_of[int(v)])
+        for n, v in zip(extra_names, extra_idx, strict=True)
+        if int(v) in vertex_of and int(v) not in pose_set
+    ]
     points = np.concatenate([stage.pose_points, targets.targets[[i for _, i in got]].reshape(-1, 3)])
     curve_report = {c.name: {"views": len(d)} for c, (_, d) in zip(curves, curve_args, strict=True)}
     return vertices, [n for n, _ in got], points, list(targets.dropped), curve_report
@@ -615,7 +635,15 @@ def fit_expression(
     refine_project, unsure, unsure_names = _sure_clicks(project, expression_name)
     if opt.refine:
         vertices, names, points_3d, dropped, curve_report = _refine(
-            refine_project, expression_name, mesh, opt, stage, initial_vertices, curve_mesh, deform, progress,
+            refine_project,
+            expression_name,
+            mesh,
+            opt,
+            stage,
+            initial_vertices,
+            curve_mesh,
+            deform,
+            progress,
             check_cancel,
         )
         dropped = _say_why_unsure(dropped, unsure_names)
@@ -624,17 +652,30 @@ def fit_expression(
     report = build_report(photo_ids, stage.cameras, stage.pose, project, expression_name, names, points_3d)
     photos_left_out = {i: "no click (no face found?), left out of the fit" for i in left_out} | {
         i: "a profile, whose automatic clicks place its camera tens of degrees off (the detector sees a profile "
-           "turned less than it is); they are left out — click or drag them by hand to fit it" for i in profiles}
+        "turned less than it is); they are left out — click or drag them by hand to fit it"
+        for i in profiles
+    }
     report.update(
         dropped=[f"photo {i!r}: {why}" for i, why in photos_left_out.items()] + stage.dropped + dropped,
-        photos_left_out=photos_left_out, bundle=stage.bundle_report, suspect_clicks=stage.suspects,
-        camera_solve=stage.camera_report, curves=curve_report, cameras_from=source,
+        photos_left_out=photos_left_out,
+        bundle=stage.bundle_report,
+        suspect_clicks=stage.suspects,
+        camera_solve=stage.camera_report,
+        curves=curve_report,
+        cameras_from=source,
         auto_clicks_left_out=unsure,
     )
     progress("done", 1.0)
     return FitResult(
-        photo_ids=photo_ids, cameras=stage.cameras, feature_names=names, points_3d=points_3d,
-        initial_vertices=initial_vertices, vertices=vertices, pose=stage.pose, report=report, cameras_from=source,
+        photo_ids=photo_ids,
+        cameras=stage.cameras,
+        feature_names=names,
+        points_3d=points_3d,
+        initial_vertices=initial_vertices,
+        vertices=vertices,
+        pose=stage.pose,
+        report=report,
+        cameras_from=source,
     )
 
 
@@ -718,7 +759,7 @@ def _fit_input(project, expression_name: str, source) -> tuple[object, list[str]
     kept, profiles = _without_profile_detections(photos)
     left_out = [p.id for p in kept if not p.points and p.id not in profiles]
     if not any(p.points for p in kept) or not (left_out or profiles):  # nothing to fit: the checklist says
-        return project, [], []                                            # what to click; or nothing changed
+        return project, [], []  # what to click; or nothing changed
     return _with_photos(project, expression_name, [p for p in kept if p.points]), left_out, profiles
 
 
@@ -753,11 +794,14 @@ def _without_profile_detections(photos) -> tuple[list, list[str]]:
 def _photo_without(photo, clicks, curves=()):
     """A copy of ``photo`` without the clicks of the features ``clicks`` (with their sources and
     confidences) and the curves ``curves``; the project's photo is left as it is."""
-    return replace(photo, points={n: uv for n, uv in photo.points.items() if n not in clicks},
-                   sources={n: v for n, v in photo.sources.items() if n not in clicks},
-                   confidence={n: c for n, c in photo.confidence.items() if n not in clicks},
-                   curves={c: line for c, line in photo.curves.items() if c not in curves},
-                   curve_sources={c: v for c, v in photo.curve_sources.items() if c not in curves})
+    return replace(
+        photo,
+        points={n: uv for n, uv in photo.points.items() if n not in clicks},
+        sources={n: v for n, v in photo.sources.items() if n not in clicks},
+        confidence={n: c for n, c in photo.confidence.items() if n not in clicks},
+        curves={c: line for c, line in photo.curves.items() if c not in curves},
+        curve_sources={c: v for c, v in photo.curve_sources.items() if c not in curves},
+    )
 
 
 def _sure_clicks(project, expression_name: str, least: float = MIN_AUTO_CONFIDENCE) -> tuple[object, int, dict]:
@@ -790,9 +834,11 @@ def _say_why_unsure(dropped: list[str], unsure: dict) -> list[str]:
         seen = re.match(r"([^:]*): seen in (\d+) photo", line)
         if seen and seen.group(1) in unsure:
             name = seen.group(1)
-            line = (f"{name}: {unsure[name]} automatic click(s) unsure (confidence < {MIN_AUTO_CONFIDENCE:g}, "
-                    f"e.g. outline or far-side points) and {seen.group(2)} sure; triangulation needs 2 sure "
-                    "clicks, so the generic mesh places it: click or drag it by hand to fit to it")
+            line = (
+                f"{name}: {unsure[name]} automatic click(s) unsure (confidence < {MIN_AUTO_CONFIDENCE:g}, "
+                f"e.g. outline or far-side points) and {seen.group(2)} sure; triangulation needs 2 sure "
+                "clicks, so the generic mesh places it: click or drag it by hand to fit to it"
+            )
         out.append(line)
     return out
 
@@ -831,4 +877,3 @@ def build_report(photo_ids, cameras, pose, project, expression_name, names, poin
             for i, (n, r) in enumerate(zip(names, per_point, strict=True))
         ],
     }
-

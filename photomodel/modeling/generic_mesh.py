@@ -96,9 +96,20 @@ FEATURE_ALIASES = {
 #: The default set of features clicked for pose recovery (§5.1.1): well spread, easy
 #: to find in every view.
 INITIAL_FEATURES = (
-    "eye_r_outer", "eye_r_inner", "eye_l_inner", "eye_l_outer", "brow_r_mid", "brow_l_mid",
-    "nose_tip", "nostril_r", "nostril_l", "mouth_r", "mouth_l", "lip_upper", "chin",
-)  # fmt: skip
+    "eye_r_outer",
+    "eye_r_inner",
+    "eye_l_inner",
+    "eye_l_outer",
+    "brow_r_mid",
+    "brow_l_mid",
+    "nose_tip",
+    "nostril_r",
+    "nostril_l",
+    "mouth_r",
+    "mouth_l",
+    "lip_upper",
+    "chin",
+)
 
 #: iBUG landmarks each curve passes through, in order (subject's right → left).
 CURVE_LANDMARKS = {

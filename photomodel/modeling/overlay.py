@@ -181,8 +181,9 @@ def line_points(lines: MeshLines, vertices: np.ndarray) -> np.ndarray:
     return (1.0 - t) * a + t * b
 
 
-def visible_points(camera: Camera, points: np.ndarray, depth: np.ndarray,
-                   tolerance_mm: float = DEPTH_TOLERANCE_MM) -> np.ndarray:
+def visible_points(
+    camera: Camera, points: np.ndarray, depth: np.ndarray, tolerance_mm: float = DEPTH_TOLERANCE_MM
+) -> np.ndarray:
     """(m,) bool: which points are not hidden behind the surface of a depth map.
 
     Parameters
@@ -237,7 +238,6 @@ def project_lines(
     if not 0 < depth_scale <= 1:
         raise ValueError(f"depth_scale must be in (0, 1], got {depth_scale}")
     if renderer is None:
-
         renderer = get_renderer()
     P = line_points(lines, vertices)
     uv = camera.project(P.reshape(-1, 3)).reshape(-1, 2, 2)
@@ -271,8 +271,15 @@ class PhotoOverlay:
     elapsed_s: float = 0.0
 
 
-def photo_overlay(camera: Camera, vertices: np.ndarray, faces: np.ndarray, lines: MeshLines, *,
-                  renderer=None, depth_scale: float = 0.5) -> PhotoOverlay:
+def photo_overlay(
+    camera: Camera,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    lines: MeshLines,
+    *,
+    renderer=None,
+    depth_scale: float = 0.5,
+) -> PhotoOverlay:
     """:func:`project_lines` reduced to what is drawn; without OpenGL, every line is drawn.
 
     Safe to call from a worker thread: the depth map comes from ``renderer`` (default this

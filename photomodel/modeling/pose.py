@@ -144,9 +144,7 @@ class PoseResult:
 # ----------------------------------------------------------------------------------------------
 # residuals
 # ----------------------------------------------------------------------------------------------
-def reprojection_residuals(
-    cameras: Sequence[Camera], points: np.ndarray, observations: np.ndarray
-) -> np.ndarray:
+def reprojection_residuals(cameras: Sequence[Camera], points: np.ndarray, observations: np.ndarray) -> np.ndarray:
     """Projected minus clicked pixel positions.
 
     Parameters
@@ -208,19 +206,13 @@ def _check_shapes(observations, cameras, points, names, view_names):
     except (TypeError, ValueError) as e:
         raise FitError(f"observations and points must be numeric arrays: {e}") from None
     if obs.ndim != 3 or obs.shape[2] != 2:
-        raise FitError(
-            f"observations must be an array (photos, features, 2) of pixel clicks; got shape {obs.shape}"
-        )
+        raise FitError(f"observations must be an array (photos, features, 2) of pixel clicks; got shape {obs.shape}")
     k, n, _ = obs.shape
     if pts.shape != (n, 3):
-        raise FitError(
-            f"points must be ({n}, 3) to match the {n} features of the observations; got shape {pts.shape}"
-        )
+        raise FitError(f"points must be ({n}, 3) to match the {n} features of the observations; got shape {pts.shape}")
     cams = list(cameras)
     if len(cams) != k:
-        raise FitError(
-            f"got {len(cams)} camera(s) for {k} photo(s) of clicks; give one initial camera per photo"
-        )
+        raise FitError(f"got {len(cams)} camera(s) for {k} photo(s) of clicks; give one initial camera per photo")
     vname = [str(v) for v in view_names] if view_names is not None else [f"#{j}" for j in range(k)]
     pname = [str(v) for v in names] if names is not None else [f"#{i}" for i in range(n)]
     if len(vname) != k:
@@ -246,9 +238,7 @@ def _check_values(obs, pts, cams, vname, pname):
     inf = np.isinf(obs).any(2)
     if inf.any():
         j, i = np.argwhere(inf)[0]
-        raise FitError(
-            f"photo {vname[j]!r}: feature {pname[i]!r} has an infinite coordinate ({obs[j, i].tolist()})"
-        )
+        raise FitError(f"photo {vname[j]!r}: feature {pname[i]!r} has an infinite coordinate ({obs[j, i].tolist()})")
     bad_pts = ~np.isfinite(pts).all(1)
     if bad_pts.any():
         i = int(np.flatnonzero(bad_pts)[0])
@@ -292,9 +282,7 @@ def _check_counts(nan, vname, pname, fixed_focal):
             f"{MIN_POINTS_PER_VIEW} clicks that are not on one line"
         )
     if n < MIN_POINTS:
-        raise FitError(
-            f"pose recovery needs at least {MIN_POINTS} features each clicked in 2 photos; got {n}"
-        )
+        raise FitError(f"pose recovery needs at least {MIN_POINTS} features each clicked in 2 photos; got {n}")
     n_cam = 6 if fixed_focal else 7
     n_eq, n_unk = 2 * int(valid.sum()), n_cam * k + 3 * n - 7
     if n_eq < n_unk:
@@ -601,9 +589,7 @@ class _Problem:
                 rhs = Y2 @ gp.reshape(-1) - gc.reshape(-1)
                 dc = np.linalg.solve(S, rhs).reshape(k, nc)
                 dm = -(Vinv @ (gp + (dc.reshape(-1) @ W2).reshape(n, 3))[..., None])[..., 0]
-                new = _State(
-                    rodrigues_batch(dc[:, :3]) @ R, st.t2 + dc[:, 3:5], eta + dc[:, -1], s, st.m + dm
-                )
+                new = _State(rodrigues_batch(dc[:, :3]) @ R, st.t2 + dc[:, 3:5], eta + dc[:, -1], s, st.m + dm)
                 new.s = self.f_fixed * new.eta if self.fixed_focal else s + dc[:, 5]
                 ev = self.evaluate(new)
                 if ev[5] <= cost:
@@ -732,9 +718,7 @@ def recover_poses(
                 break
         if accelerate and not (stopped or converged) and np.isfinite(rms):
             try:
-                st, polish_it, converged, stopped = prob.polish(
-                    st, max_sweeps, tol, history, callback, sweeps
-                )
+                st, polish_it, converged, stopped = prob.polish(st, max_sweeps, tol, history, callback, sweeps)
             except np.linalg.LinAlgError:
                 rms = np.nan
         q, w, p, P, r, cost = prob.evaluate(st)

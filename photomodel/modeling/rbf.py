@@ -150,8 +150,7 @@ class RBFInterpolant:
             U = U[:, None]
         if U.ndim != 2 or U.shape[0] != X.shape[0]:
             raise FitError(
-                f"values must have one row per centre: {X.shape[0]} centres, values shape "
-                f"{np.shape(values)}"
+                f"values must have one row per centre: {X.shape[0]} centres, values shape {np.shape(values)}"
             )
         if labels is None:
             labels = [f"centre {i}" for i in range(X.shape[0])]
@@ -168,9 +167,7 @@ class RBFInterpolant:
         X, U, merged = _merge_coincident(X, U, min_separation_mm, labels)
         n = X.shape[0]
         if n < 4:
-            raise FitError(
-                f"the affine part of Eq. (3) needs at least 4 non-coplanar centres, got {n}"
-            )
+            raise FitError(f"the affine part of Eq. (3) needs at least 4 non-coplanar centres, got {n}")
         mu = X.mean(axis=0)
         Xc = X - mu
         sv = np.linalg.svd(Xc, compute_uv=False)
@@ -236,9 +233,7 @@ class RBFInterpolant:
             q = Q[start : start + chunk]
             K = (L / s) * np.expm1(-cdist(q, self.centres) / L)
             out[start : start + chunk] = (
-                K @ self._coeffs_scaled
-                + ((q - self._mu) / s) @ self._affine_scaled[:3]
-                + self._affine_scaled[3]
+                K @ self._coeffs_scaled + ((q - self._mu) / s) @ self._affine_scaled[:3] + self._affine_scaled[3]
             )
         return out if self._vector else out[:, 0]
 
@@ -305,10 +300,7 @@ def deform_vertices(vertices, constrained, targets, **kw) -> np.ndarray:
         raise FitError(f"{idx.shape[0]} constrained vertices but {T.shape[0]} targets")
     out_of_range = idx[(idx < 0) | (idx >= V.shape[0])]
     if out_of_range.size:
-        raise FitError(
-            f"constrained vertex indices {out_of_range.tolist()} are outside the mesh "
-            f"(0..{V.shape[0] - 1})"
-        )
+        raise FitError(f"constrained vertex indices {out_of_range.tolist()} are outside the mesh (0..{V.shape[0] - 1})")
     kw.setdefault("labels", [f"vertex {v}" for v in idx.tolist()])
     interp = RBFInterpolant.fit(V[idx], T - V[idx], **kw)
     out = V + interp(V)

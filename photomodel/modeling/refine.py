@@ -123,8 +123,7 @@ def _validate_observations(cameras, observations) -> np.ndarray:
     obs = np.asarray(observations, dtype=float)
     if obs.ndim != 3 or obs.shape[0] != len(cameras) or obs.shape[2] != 2:
         raise FitError(
-            f"observations must be (k={len(cameras)}, n, 2) pixels, one row per camera; got "
-            f"shape {obs.shape}"
+            f"observations must be (k={len(cameras)}, n, 2) pixels, one row per camera; got shape {obs.shape}"
         )
     half = np.isnan(obs[..., 0]) != np.isnan(obs[..., 1])
     if half.any():
@@ -495,9 +494,7 @@ def refine_points(
             raise FitError("point_vertices given without point_observations")
         tri = locate(point_observations, pv)
         if tri.points.shape[0] != pv.shape[0]:
-            raise FitError(
-                f"{pv.shape[0]} point vertices but observations of {tri.points.shape[0]} points"
-            )
+            raise FitError(f"{pv.shape[0]} point vertices but observations of {tri.points.shape[0]} points")
         names = point_names or [f"point {i} (vertex {v})" for i, v in enumerate(pv.tolist())]
         dropped += list(tri.problems(names).values())
         for i in np.flatnonzero(tri.ok):

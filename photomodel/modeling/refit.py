@@ -76,8 +76,15 @@ class CachedDeformer:
         V = np.asarray(vertices, dtype=float)
         idx = np.asarray(constrained)
         T = np.asarray(targets, dtype=float)
-        if (V.ndim != 2 or V.shape[1] != 3 or idx.ndim != 1 or not np.issubdtype(idx.dtype, np.integer)
-                or T.shape != (idx.shape[0], 3) or np.any(idx < 0) or np.any(idx >= V.shape[0])):
+        if (
+            V.ndim != 2
+            or V.shape[1] != 3
+            or idx.ndim != 1
+            or not np.issubdtype(idx.dtype, np.integer)
+            or T.shape != (idx.shape[0], 3)
+            or np.any(idx < 0)
+            or np.any(idx >= V.shape[0])
+        ):
             return deform_vertices(vertices, constrained, targets, **kw)  # let it word the error
         bad = np.flatnonzero(~np.all(np.isfinite(T), axis=1))
         if bad.size:
@@ -160,5 +167,13 @@ class Refitter:
         options = self.options
         if warm is not None and options.refine:
             options = replace(options, curve_passes=1)
-        return fit_expression(project, expression_name, self.mesh, options, progress=progress, cancel=cancel,
-                              deform=self.deformer, curve_mesh=warm)
+        return fit_expression(
+            project,
+            expression_name,
+            self.mesh,
+            options,
+            progress=progress,
+            cancel=cancel,
+            deform=self.deformer,
+            curve_mesh=warm,
+        )

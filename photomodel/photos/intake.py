@@ -80,8 +80,11 @@ def default_features(mesh: GenericMesh) -> tuple[list[Feature], list[CurveDef]]:
     """
     features = [Feature(name, mesh.features[name], True) for name in mesh.initial_features]
     used = {f.vertex for f in features}
-    features += [Feature(name, int(mesh.landmarks[i]), False)
-                 for i, name in enumerate(IBUG68_NAMES) if int(mesh.landmarks[i]) not in used]
+    features += [
+        Feature(name, int(mesh.landmarks[i]), False)
+        for i, name in enumerate(IBUG68_NAMES)
+        if int(mesh.landmarks[i]) not in used
+    ]
     curves = [CurveDef(name, vertices) for name, vertices in mesh.curves.items()]
     return features, curves
 
@@ -245,13 +248,19 @@ def _expression(project: Project, name: str) -> Expression:
     return project.expressions[-1]
 
 
-def _intake_photo(path: Path, ids: set[str], names: list[str], curves: set[str], camera_group: str | None,
-                  placer: Placer) -> _Incoming:
+def _intake_photo(
+    path: Path, ids: set[str], names: list[str], curves: set[str], camera_group: str | None, placer: Placer
+) -> _Incoming:
     """Read one photo, guess its camera, place its landmarks (see the module docstring)."""
     read = read_photo(path)
-    photo = Photo(id=_unique_id(path, ids), path=str(path), width=read.width, height=read.height,
-                  focal_mm_guess=focal_mm_guess_from_exif(path, read.width, read.height),
-                  camera_group=camera_group if camera_group is not None else camera_identity(path))
+    photo = Photo(
+        id=_unique_id(path, ids),
+        path=str(path),
+        width=read.width,
+        height=read.height,
+        focal_mm_guess=focal_mm_guess_from_exif(path, read.width, read.height),
+        camera_group=camera_group if camera_group is not None else camera_identity(path),
+    )
     warnings = []
     try:
         placement = placer(read.image, names)
@@ -316,6 +325,8 @@ def _duplicate_warnings(project: Project, expr: Expression, incoming: list[_Inco
         if j < first_new:
             continue  # two old photos: said when they were added
         a, b = entries[i][0], entries[j][0]
-        out.append(f"{Path(a.path).name} and {Path(b.path).name} are the same image (photos {a.id!r} "
-                   f"and {b.id!r}): two views must be different photographs; remove one")
+        out.append(
+            f"{Path(a.path).name} and {Path(b.path).name} are the same image (photos {a.id!r} "
+            f"and {b.id!r}): two views must be different photographs; remove one"
+        )
     return out

@@ -60,8 +60,10 @@ PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".webp", ".tif", ".tiff", ".bmp", ".p
 #: demosaicing, and their embedded previews are small and lens-corrected differently).
 UNREADABLE_PHOTO_SUFFIXES = {
     **dict.fromkeys((".heic", ".heif", ".avif"), "export it as JPEG; on a phone, choose the Most Compatible format"),
-    **dict.fromkeys((".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"),
-                    "a camera raw file: develop it to JPEG or TIFF first"),
+    **dict.fromkeys(
+        (".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"),
+        "a camera raw file: develop it to JPEG or TIFF first",
+    ),
     ".gif": "convert it to PNG",
 }
 #: Two photos whose 32 × 32 grey thumbnails differ by at most this many grey levels (0-255)
@@ -71,8 +73,12 @@ DUPLICATE_MEAN_DIFF = 1.5
 FINGERPRINT_SIZE = 32
 
 _EXIF_ORIENTATION = 0x0112
-_REDUCED = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
-            8: cv2.IMREAD_REDUCED_COLOR_8}
+_REDUCED = {
+    1: cv2.IMREAD_COLOR,
+    2: cv2.IMREAD_REDUCED_COLOR_2,
+    4: cv2.IMREAD_REDUCED_COLOR_4,
+    8: cv2.IMREAD_REDUCED_COLOR_8,
+}
 _PNG_IEND = b"IEND\xaeB`\x82"  # the IEND chunk type and its (fixed) CRC
 
 
@@ -218,8 +224,9 @@ def photos_in_folder(folder: str | os.PathLike) -> list[Path]:
     if not paths:
         unreadable = unreadable_photos_in_folder(folder)
         if unreadable:
-            raise PhotoError(f"{folder}: no photos this program reads in it; "
-                             + "; ".join(unreadable_note(p) for p in unreadable))
+            raise PhotoError(
+                f"{folder}: no photos this program reads in it; " + "; ".join(unreadable_note(p) for p in unreadable)
+            )
         raise PhotoError(f"{folder}: no photos in it (looked for {', '.join(PHOTO_SUFFIXES)})")
     return paths
 
@@ -233,15 +240,18 @@ def unreadable_photos_in_folder(folder: str | os.PathLike) -> list[Path]:
 
 def unreadable_note(path: Path) -> str:
     """What to do about a photo file of an unread type (:data:`UNREADABLE_PHOTO_SUFFIXES`), naming it."""
-    return (f"{path.name} is not read ({path.suffix.lstrip('.').upper()}: "
-            f"{UNREADABLE_PHOTO_SUFFIXES[path.suffix.lower()]})")
+    return (
+        f"{path.name} is not read ({path.suffix.lstrip('.').upper()}: {UNREADABLE_PHOTO_SUFFIXES[path.suffix.lower()]})"
+    )
 
 
 def files_in_folder(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
     """The visible files directly in ``folder`` with one of ``suffixes`` (lower case, matched in
     any case), in name order (:func:`name_order`); hidden ones (``.name``) are left out."""
-    return sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in suffixes
-                   and not p.name.startswith(".")), key=name_order)
+    return sorted(
+        (p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in suffixes and not p.name.startswith(".")),
+        key=name_order,
+    )
 
 
 def name_order(path: Path) -> tuple:

@@ -55,22 +55,30 @@ def project_to_dict(project: Project, target: Path | None) -> dict:
     def stored(p: str) -> str:
         return _stored_path(p, origin, folder)
 
-    order = {"feature": {f.name: i for i, f in enumerate(project.features)},
-             "curve": {c.name: i for i, c in enumerate(project.curves)}}
+    order = {
+        "feature": {f.name: i for i, f in enumerate(project.features)},
+        "curve": {c.name: i for i, c in enumerate(project.curves)},
+    }
     d = {
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "name": project.name,
-        "generic_mesh": (project.generic_mesh if project.generic_mesh.startswith("builtin:")
-                         else stored(project.generic_mesh)),
+        "generic_mesh": (
+            project.generic_mesh if project.generic_mesh.startswith("builtin:") else stored(project.generic_mesh)
+        ),
         "features": [{"name": f.name, "vertex": int(f.vertex), "pose": bool(f.pose)} for f in project.features],
         "curves": [{"name": c.name, "vertices": [int(v) for v in c.vertices]} for c in project.curves],
         "expressions": [_expression_dict(e, order, stored) for e in project.expressions],
     }
     if project.rig is not None:  # optional (version 4): projects without a rig omit the key
         rig = project.rig
-        d["rig"] = {"source": rig.source, "neutral": rig.neutral, "shapes": list(rig.shapes),
-                    "file": stored(rig.file), "report": _jsonable(rig.report)}  # fmt: skip
+        d["rig"] = {
+            "source": rig.source,
+            "neutral": rig.neutral,
+            "shapes": list(rig.shapes),
+            "file": stored(rig.file),
+            "report": _jsonable(rig.report),
+        }
     return d
 
 
@@ -232,8 +240,13 @@ def project_from_dict(d: Any, path: str | os.PathLike | None = None) -> Project:
 def _rig_from_dict(r: dict | None) -> RigRecord | None:
     if r is None:
         return None
-    return RigRecord(source=r["source"], neutral=r["neutral"], shapes=list(r["shapes"]), file=r["file"],
-                     report=plain(r.get("report", {})))  # fmt: skip
+    return RigRecord(
+        source=r["source"],
+        neutral=r["neutral"],
+        shapes=list(r["shapes"]),
+        file=r["file"],
+        report=plain(r.get("report", {})),
+    )
 
 
 def _expression_from_dict(e: dict) -> Expression:
@@ -245,9 +258,15 @@ def _expression_from_dict(e: dict) -> Expression:
 
 def _photo_from_dict(p: dict) -> Photo:
     return Photo(
-        id=p["id"], path=p["path"], width=p["width"], height=p["height"], preset=p["preset"],
+        id=p["id"],
+        path=p["path"],
+        width=p["width"],
+        height=p["height"],
+        preset=p["preset"],
         focal_mm_guess=p.get("focal_mm_guess"),
-        points=p.get("points", {}), hidden=p.get("hidden", []), curves=p.get("curves", {}),
+        points=p.get("points", {}),
+        hidden=p.get("hidden", []),
+        curves=p.get("curves", {}),
         camera_group=p.get("camera_group"),
         sources={k: c["source"] for k, c in p.get("click_sources", {}).items()},
         confidence={k: c["confidence"] for k, c in p.get("click_sources", {}).items() if "confidence" in c},
@@ -265,6 +284,11 @@ def _result_from_dict(r: dict) -> ExpressionResult:
     )
     t = r.get("texture")
     if t is not None:
-        result.texture = TextureResult(size=t["size"], image=t["image"], weight_maps=t["weight_maps"],
-                                       exports=t.get("exports", {}), report=plain(t.get("report", {})))
+        result.texture = TextureResult(
+            size=t["size"],
+            image=t["image"],
+            weight_maps=t["weight_maps"],
+            exports=t.get("exports", {}),
+            report=plain(t.get("report", {})),
+        )
     return result

@@ -64,8 +64,7 @@ def _read_text(path: Path) -> str:
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise ProjectError(f"{path.name}: not a text (UTF-8) file: {exc.reason} at byte {exc.start}"
-                           ) from None
+        raise ProjectError(f"{path.name}: not a text (UTF-8) file: {exc.reason} at byte {exc.start}") from None
 
 
 def save_project(project: Project, path: str | os.PathLike | None = None) -> Path:
@@ -112,8 +111,10 @@ def target_file(project: Project, path: str | os.PathLike | None = None) -> Path
     folder means the default file name inside it."""
     if path is None:
         if project.path is None:
-            raise ProjectError(f"project {project.name!r} has not been saved yet: give a file name "
-                               f"(e.g. {default_filename(project.name)})")
+            raise ProjectError(
+                f"project {project.name!r} has not been saved yet: give a file name "
+                f"(e.g. {default_filename(project.name)})"
+            )
         path = project.path
     path = Path(path).absolute()
     if path.is_dir():

@@ -37,10 +37,11 @@ class _NonFinite:
 
     def message(self) -> str:
         if self.literal.lstrip("-") in ("NaN", "Infinity", "nan", "inf"):
-            return (f"{self.literal} is not a finite number (JSON has no NaN or Infinity); remove the "
-                    f"value or use null where allowed")
-        return (f"{_excerpt(self.literal)} is not a finite number: too large for a double (at most "
-                f"about 1.8e308)")
+            return (
+                f"{self.literal} is not a finite number (JSON has no NaN or Infinity); remove the "
+                f"value or use null where allowed"
+            )
+        return f"{_excerpt(self.literal)} is not a finite number: too large for a double (at most about 1.8e308)"
 
 
 def _excerpt(literal: str, limit: int = 24) -> str:
@@ -94,14 +95,14 @@ def parse_json(text: str, source: str):
         return d
 
     try:
-        data = json.loads(text, parse_constant=constant, parse_float=number, parse_int=integer,
-                          object_pairs_hook=pairs)
+        data = json.loads(text, parse_constant=constant, parse_float=number, parse_int=integer, object_pairs_hook=pairs)
     except json.JSONDecodeError as exc:
-        raise ProjectError(f"{source}: not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})"
-                           ) from None
+        raise ProjectError(f"{source}: not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
     except RecursionError:  # the C parser's guard: thousands of nested [ or {
-        raise ProjectError(f"{source}: objects or lists nested too deeply (more than {MAX_DEPTH} levels; "
-                           f"a project file is at most a dozen deep)") from None
+        raise ProjectError(
+            f"{source}: objects or lists nested too deeply (more than {MAX_DEPTH} levels; "
+            f"a project file is at most a dozen deep)"
+        ) from None
     check_depth(data, source)
     if suspect:
         problems = scan_parsed(data)
@@ -119,11 +120,13 @@ def check_depth(node, source: str) -> None:
     while level:
         depth += 1
         if depth > MAX_DEPTH:
-            raise ProjectError(f"{source}: {fmt_path(_deep_path(node))}: objects or lists nested too "
-                               f"deeply (more than {MAX_DEPTH} levels; a project file is at most a dozen deep)")
+            raise ProjectError(
+                f"{source}: {fmt_path(_deep_path(node))}: objects or lists nested too "
+                f"deeply (more than {MAX_DEPTH} levels; a project file is at most a dozen deep)"
+            )
         nested = []
         for item in level:
-            for v in (item if type(item) is list else item.values()):
+            for v in item if type(item) is list else item.values():
                 if type(v) is list or isinstance(v, dict):
                     nested.append(v)
         level = nested
@@ -194,12 +197,12 @@ def dumps(node, level: int = 0) -> str:
         if not node:
             return "{}"
         if all(not isinstance(v, (dict, list)) for v in node.values()):
-            inline = "{" + ", ".join(f"{json.dumps(k, ensure_ascii=False)}: {_scalar(v)}"
-                                     for k, v in node.items()) + "}"
+            inline = (
+                "{" + ", ".join(f"{json.dumps(k, ensure_ascii=False)}: {_scalar(v)}" for k, v in node.items()) + "}"
+            )
             if len(inline) + len(pad1) <= _INLINE_DICT_WIDTH:
                 return inline
-        items = [f"{pad1}{json.dumps(k, ensure_ascii=False)}: {dumps(v, level + 1)}"
-                 for k, v in node.items()]
+        items = [f"{pad1}{json.dumps(k, ensure_ascii=False)}: {dumps(v, level + 1)}" for k, v in node.items()]
         return "{\n" + ",\n".join(items) + "\n" + pad + "}"
     if isinstance(node, list):
         if not node:

@@ -90,8 +90,7 @@ class CurveDef:
         self.vertices = np.asarray(self.vertices, dtype=np.int64).reshape(-1)
 
     def __eq__(self, other):
-        return (isinstance(other, CurveDef) and self.name == other.name
-                and np.array_equal(self.vertices, other.vertices))
+        return isinstance(other, CurveDef) and self.name == other.name and np.array_equal(self.vertices, other.vertices)
 
 
 @dataclass
@@ -150,14 +149,35 @@ class Photo:
         self.curve_sources = {k: str(v) for k, v in self.curve_sources.items() if v != "user"}
 
     def __eq__(self, other):
-        return (isinstance(other, Photo)
-                and (self.id, self.path, self.width, self.height, self.preset, self.focal_mm_guess,
-                     self.camera_group, self.hidden, self.click_meta(), self.curve_meta())
-                == (other.id, other.path, other.width, other.height, other.preset,
-                    other.focal_mm_guess, other.camera_group, other.hidden, other.click_meta(),
-                    other.curve_meta())
-                and _array_dicts_equal(self.points, other.points)
-                and _array_dicts_equal(self.curves, other.curves))
+        return (
+            isinstance(other, Photo)
+            and (
+                self.id,
+                self.path,
+                self.width,
+                self.height,
+                self.preset,
+                self.focal_mm_guess,
+                self.camera_group,
+                self.hidden,
+                self.click_meta(),
+                self.curve_meta(),
+            )
+            == (
+                other.id,
+                other.path,
+                other.width,
+                other.height,
+                other.preset,
+                other.focal_mm_guess,
+                other.camera_group,
+                other.hidden,
+                other.click_meta(),
+                other.curve_meta(),
+            )
+            and _array_dicts_equal(self.points, other.points)
+            and _array_dicts_equal(self.curves, other.curves)
+        )
 
     # -- clicks and where they came from (format version 3) ------------------------------
     def set_click(self, name: str, uv, source: str = "user", confidence: float | None = None) -> None:
@@ -312,15 +332,23 @@ class ExpressionResult:
     def __eq__(self, other):
         if not isinstance(other, ExpressionResult):
             return False
-        if ((self.mesh_obj, self.mesh_ply, self.report, self.texture)
-                != (other.mesh_obj, other.mesh_ply, other.report, other.texture)):
+        if (self.mesh_obj, self.mesh_ply, self.report, self.texture) != (
+            other.mesh_obj,
+            other.mesh_ply,
+            other.report,
+            other.texture,
+        ):
             return False
         if self.cameras.keys() != other.cameras.keys():
             return False
         for k, a in self.cameras.items():
             b = other.cameras[k]
-            if not (np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t) and a.f == b.f
-                    and (a.width, a.height) == (b.width, b.height)):
+            if not (
+                np.array_equal(a.R, b.R)
+                and np.array_equal(a.t, b.t)
+                and a.f == b.f
+                and (a.width, a.height) == (b.width, b.height)
+            ):
                 return False
         return _array_dicts_equal(self.points_3d, other.points_3d)
 
@@ -352,8 +380,9 @@ class Expression:
         for p in self.photos:
             if p.id == photo_id:
                 return p
-        raise ProjectError(f"expression {self.name!r} has no photo {photo_id!r}; "
-                           f"its photos are: {listing(p.id for p in self.photos)}")
+        raise ProjectError(
+            f"expression {self.name!r} has no photo {photo_id!r}; its photos are: {listing(p.id for p in self.photos)}"
+        )
 
     def camera_groups(self) -> list[int]:
         """The camera of each photo, in photo order, as the index array a solver shares
@@ -436,15 +465,15 @@ class Project:
         for e in self.expressions:
             if e.name == name:
                 return e
-        raise ProjectError(f"project {self.name!r} has no expression {name!r}; "
-                           f"available: {listing(e.name for e in self.expressions)}")
+        raise ProjectError(
+            f"project {self.name!r} has no expression {name!r}; available: {listing(e.name for e in self.expressions)}"
+        )
 
     def feature(self, name: str) -> Feature:
         for f in self.features:
             if f.name == name:
                 return f
-        raise ProjectError(f"project {self.name!r} has no feature {name!r}"
-                           f"{did_you_mean(name, self.feature_names())}")
+        raise ProjectError(f"project {self.name!r} has no feature {name!r}{did_you_mean(name, self.feature_names())}")
 
     def feature_names(self, pose_only: bool = False) -> list[str]:
         """Feature names in definition order; only the pose-recovery ones if ``pose_only``."""
@@ -466,8 +495,7 @@ class Project:
         """Absolute path of ``photo``'s image file."""
         return self.resolve(photo.path)
 
-    def observations(self, expression_name: str,
-                     feature_names: Sequence[str] | None = None) -> np.ndarray:
+    def observations(self, expression_name: str, feature_names: Sequence[str] | None = None) -> np.ndarray:
         """Clicked feature positions of one expression as an observation array.
 
         Parameters
@@ -534,15 +562,23 @@ class Project:
         problems = []
         for i, f in enumerate(self.features):
             if not 0 <= f.vertex < n_vertices:
-                problems.append((f"features[{i}].vertex",
-                                 f"feature {f.name!r}: vertex {f.vertex} is out of range for a "
-                                 f"generic mesh with {n_vertices} vertices"))
+                problems.append(
+                    (
+                        f"features[{i}].vertex",
+                        f"feature {f.name!r}: vertex {f.vertex} is out of range for a "
+                        f"generic mesh with {n_vertices} vertices",
+                    )
+                )
         for i, c in enumerate(self.curves):
             bad = np.flatnonzero((c.vertices < 0) | (c.vertices >= n_vertices))
             if bad.size:
-                problems.append((f"curves[{i}].vertices[{bad[0]}]",
-                                 f"curve {c.name!r}: vertex {c.vertices[bad[0]]} is out of range for "
-                                 f"a generic mesh with {n_vertices} vertices"))
+                problems.append(
+                    (
+                        f"curves[{i}].vertices[{bad[0]}]",
+                        f"curve {c.name!r}: vertex {c.vertices[bad[0]]} is out of range for "
+                        f"a generic mesh with {n_vertices} vertices",
+                    )
+                )
         if problems:
             raise problems_error(self._source(), problems)
 
@@ -576,8 +612,9 @@ class Project:
                         problems.append((where, f"{who}: {photo.path} could not be decoded: {exc}"))
                         continue
                     if (w, h) != (photo.width, photo.height):
-                        problems.append((where, f"{who}: {photo.path} is {w}x{h} "
-                                                f"but the project says {photo.width}x{photo.height}"))
+                        problems.append(
+                            (where, f"{who}: {photo.path} is {w}x{h} but the project says {photo.width}x{photo.height}")
+                        )
         if problems:
             raise problems_error(self._source(), problems)
 
@@ -607,12 +644,15 @@ class Project:
     def _require_features(self, names: Iterable[str], defined) -> None:
         missing = [n for n in names if n not in defined]
         if missing:
-            raise ProjectError(f"project {self.name!r} has no feature(s) {listing(missing)}"
-                               f"{did_you_mean(missing[0], self.feature_names())}")
+            raise ProjectError(
+                f"project {self.name!r} has no feature(s) {listing(missing)}"
+                f"{did_you_mean(missing[0], self.feature_names())}"
+            )
 
 
-def new_project(name: str, *, generic_mesh: str = BUILTIN_MESH,
-                features: Sequence[Feature] = (), curves: Sequence[CurveDef] = ()) -> Project:
+def new_project(
+    name: str, *, generic_mesh: str = BUILTIN_MESH, features: Sequence[Feature] = (), curves: Sequence[CurveDef] = ()
+) -> Project:
     """An empty project (no expressions) called ``name``; not yet saved."""
     if not isinstance(name, str) or not name.strip():
         raise ProjectError(f"a project needs a non-empty name, got {name!r}")

@@ -71,8 +71,9 @@ def record_fit(project: Project, expression_name: str, fit) -> ExpressionResult:
     return result
 
 
-def fit_mesh_paths(project: Project, expression_name: str, folder: Path,
-                   vertices: np.ndarray | None = None) -> dict[str, Path]:
+def fit_mesh_paths(
+    project: Project, expression_name: str, folder: Path, vertices: np.ndarray | None = None
+) -> dict[str, Path]:
     """``{"mesh_obj": <folder>/results/<expr>.obj, "mesh_ply": <folder>/results/<expr>.ply}``.
 
     With the fit's ``vertices``, and a mesh of that name already in ``folder`` (an earlier fit,
@@ -91,8 +92,13 @@ def fit_mesh_paths(project: Project, expression_name: str, folder: Path,
 def _remove_replaced_meshes(project: Project, folder: Path, names) -> None:
     """After the project file is written: the mesh files of expressions ``names`` (``<expr>.obj``,
     ``<expr>.<fit id>.obj``, and ``.ply``) in ``folder/results`` that no expression names any more."""
-    named = {project.resolve(p) for e in project.expressions if e.result is not None
-             for p in (e.result.mesh_obj, e.result.mesh_ply) if p is not None}
+    named = {
+        project.resolve(p)
+        for e in project.expressions
+        if e.result is not None
+        for p in (e.result.mesh_obj, e.result.mesh_ply)
+        if p is not None
+    }
     for name in names:
         stem = re.escape(Path(project.default_result_paths(name)[0]).stem)
         pattern = re.compile(rf"^{stem}(\.[0-9a-f]{{8}})?\.(obj|ply)$")
@@ -101,8 +107,9 @@ def _remove_replaced_meshes(project: Project, folder: Path, names) -> None:
                 f.unlink(missing_ok=True)
 
 
-def store_fit_meshes(project: Project, expression_name: str, vertices: np.ndarray, faces: np.ndarray,
-                     folder: Path | None = None) -> dict[str, Path]:
+def store_fit_meshes(
+    project: Project, expression_name: str, vertices: np.ndarray, faces: np.ndarray, folder: Path | None = None
+) -> dict[str, Path]:
     """Write the fitted mesh as OBJ and PLY (each atomically) into ``folder`` (default: the
     project's) and record them in the expression's result; returns the files written."""
     folder = _folder(project, folder)
@@ -174,8 +181,9 @@ def _write_texture(job, files: Mapping) -> None:
         exchange_files.write_files(files)
     except OSError as exc:
         where = Path(next(iter(files))).parent if files else Path.cwd()
-        raise ProjectError(f"{where}: could not write the texture of {job.expression!r}: "
-                           f"{exc.strerror or exc}") from exc
+        raise ProjectError(
+            f"{where}: could not write the texture of {job.expression!r}: {exc.strerror or exc}"
+        ) from exc
 
 
 def _record_texture(project: Project, job, rel: dict, folder: Path) -> None:
@@ -183,17 +191,25 @@ def _record_texture(project: Project, job, rel: dict, folder: Path) -> None:
         return _recorded(project, folder, folder / p)
 
     project.expression(job.expression).result.texture = TextureResult(
-        size=job.size, image=recorded(rel["image"]),
+        size=job.size,
+        image=recorded(rel["image"]),
         weight_maps={pid: recorded(p) for pid, p in rel["weight_maps"].items()},
         exports={k: recorded(rel[k]) for k in ("obj", "glb", "ply")},
-        report=dict(job.report))
+        report=dict(job.report),
+    )
 
 
 # ---------------------------------------------------------------------------------------
 # results and the project file, together
 # ---------------------------------------------------------------------------------------
-def save_results(project: Project, target=None, *, fits: Mapping[str, np.ndarray] | None = None,
-                 faces: np.ndarray | None = None, textures: Sequence[tuple] = ()) -> Path:
+def save_results(
+    project: Project,
+    target=None,
+    *,
+    fits: Mapping[str, np.ndarray] | None = None,
+    faces: np.ndarray | None = None,
+    textures: Sequence[tuple] = (),
+) -> Path:
     """Store result files, then the project file (see the module docstring); returns the file written.
 
     Parameters
@@ -253,8 +269,15 @@ def _recorded(project: Project, folder: Path, path: Path) -> str:
 RIG_FILE = "results/rig.npz"
 
 
-def store_rig(project: Project, *, neutral: str, names: Sequence[str], deltas: np.ndarray, report: dict,
-              folder: Path | None = None) -> None:  # fmt: skip
+def store_rig(
+    project: Project,
+    *,
+    neutral: str,
+    names: Sequence[str],
+    deltas: np.ndarray,
+    report: dict,
+    folder: Path | None = None,
+) -> None:
     """Write the rig's displacements (``results/rig.npz``: ``names`` (k,), ``deltas`` (k, n, 3)
     float32 mm) atomically and record it in ``project.rig`` (format version 4); the caller saves
     the project file afterwards, as with :func:`store_fit_result`."""
@@ -270,8 +293,13 @@ def store_rig(project: Project, *, neutral: str, names: Sequence[str], deltas: n
         exchange_files.atomic_write_bytes(path, buf.getvalue())
     except OSError as exc:
         raise ProjectError(f"cannot write the rig file {path}: {exc}") from exc
-    project.rig = RigRecord(source="ict-facekit", neutral=neutral, shapes=names, file=_recorded(project, folder, path),
-                            report=copy.deepcopy(report))  # fmt: skip
+    project.rig = RigRecord(
+        source="ict-facekit",
+        neutral=neutral,
+        shapes=names,
+        file=_recorded(project, folder, path),
+        report=copy.deepcopy(report),
+    )
 
 
 def load_rig_shapes(project: Project) -> tuple[list[str], np.ndarray]:

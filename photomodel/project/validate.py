@@ -71,14 +71,17 @@ def validate(d: Any, source: str) -> None:
 def _check_version(d: Any, source: str) -> None:
     if not isinstance(d, dict) or d.get("format") != FORMAT_NAME:
         got = d.get("format") if isinstance(d, dict) else type(d).__name__
-        raise ProjectError(f"{source}: not a Face Studio project file "
-                           f"(expected \"format\": \"{FORMAT_NAME}\", got {short(got)})")
+        raise ProjectError(
+            f'{source}: not a Face Studio project file (expected "format": "{FORMAT_NAME}", got {short(got)})'
+        )
     version = d.get("version")
     if isinstance(version, bool) or not isinstance(version, int):
         raise ProjectError(f"{source}: version: expected an integer format version, got {short(version)}")
     if version > FORMAT_VERSION:
-        raise ProjectError(f"{source}: written by a newer Face Studio (project format version {version}; "
-                           f"this version reads up to {FORMAT_VERSION}); please update Face Studio")
+        raise ProjectError(
+            f"{source}: written by a newer Face Studio (project format version {version}; "
+            f"this version reads up to {FORMAT_VERSION}); please update Face Studio"
+        )
     if version < 1:
         raise ProjectError(f"{source}: version: unknown project format version {version}")
 
@@ -95,8 +98,7 @@ def project_schema() -> dict:
 
 #: Where the bulk of a project lives — maps of many small coordinate arrays — and the
 #: shipped-schema definition each map's values follow.
-_LEAF_MAPS = {("photo", "points"): "pixel", ("photo", "curves"): "polyline",
-              ("result", "points_3d"): "vec3"}
+_LEAF_MAPS = {("photo", "points"): "pixel", ("photo", "curves"): "polyline", ("result", "points_3d"): "vec3"}
 
 
 @lru_cache(maxsize=1)
@@ -109,7 +111,6 @@ def _validator():
     plain Python instead; the shipped schema keeps the full standard definition, and
     ``tests/test_project_validate.py`` checks that both agree.
     """
-
 
     schema = copy.deepcopy(project_schema())
     for (owner, prop), kind in _LEAF_MAPS.items():
@@ -151,14 +152,12 @@ def _leaves_keyword(validator, kind, instance, schema):
                 continue
             for i, uv in enumerate(value):
                 if not _is_numbers(uv, 2):
-                    yield ValidationError(f"expected [u, v] of two finite numbers, got {short(uv)}",
-                                          path=[key, i])
+                    yield ValidationError(f"expected [u, v] of two finite numbers, got {short(uv)}", path=[key, i])
                     break
         elif kind == "pixel" and not _is_numbers(value, 2):
             yield ValidationError(f"expected [u, v] of two finite numbers, got {short(value)}", path=[key])
         elif kind == "vec3" and not _is_numbers(value, 3):
-            yield ValidationError(f"expected [x, y, z] of three finite numbers (mm), got {short(value)}",
-                                  path=[key])
+            yield ValidationError(f"expected [x, y, z] of three finite numbers (mm), got {short(value)}", path=[key])
 
 
 def _is_numbers(v, n: int) -> bool:
@@ -266,8 +265,13 @@ def cross_reference_problems(d: dict) -> list[tuple[str, str]]:
     rig = d.get("rig")
     names = [e["name"] for e in d["expressions"]]
     if rig is not None and rig["neutral"] not in names:
-        problems.append(("rig.neutral", f"names no expression ({short(rig['neutral'])}); "
-                                        f"expressions: {listing(names)}{did_you_mean(rig['neutral'], names)}"))
+        problems.append(
+            (
+                "rig.neutral",
+                f"names no expression ({short(rig['neutral'])}); "
+                f"expressions: {listing(names)}{did_you_mean(rig['neutral'], names)}",
+            )
+        )
     return problems
 
 
@@ -290,26 +294,38 @@ def _photo_problems(pp: str, p: dict, defined: _Defined) -> list[tuple[str, str]
     fset, cset = defined.feature_set, defined.curve_set
     w, h = p["width"], p["height"]
     if p["preset"] not in PRESET_AZIMUTH_DEG:
-        problems.append((f"{pp}.preset", f"unknown camera preset {p['preset']!r}; choose one of "
-                                         f"{', '.join(sorted(PRESET_AZIMUTH_DEG))}"))
+        problems.append(
+            (
+                f"{pp}.preset",
+                f"unknown camera preset {p['preset']!r}; choose one of {', '.join(sorted(PRESET_AZIMUTH_DEG))}",
+            )
+        )
     points = p.get("points", {})
     for name in points:
         if name not in fset:
-            problems.append((f"{pp}.points{fmt_key(name)}", f"no feature named {name!r} is defined"
-                                                            f"{did_you_mean(name, defined.features)}"))
+            problems.append(
+                (
+                    f"{pp}.points{fmt_key(name)}",
+                    f"no feature named {name!r} is defined{did_you_mean(name, defined.features)}",
+                )
+            )
     if points:
         names, uvs = list(points), list(points.values())
         for j in np.flatnonzero(_far_outside(np.array(uvs, float), w, h)):
             problems.append((f"{pp}.points{fmt_key(names[j])}", _outside_message(uvs[j], w, h)))
     for name in p.get("click_sources", {}):
         if name not in points:
-            problems.append((f"{pp}.click_sources{fmt_key(name)}",
-                             f"{name!r} has no click in this photo's points; a click's source "
-                             f"needs the click"))
+            problems.append(
+                (
+                    f"{pp}.click_sources{fmt_key(name)}",
+                    f"{name!r} has no click in this photo's points; a click's source needs the click",
+                )
+            )
     for hi, name in enumerate(p.get("hidden", [])):
         if name not in fset:
-            problems.append((f"{pp}.hidden[{hi}]", f"no feature named {name!r} is defined"
-                                                   f"{did_you_mean(name, defined.features)}"))
+            problems.append(
+                (f"{pp}.hidden[{hi}]", f"no feature named {name!r} is defined{did_you_mean(name, defined.features)}")
+            )
     for name, line in p.get("curves", {}).items():
         at = f"{pp}.curves{fmt_key(name)}"
         if name not in cset:
@@ -319,8 +335,12 @@ def _photo_problems(pp: str, p: dict, defined: _Defined) -> list[tuple[str, str]
             problems.append((f"{at}[{bad[0]}]", _outside_message(line[bad[0]], w, h)))
     for name in p.get("curve_sources", {}):
         if name not in p.get("curves", {}):
-            problems.append((f"{pp}.curve_sources{fmt_key(name)}",
-                             f"{name!r} is not drawn in this photo's curves; a curve's source needs the curve"))
+            problems.append(
+                (
+                    f"{pp}.curve_sources{fmt_key(name)}",
+                    f"{name!r} is not drawn in this photo's curves; a curve's source needs the curve",
+                )
+            )
     return problems
 
 
@@ -331,27 +351,44 @@ def _result_problems(rp: str, r: dict, sizes: dict, defined: _Defined) -> list[t
     for pid, cam in r["cameras"].items():
         at = f"{rp}.cameras{fmt_key(pid)}"
         if pid not in sizes:
-            problems.append((at, f"camera for photo {pid!r}, which is not a photo of this expression"
-                                 f"{did_you_mean(pid, list(sizes))}"))
+            problems.append(
+                (
+                    at,
+                    f"camera for photo {pid!r}, which is not a photo of this expression"
+                    f"{did_you_mean(pid, list(sizes))}",
+                )
+            )
         elif (cam["width"], cam["height"]) != sizes[pid]:
-            problems.append((at, f"camera image size {cam['width']}x{cam['height']} differs from photo "
-                                 f"{pid!r} ({sizes[pid][0]}x{sizes[pid][1]})"))
+            problems.append(
+                (
+                    at,
+                    f"camera image size {cam['width']}x{cam['height']} differs from photo "
+                    f"{pid!r} ({sizes[pid][0]}x{sizes[pid][1]})",
+                )
+            )
         R = np.asarray(cam["rotation"], float)
         with np.errstate(over="ignore", invalid="ignore"):  # a huge entry: inf/nan, refused below
             err = float(np.abs(R.T @ R - np.eye(3)).max())
             det = float(np.linalg.det(R))
         if not err <= ROTATION_TOL or not det > 0:
-            problems.append((f"{at}.rotation", f"not a rotation matrix (max |RᵀR − I| = {err:.2g}, "
-                                               f"det = {det:.6g})"))
+            problems.append((f"{at}.rotation", f"not a rotation matrix (max |RᵀR − I| = {err:.2g}, det = {det:.6g})"))
     for name in r["points_3d"]:
         if name not in defined.feature_set:
-            problems.append((f"{rp}.points_3d{fmt_key(name)}", f"no feature named {name!r} is defined"
-                                                               f"{did_you_mean(name, defined.features)}"))
+            problems.append(
+                (
+                    f"{rp}.points_3d{fmt_key(name)}",
+                    f"no feature named {name!r} is defined{did_you_mean(name, defined.features)}",
+                )
+            )
     for pid in (r.get("texture") or {}).get("weight_maps", {}):
         if pid not in sizes:
-            problems.append((f"{rp}.texture.weight_maps{fmt_key(pid)}",
-                             f"weight map for photo {pid!r}, which is not a photo of this expression"
-                             f"{did_you_mean(pid, list(sizes))}"))
+            problems.append(
+                (
+                    f"{rp}.texture.weight_maps{fmt_key(pid)}",
+                    f"weight map for photo {pid!r}, which is not a photo of this expression"
+                    f"{did_you_mean(pid, list(sizes))}",
+                )
+            )
     return problems
 
 
@@ -368,9 +405,14 @@ def _cameras_from_problems(expressions: list[dict]) -> list[tuple[str, str]]:
         if src == e["name"]:
             problems.append((at, f"expression {src!r} cannot take its cameras from itself"))
         elif src not in source:
-            problems.append((at, f"no expression named {src!r} to take the cameras from"
-                                 f"{did_you_mean(src, [n for n in names if n != e['name']])}; "
-                                 f"expressions: {listing(names)}"))
+            problems.append(
+                (
+                    at,
+                    f"no expression named {src!r} to take the cameras from"
+                    f"{did_you_mean(src, [n for n in names if n != e['name']])}; "
+                    f"expressions: {listing(names)}",
+                )
+            )
         else:
             chain, seen = [e["name"]], {e["name"]}
             while src is not None and src in source and src not in seen:
@@ -378,9 +420,15 @@ def _cameras_from_problems(expressions: list[dict]) -> list[tuple[str, str]]:
                 seen.add(src)
                 src = source[src]
             if src == e["name"]:
-                problems.append((at, "cameras_from goes round in a cycle ("
-                                     + " → ".join(chain + [src]) + "); one expression must recover its own "
-                                     "cameras"))
+                problems.append(
+                    (
+                        at,
+                        "cameras_from goes round in a cycle ("
+                        + " → ".join(chain + [src])
+                        + "); one expression must recover its own "
+                        "cameras",
+                    )
+                )
     return problems
 
 
@@ -389,8 +437,9 @@ def _duplicates(names: list[str], list_path: str, what: str, field_name: str = "
     out = []
     for i, n in enumerate(names):
         if n in seen:
-            out.append((f"{list_path}[{i}].{field_name}",
-                        f"{what} {n!r} is used twice (also at {list_path}[{seen[n]}])"))
+            out.append(
+                (f"{list_path}[{i}].{field_name}", f"{what} {n!r} is used twice (also at {list_path}[{seen[n]}])")
+            )
         else:
             seen[n] = i
     return out
@@ -407,6 +456,8 @@ def _far_outside(uv: np.ndarray, width: int, height: int) -> np.ndarray:
 
 
 def _outside_message(uv, width: int, height: int) -> str:
-    return (f"[{uv[0]:g}, {uv[1]:g}] lies far outside the {width}x{height} photo (more than "
-            f"{OUT_OF_BOUNDS_MARGIN:.0%} of its size beyond the border); check the photo's width/height "
-            f"and that points are [u, v] in pixels")
+    return (
+        f"[{uv[0]:g}, {uv[1]:g}] lies far outside the {width}x{height} photo (more than "
+        f"{OUT_OF_BOUNDS_MARGIN:.0%} of its size beyond the border); check the photo's width/height "
+        f"and that points are [u, v] in pixels"
+    )

@@ -52,6 +52,7 @@ out vec4 out_bary;
 void main() { out_bary = vec4(v_bary, v_face, 0.0); }
 """
 
+
 @dataclass
 class BarycentricRaster:
     """What :meth:`~photomodel.rendering.renderer.Renderer.rasterize_barycentric` saw.

@@ -154,7 +154,6 @@ def surface_depth(depth: np.ndarray, uv: np.ndarray, *, lookup: str = "bilinear"
     """
     H, W = depth.shape
     if lookup == "max3x3":
-
         col, row = np.rint(uv[:, 0]).astype(np.int64), np.rint(uv[:, 1]).astype(np.int64)
         valid = (col >= 0) & (col < W) & (row >= 0) & (row < H)
         d = np.where(np.isfinite(depth), depth, FAR_SENTINEL_MM).astype(np.float32)

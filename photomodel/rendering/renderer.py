@@ -577,9 +577,7 @@ class Renderer:
         if ss != supersample or ss < 1 or ss % 2 == 0:
             raise ValueError(f"supersample must be an odd positive integer, got {supersample!r}")
         if max(W, H) * ss > self.max_size:
-            raise ValueError(
-                f"{W}×{H} at supersample {ss} exceeds the GL renderbuffer limit of {self.max_size} px"
-            )
+            raise ValueError(f"{W}×{H} at supersample {ss} exceeds the GL renderbuffer limit of {self.max_size} px")
         return ss
 
     def _channels(self, n: int, uv, texture, colors) -> _Channels:

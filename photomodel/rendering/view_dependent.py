@@ -330,8 +330,18 @@ class ViewDependentGL:
             self._blend_vao = ctx.vertex_array(self._blend, [])
             self._no_shift = ctx.texture((1, 1), 4, bytes(16), dtype="f4")
         # every GL object held; dropped unreleased, the renderer frees them at its next use
-        self._owned = [self._photo_sampler, self._geo_sampler, self._photos, self._geo,
-                       self._vao, self._blend_vao, self._pos, self._ns, self._idx, self._no_shift]
+        self._owned = [
+            self._photo_sampler,
+            self._geo_sampler,
+            self._photos,
+            self._geo,
+            self._vao,
+            self._blend_vao,
+            self._pos,
+            self._ns,
+            self._idx,
+            self._no_shift,
+        ]
         self._finalizer = weakref.finalize(self, renderer.defer_release, self._owned)
         self._targets: dict[tuple[int, int], dict] = {}
         self._shifts: dict[tuple[int, int], object] = {}  # (a, b) -> texture, oldest first
@@ -573,8 +583,8 @@ def _background(W: int, H: int, bg: tuple, box) -> tuple[np.ndarray, np.ndarray]
     row = np.empty((W, 3), np.float32)
     row[:] = bg
     for rows, cols in (((0, y0), (0, W)), ((y1, H), (0, W)), ((y0, y1), (0, x0)), ((y0, y1), (x1, W))):
-        color[rows[0]:rows[1], cols[0]:cols[1]] = row[cols[0]:cols[1]]  # ~8x faster than broadcasting a 3-vector
-        depth[rows[0]:rows[1], cols[0]:cols[1]] = np.inf
+        color[rows[0] : rows[1], cols[0] : cols[1]] = row[cols[0] : cols[1]]  # ~8x faster than broadcasting a 3-vector
+        depth[rows[0] : rows[1], cols[0] : cols[1]] = np.inf
     return color, depth
 
 
@@ -592,7 +602,11 @@ def _frame(color: np.ndarray, depth: np.ndarray, box) -> GLFrame:
     mask = np.zeros(depth.shape, bool)
     mask[y0:y1, x0:x1] = depth[y0:y1, x0:x1] < np.inf
     return GLFrame(
-        color, mask, depth, fallback, c / np.maximum(length, 1e-12)[:, None],
+        color,
+        mask,
+        depth,
+        fallback,
+        c / np.maximum(length, 1e-12)[:, None],
         np.clip(length - 1.0, 0.0, 1.0).astype(np.float32),
     )
 

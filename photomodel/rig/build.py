@@ -42,8 +42,15 @@ from photomodel.rig.transfer import DeformationTransfer, soft_triangles
 from photomodel.samples.fetch import cache_dir
 from photomodel.samples.sample_data import _load_npz, _save_npz
 
-__all__ = ["Rig", "RigBuilder", "load_registration", "IDENTITY_MODES", "IDENTITY_RIDGE", "SUPPORT_MM",
-           "REGISTRATION_VERSION"]  # fmt: skip
+__all__ = [
+    "Rig",
+    "RigBuilder",
+    "load_registration",
+    "IDENTITY_MODES",
+    "IDENTITY_RIDGE",
+    "SUPPORT_MM",
+    "REGISTRATION_VERSION",
+]
 
 #: ICT identity modes fitted to the person before the transfer (of the 100 shipped).
 IDENTITY_MODES = 50
@@ -99,8 +106,9 @@ class RigBuilder:
     names : the ARKit shapes to make (default all of :data:`RIG_SHAPES`).
     """
 
-    def __init__(self, mesh: GenericMesh, ict: IctModel | None = None, registration: Registration | None = None,
-                 names=RIG_SHAPES):  # fmt: skip
+    def __init__(
+        self, mesh: GenericMesh, ict: IctModel | None = None, registration: Registration | None = None, names=RIG_SHAPES
+    ):
         self.mesh = mesh
         self.ict = ict or load_ict()
         self.registration = registration or load_registration(mesh, self.ict)
@@ -135,13 +143,17 @@ class RigBuilder:
         """The rig of the person whose fitted neutral (generic mesh's vertices, mm) is ``neutral``."""
         P0 = np.asarray(neutral, float)
         if P0.shape != self.mesh.vertices.shape:
-            raise ValueError(f"the neutral must have the generic mesh's {len(self.mesh.vertices)} vertices "
-                             f"(n, 3), got {P0.shape}")  # fmt: skip
+            raise ValueError(
+                f"the neutral must have the generic mesh's {len(self.mesh.vertices)} vertices (n, 3), got {P0.shape}"
+            )
         S0, R, c = self.fitted_source(P0)
         D = self.source_deltas @ R.T
         deltas = self.transfer(S0, D, P0) * self.support[..., None]
         gap = np.sqrt(np.mean(np.sum((S0 - P0)[self.face] ** 2, axis=1)))
-        report = {"identity_rms_mm": float(gap), "identity_modes": len(c),
-                  "landmark_rms_mm": self.registration.landmark_rms_mm,
-                  "landmark_rms_rigid_mm": self.registration.landmark_rms_rigid_mm}  # fmt: skip
+        report = {
+            "identity_rms_mm": float(gap),
+            "identity_modes": len(c),
+            "landmark_rms_mm": self.registration.landmark_rms_mm,
+            "landmark_rms_rigid_mm": self.registration.landmark_rms_rigid_mm,
+        }
         return Rig(self.names, P0.copy(), deltas, report)

@@ -49,8 +49,10 @@ DATA_PATH = Path(__file__).with_name("ict_facekit.npz")
 
 def _git_reader(git_dir: Path) -> Callable[[str], bytes]:
     def read(name: str) -> bytes:
-        return subprocess.run(["git", "--git-dir", str(git_dir), "show", f"HEAD:FaceXModel/{name}"],
-                              check=True, capture_output=True).stdout  # fmt: skip
+        return subprocess.run(
+            ["git", "--git-dir", str(git_dir), "show", f"HEAD:FaceXModel/{name}"], check=True, capture_output=True
+        ).stdout
+
     return read
 
 
@@ -110,8 +112,10 @@ def main(argv: list[str] | None = None) -> None:
     read = _git_reader(args.git_dir) if args.git_dir else _folder_reader(args.folder)
     arrays = convert(read, args.identities)
     np.savez_compressed(args.out, **arrays)
-    print(f"{args.out}: {args.out.stat().st_size / 1e6:.1f} MB, "
-          f"{len(arrays['expression_names'])} expressions, {len(arrays['identities'])} identities")  # fmt: skip
+    print(
+        f"{args.out}: {args.out.stat().st_size / 1e6:.1f} MB, "
+        f"{len(arrays['expression_names'])} expressions, {len(arrays['identities'])} identities"
+    )
 
 
 if __name__ == "__main__":

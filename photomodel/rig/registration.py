@@ -84,8 +84,15 @@ class Registration:
     ict_faces: np.ndarray
     n_ict: int
 
-    _ARRAYS: ClassVar[tuple] = ("triangles", "barycentric", "covered", "rotation", "translation", "distance_mm",
-                                "ict_faces")
+    _ARRAYS: ClassVar[tuple] = (
+        "triangles",
+        "barycentric",
+        "covered",
+        "rotation",
+        "translation",
+        "distance_mm",
+        "ict_faces",
+    )
     _SCALARS: ClassVar[tuple] = ("scale", "landmark_rms_rigid_mm", "landmark_rms_mm", "n_ict")
 
     def to_arrays(self) -> dict[str, np.ndarray]:
@@ -103,8 +110,9 @@ class Registration:
         """``B`` (n, n_ict) sparse: row ``j`` holds ``β_j`` at the corners of ``τ_j``."""
         n = len(self.triangles)
         cols = self.ict_faces[self.triangles]
-        return sparse.csr_matrix((self.barycentric.ravel(), (np.repeat(np.arange(n), 3), cols.ravel())),
-                                 shape=(n, self.n_ict))  # fmt: skip
+        return sparse.csr_matrix(
+            (self.barycentric.ravel(), (np.repeat(np.arange(n), 3), cols.ravel())), shape=(n, self.n_ict)
+        )
 
     def positions(self, shape: np.ndarray) -> np.ndarray:
         """(n, 3) mm in our frame: an ICT shape (n_ict, 3) (positions, ICT frame) resampled."""
@@ -124,8 +132,9 @@ def _warp(centres: np.ndarray, targets: np.ndarray, points: np.ndarray) -> np.nd
     return points + f(points)
 
 
-def register_ict(ict: IctModel, vertices: np.ndarray, faces: np.ndarray, landmarks: np.ndarray,
-                 rounds: int = ICP_ROUNDS) -> Registration:  # fmt: skip
+def register_ict(
+    ict: IctModel, vertices: np.ndarray, faces: np.ndarray, landmarks: np.ndarray, rounds: int = ICP_ROUNDS
+) -> Registration:
     """Register ICT's face onto a mesh with iBUG-68 landmark vertices (see the module notes).
 
     Parameters
@@ -156,7 +165,16 @@ def register_ict(ict: IctModel, vertices: np.ndarray, faces: np.ndarray, landmar
     closest, distance, tri = ScanSurface(W, ict.faces).closest(vertices)
     bary = barycentric_coordinates(closest, W[ict.faces[tri]])
     bary /= bary.sum(axis=1, keepdims=True)
-    return Registration(triangles=tri.astype(np.int64), barycentric=bary, covered=distance < COVER_MM,
-                        scale=float(s), rotation=R, translation=t, landmark_rms_rigid_mm=rigid_rms,
-                        landmark_rms_mm=lm_rms, distance_mm=distance, ict_faces=ict.faces,
-                        n_ict=len(ict.neutral))  # fmt: skip
+    return Registration(
+        triangles=tri.astype(np.int64),
+        barycentric=bary,
+        covered=distance < COVER_MM,
+        scale=float(s),
+        rotation=R,
+        translation=t,
+        landmark_rms_rigid_mm=rigid_rms,
+        landmark_rms_mm=lm_rms,
+        distance_mm=distance,
+        ict_faces=ict.faces,
+        n_ict=len(ict.neutral),
+    )

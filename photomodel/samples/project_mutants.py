@@ -33,9 +33,29 @@ from photomodel.project.codec import project_to_dict
 
 #: Numbers a mutant puts in place of a number: huge, tiny, negative, not quite integers. Strings
 #: are JSON literals written as they are (``1e400`` cannot be a Python float).
-EXTREME_NUMBERS = ("1" + "0" * 400, "-1" + "0" * 400, "1e400", "-1e400", "1e308", "-1e308", "1.7976931348623157e308",
-                   "5e-324", "-5e-324", "1e-300", "0", "-0.0", "1" + "0" * 30, "9223372036854775808",
-                   "-9223372036854775809", "4294967296", "2147483648", "-1", "0.5", "1e20", "123456789.123456789")
+EXTREME_NUMBERS = (
+    "1" + "0" * 400,
+    "-1" + "0" * 400,
+    "1e400",
+    "-1e400",
+    "1e308",
+    "-1e308",
+    "1.7976931348623157e308",
+    "5e-324",
+    "-5e-324",
+    "1e-300",
+    "0",
+    "-0.0",
+    "1" + "0" * 30,
+    "9223372036854775808",
+    "-9223372036854775809",
+    "4294967296",
+    "2147483648",
+    "-1",
+    "0.5",
+    "1e20",
+    "123456789.123456789",
+)
 #: How deep a mutant nests lists or objects.
 DEPTHS = (8, 40, 63, 64, 65, 100, 999, 1000, 5000, 100_000)
 _RAW = "\u0001raw:"  # marks a string that is written as a raw JSON literal
@@ -128,23 +148,36 @@ def fuzz_base(sample: str | Path, photos_per_expression: int | None = None) -> F
     cams = {}
     for p in expr["photos"]:
         cam = preset_camera(p["preset"], p["width"], p["height"])
-        cams[p["id"]] = {"rotation": cam.R.tolist(), "translation_mm": cam.t.tolist(),
-                         "focal_px": cam.f, "width": p["width"], "height": p["height"]}
+        cams[p["id"]] = {
+            "rotation": cam.R.tolist(),
+            "translation_mm": cam.t.tolist(),
+            "focal_px": cam.f,
+            "width": p["width"],
+            "height": p["height"],
+        }
     names = [f["name"] for f in tree["features"]][:20]
     stem = "results/" + expr["name"]
     expr["result"] = {
         "cameras": cams,
         "points_3d": {n: [float(i), -2.5 * i, 80.125 - i] for i, n in enumerate(names)},
-        "mesh_obj": stem + ".obj", "mesh_ply": stem + ".ply",
-        "report": {"rms_px": 0.82, "views": [{"photo": p["id"], "rms_px": 0.5} for p in expr["photos"]],
-                   "pose": {"rms_px": 0.7, "sweeps": 3}},
-        "texture": {"size": 256, "image": stem + "_texture.png",
-                    "weight_maps": {p["id"]: f"{stem}_weights_{p['id']}.png" for p in expr["photos"]},
-                    "exports": {"obj": stem + "_textured.obj", "glb": stem + ".glb", "ply": stem + "_colors.ply"},
-                    "report": {"coverage": 0.9, "cylinder": {"centre": [0.0, 1.0, 2.0], "theta_cut": 3.14}}},
+        "mesh_obj": stem + ".obj",
+        "mesh_ply": stem + ".ply",
+        "report": {
+            "rms_px": 0.82,
+            "views": [{"photo": p["id"], "rms_px": 0.5} for p in expr["photos"]],
+            "pose": {"rms_px": 0.7, "sweeps": 3},
+        },
+        "texture": {
+            "size": 256,
+            "image": stem + "_texture.png",
+            "weight_maps": {p["id"]: f"{stem}_weights_{p['id']}.png" for p in expr["photos"]},
+            "exports": {"obj": stem + "_textured.obj", "glb": stem + ".glb", "ply": stem + "_colors.ply"},
+            "report": {"coverage": 0.9, "cylinder": {"centre": [0.0, 1.0, 2.0], "theta_cut": 3.14}},
+        },
     }
-    expr["photos"][0]["click_sources"] = {n: {"source": "auto", "confidence": 0.5}
-                                          for n in list(expr["photos"][0]["points"])[:3]}
+    expr["photos"][0]["click_sources"] = {
+        n: {"source": "auto", "confidence": 0.5} for n in list(expr["photos"][0]["points"])[:3]
+    }
     return FuzzBase(tree)
 
 
@@ -173,9 +206,14 @@ def _nested_text(depth: int, kind: str) -> str:
     return '{"a": ' * depth + "null" + "}" * depth
 
 
-_OTHER_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-5, 5),
-                          st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=8),
-                          st.sampled_from([[], {}, [1.0], {"x": 1}, [[1.0, 2.0], [3.0]], [0, 1], ["a", "b"]]))
+_OTHER_VALUES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-5, 5),
+    st.floats(allow_nan=False, allow_infinity=False),
+    st.text(max_size=8),
+    st.sampled_from([[], {}, [1.0], {"x": 1}, [[1.0, 2.0], [3.0]], [0, 1], ["a", "b"]]),
+)
 
 
 @st.composite
@@ -202,8 +240,24 @@ def _deleted_key(draw, base: FuzzBase):
 def _renamed_key(draw, base: FuzzBase):
     path = draw(st.sampled_from(base.key_paths))
     key = path[-1]
-    new = draw(st.sampled_from([key[:-1], key + "s", key.upper(), "", " " + key, "pionts", "x" * 300,
-                                "\u00e9" + key, "name", "id", "result", "nose_tip"]))
+    new = draw(
+        st.sampled_from(
+            [
+                key[:-1],
+                key + "s",
+                key.upper(),
+                "",
+                " " + key,
+                "pionts",
+                "x" * 300,
+                "\u00e9" + key,
+                "name",
+                "id",
+                "result",
+                "nose_tip",
+            ]
+        )
+    )
     return dump(replaced(base.tree, path[:-1], lambda d: {(new if k == key else k): v for k, v in d.items()}))
 
 
@@ -235,8 +289,12 @@ def _deep(draw, base: FuzzBase):
 @st.composite
 def _bad_reference(draw, base: FuzzBase):
     path = draw(st.sampled_from(base.name_references))
-    other = draw(st.sampled_from([get(base.tree, p) for p in base.name_references[:400]
-                                  if isinstance(get(base.tree, p), str)] + ["nosuch", "", "neutral"]))
+    other = draw(
+        st.sampled_from(
+            [get(base.tree, p) for p in base.name_references[:400] if isinstance(get(base.tree, p), str)]
+            + ["nosuch", "", "neutral"]
+        )
+    )
     if isinstance(path[-1], str) and path[-1] not in ("name", "id", "cameras_from"):
         key = path[-1]  # a map keyed by a name: rename the key
         return dump(replaced(base.tree, path[:-1], lambda d: {(other if k == key else k): v for k, v in d.items()}))
@@ -247,23 +305,47 @@ def _bad_reference(draw, base: FuzzBase):
 def _cameras_cycle(draw, base: FuzzBase):
     names = [e["name"] for e in base.tree["expressions"]]
     a, b = draw(st.permutations(names))[:2]
-    tree = replaced(base.tree, ("expressions",), lambda es: [
-        {**e, "cameras_from": (b if e["name"] == a else a if e["name"] == b else e.get("cameras_from"))}
-        if e["name"] in (a, b) else e for e in es])
+    tree = replaced(
+        base.tree,
+        ("expressions",),
+        lambda es: [
+            {**e, "cameras_from": (b if e["name"] == a else a if e["name"] == b else e.get("cameras_from"))}
+            if e["name"] in (a, b)
+            else e
+            for e in es
+        ],
+    )
     return dump(tree)
 
 
-MUTATIONS = ("byte_flips", "truncated", "deleted_key", "renamed_key", "type_swap", "extreme_number", "deep",
-             "bad_reference", "cameras_cycle")
+MUTATIONS = (
+    "byte_flips",
+    "truncated",
+    "deleted_key",
+    "renamed_key",
+    "type_swap",
+    "extreme_number",
+    "deep",
+    "bad_reference",
+    "cameras_cycle",
+)
 
 
 def mutants(base: FuzzBase, kind: str):
     """Strategy: the text (or bytes) of a harmful mutant of ``base`` of one of :data:`MUTATIONS`
     (drawn per kind, so that each kind gets its share: hypothesis favours a ``one_of``'s first
     branches)."""
-    makers = {"byte_flips": _byte_flips, "truncated": _truncated, "deleted_key": _deleted_key,
-              "renamed_key": _renamed_key, "type_swap": _type_swap, "extreme_number": _extreme_number,
-              "deep": _deep, "bad_reference": _bad_reference, "cameras_cycle": _cameras_cycle}
+    makers = {
+        "byte_flips": _byte_flips,
+        "truncated": _truncated,
+        "deleted_key": _deleted_key,
+        "renamed_key": _renamed_key,
+        "type_swap": _type_swap,
+        "extreme_number": _extreme_number,
+        "deep": _deep,
+        "bad_reference": _bad_reference,
+        "cameras_cycle": _cameras_cycle,
+    }
     return makers[kind](base)
 
 

@@ -130,8 +130,9 @@ def real_sample_project(folder: Path | None = None, *, rebuild: bool = False) ->
         paths.append(photos / f"frame_{i:03d}.png")
         atomic_write_bytes(paths[-1], data)
     features, curves = default_features(load_generic_mesh())
-    project, warnings = new_project_from_photos(sorted(paths), project_file, features=features, curves=curves,
-                                                camera_group="clip")
+    project, warnings = new_project_from_photos(
+        sorted(paths), project_file, features=features, curves=curves, camera_group="clip"
+    )
     for w in warnings:
         print(f"real sample: {w}", file=sys.stderr)
     save_project(project, project_file)

@@ -189,7 +189,6 @@ def load_template() -> Template:
     cache = folder / "template.npz"
     arrays = _load_npz(cache)
     if arrays is None:
-
         mesh = trimesh.load(folder / "template.ply", process=False, force="mesh")
         arrays = {
             "vertices": np.asarray(mesh.vertices, float) / 1000.0,  # µm → mm

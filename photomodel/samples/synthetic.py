@@ -411,9 +411,14 @@ def rig(name: str | int = "sample", width: int = 1000, height: int = 1000) -> li
         f_px = focal_mm_to_px(lens, width)
         distance = f_px * _FRAMED_RADIUS_MM / (_FILL * min(width, height) / 2.0)
         cam = orbit_camera(
-            az, width, height, distance_mm=distance, focal_mm=lens, elevation_deg=el,
+            az,
+            width,
+            height,
+            distance_mm=distance,
+            focal_mm=lens,
+            elevation_deg=el,
             target=HEAD_CENTRE_MM + np.asarray(offset),
-        )  # fmt: skip
+        )
         spin = rodrigues(np.array([0.0, 0.0, np.radians(roll)]))  # about the optical axis
         cameras.append(Camera(spin @ cam.R, spin @ cam.t, cam.f, width, height))
     return cameras
@@ -450,9 +455,14 @@ def render_scan(camera: Camera, scan: Scan, *, background=0.0, supersample: int 
     """
 
     return get_renderer().render(
-        camera, scan.vertices, scan.faces, uv=scan.uv, texture=scan.texture,
-        background=background, supersample=supersample,
-    )  # fmt: skip
+        camera,
+        scan.vertices,
+        scan.faces,
+        uv=scan.uv,
+        texture=scan.texture,
+        background=background,
+        supersample=supersample,
+    )
 
 
 def scan_depth(camera: Camera, scan: Scan) -> np.ndarray:

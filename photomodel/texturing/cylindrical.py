@@ -426,8 +426,9 @@ def cylinder_surface(cmap: CylinderMap, vertices: np.ndarray, faces: np.ndarray,
     return np.asarray(res.mask, dtype=bool)
 
 
-def seam_render_mesh(cmap: CylinderMap, vertices: np.ndarray,
-                     faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def seam_render_mesh(
+    cmap: CylinderMap, vertices: np.ndarray, faces: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The rendering mesh of a cylindrical texture (:attr:`CylindricalTexture.seam_vertices`,
     ``seam_faces``, ``seam_uv``): triangles crossing the seam use duplicated vertices whose
     ``u`` is unwrapped past 1.
@@ -626,9 +627,7 @@ def check_photos(cameras: Sequence[Camera], photos: Sequence[np.ndarray]) -> lis
         if a.ndim != 3 or a.shape[2] != 3 or a.dtype != np.uint8:
             raise ValueError(f"photos[{i}] must be an (H, W, 3) uint8 RGB image, got {a.shape} {a.dtype}")
         if a.shape[:2] != (cam.height, cam.width):
-            raise ValueError(
-                f"photos[{i}] is {a.shape[1]}×{a.shape[0]} but its camera is {cam.width}×{cam.height}"
-            )
+            raise ValueError(f"photos[{i}] is {a.shape[1]}×{a.shape[0]} but its camera is {cam.width}×{cam.height}")
         out.append(np.ascontiguousarray(a))
     return out
 
@@ -715,7 +714,6 @@ def cylindrical_texture(
 
     def step(stage: str, fraction: float) -> None:
         if cancel is not None and cancel():
-
             raise Cancelled(f"texture extraction cancelled ({stage})")
         if progress is not None:
             progress(stage, fraction)

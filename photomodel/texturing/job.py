@@ -122,8 +122,7 @@ def fitted_expressions(project, name: str | None) -> list[str]:
     """The expressions to texture: ``name`` or every fitted one; FitError if not fitted."""
     if name is not None:
         if project.expression(name).result is None:
-            raise FitError(f"expression {name!r} has not been fitted yet: run "
-                           f"`facestudio fit {project.path}` first")
+            raise FitError(f"expression {name!r} has not been fitted yet: run `facestudio fit {project.path}` first")
         return [name]
     names = [e.name for e in project.expressions if e.result is not None]
     if not names:
@@ -144,8 +143,13 @@ def photo_side_for(size: int) -> int:
     return int(min(MAX_WORKING_SIDE, max(MIN_TEXTURE_PHOTO_SIDE, 2 * int(size))))
 
 
-def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
-                        faces: np.ndarray | None = None, max_side: int = MAX_WORKING_SIDE) -> TextureInputs:
+def load_texture_inputs(
+    project,
+    name: str,
+    vertices: np.ndarray | None = None,
+    faces: np.ndarray | None = None,
+    max_side: int = MAX_WORKING_SIDE,
+) -> TextureInputs:
     """The fitted mesh, cameras and RGB photographs of a fitted expression.
 
     Parameters
@@ -170,19 +174,19 @@ def load_texture_inputs(project, name: str, vertices: np.ndarray | None = None,
     if result is None:
         raise FitError(f"expression {name!r} has not been fitted yet")
     if vertices is None or faces is None:
-
         if result.mesh_obj is None:
             raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
         mesh_path = project.resolve(result.mesh_obj)
         if not mesh_path.is_file():
-            raise ProjectError(f"expression {name!r}: the fitted mesh {result.mesh_obj} does not exist "
-                               f"(looked for {mesh_path}); run `facestudio fit {project.path}` again")
+            raise ProjectError(
+                f"expression {name!r}: the fitted mesh {result.mesh_obj} does not exist "
+                f"(looked for {mesh_path}); run `facestudio fit {project.path}` again"
+            )
         try:
             vertices, faces = read_mesh(mesh_path)
         except Exception as exc:  # trimesh raises many kinds on a damaged file
             raise ProjectError(f"expression {name!r}: cannot read the fitted mesh {result.mesh_obj}: {exc}") from exc
-    ids, cameras, photos = _read_photos(project, name, [p.id for p in expr.photos if p.id in result.cameras],
-                                        max_side)
+    ids, cameras, photos = _read_photos(project, name, [p.id for p in expr.photos if p.id in result.cameras], max_side)
     if not cameras:
         raise FitError(f"expression {name!r}: no photo has a recovered camera; run `facestudio fit` first")
     return TextureInputs(name, np.asarray(vertices, dtype=float), np.asarray(faces), ids, cameras, photos)
@@ -214,8 +218,10 @@ def _read_photos(project, name: str, photo_ids, max_side: int = MAX_WORKING_SIDE
         except PhotoError as exc:
             raise ProjectError(f"{who}: {exc}") from exc
         if (read.width, read.height) != (cam.width, cam.height):
-            raise ProjectError(f"{who}: {photo.path} is {read.width}x{read.height} but its camera is "
-                               f"{cam.width}x{cam.height}; the photo changed since the fit")
+            raise ProjectError(
+                f"{who}: {photo.path} is {read.width}x{read.height} but its camera is "
+                f"{cam.width}x{cam.height}; the photo changed since the fit"
+            )
         if read.reduced:
             h, w = read.image.shape[:2]
             cam = Camera(cam.R, cam.t, cam.f * read.scale, w, h)
@@ -225,9 +231,14 @@ def _read_photos(project, name: str, photo_ids, max_side: int = MAX_WORKING_SIDE
     return ids, cameras, photos
 
 
-def extract_texture(inputs: TextureInputs, size: int = 1024, *, face_mask: np.ndarray | None = None,
-                    progress: Callable[[str, float], None] | None = None,
-                    cancel: Callable[[], bool] | None = None) -> TextureJob:
+def extract_texture(
+    inputs: TextureInputs,
+    size: int = 1024,
+    *,
+    face_mask: np.ndarray | None = None,
+    progress: Callable[[str, float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> TextureJob:
     """The cylindrical texture of §5.2.2 with the §5.2.4 ears/hair fallback.
 
     Parameters
@@ -250,17 +261,33 @@ def extract_texture(inputs: TextureInputs, size: int = 1024, *, face_mask: np.nd
         raise ProjectError(f"texture size {size}: it must be between {lo} and {hi} texels")
     V = inputs.vertices
     t0 = time.perf_counter()
-    single = (single_view_weights(V, face_mask) if face_mask is not None and len(face_mask) == len(V) else None)
-    tex = cylindrical_texture(V, inputs.faces, inputs.cameras, inputs.photos, size=int(size), single_view=single,
-                              progress=progress, cancel=cancel)
+    single = single_view_weights(V, face_mask) if face_mask is not None and len(face_mask) == len(V) else None
+    tex = cylindrical_texture(
+        V,
+        inputs.faces,
+        inputs.cameras,
+        inputs.photos,
+        size=int(size),
+        single_view=single,
+        progress=progress,
+        cancel=cancel,
+    )
     seconds = time.perf_counter() - t0
     surface = int(tex.surface.sum())
     c = tex.cylinder
-    report = {"coverage": float(tex.coverage.sum() / max(surface, 1)), "extract_s": round(seconds, 3),
-              "photos": list(inputs.photo_ids), "single_view_fallback": single is not None,
-              # the texture's parameterisation: the tracking model maps its vertices with it
-              "cylinder": {"centre": list(c.centre), "theta_cut": c.theta_cut, "phi_range": list(c.phi_range),
-                           "y_range": list(c.y_range)}}
+    report = {
+        "coverage": float(tex.coverage.sum() / max(surface, 1)),
+        "extract_s": round(seconds, 3),
+        "photos": list(inputs.photo_ids),
+        "single_view_fallback": single is not None,
+        # the texture's parameterisation: the tracking model maps its vertices with it
+        "cylinder": {
+            "centre": list(c.centre),
+            "theta_cut": c.theta_cut,
+            "phi_range": list(c.phi_range),
+            "y_range": list(c.y_range),
+        },
+    }
     return TextureJob(inputs, int(size), tex, single, report)
 
 
@@ -283,8 +310,15 @@ def encode_texture_outputs(project, job: TextureJob) -> tuple[dict, dict]:
     files = {project.resolve(rel["image"]): png}
     for pid, w in zip(ids, tex.weight_maps, strict=True):
         files[project.resolve(rel["weight_maps"][pid])] = encode_png(w)  # black 0 … white 1
-    obj = encode_textured_obj(project.resolve(rel["obj"]), vertices, faces, uv, None,
-                              texture_path=project.resolve(rel["image"]), check_exists=False)
+    obj = encode_textured_obj(
+        project.resolve(rel["obj"]),
+        vertices,
+        faces,
+        uv,
+        None,
+        texture_path=project.resolve(rel["image"]),
+        check_exists=False,
+    )
     files.update(obj.files)  # after the PNG it refers to
     files[project.resolve(rel["glb"])] = encode_glb(vertices, faces, uv=uv, texture=png, name=name)
     files[project.resolve(rel["ply"])] = encode_colored_ply(vertices, faces, uv=uv, texture=tex.image)
@@ -301,9 +335,12 @@ def stored_cylinder(texture, vertices: np.ndarray, faces: np.ndarray):
 
     c = texture.report.get("cylinder") if isinstance(texture.report, dict) else None
     try:
-        cmap = CylinderMap(centre=(float(c["centre"][0]), float(c["centre"][1])), theta_cut=float(c["theta_cut"]),
-                           phi_range=(float(c["phi_range"][0]), float(c["phi_range"][1])),
-                           y_range=(float(c["y_range"][0]), float(c["y_range"][1])))
+        cmap = CylinderMap(
+            centre=(float(c["centre"][0]), float(c["centre"][1])),
+            theta_cut=float(c["theta_cut"]),
+            phi_range=(float(c["phi_range"][0]), float(c["phi_range"][1])),
+            y_range=(float(c["y_range"][0]), float(c["y_range"][1])),
+        )
     except (TypeError, KeyError, IndexError, ValueError):
         return cylinder_map_for(vertices, faces, int(texture.size))
     ok = all(np.isfinite(cmap.centre + cmap.phi_range + cmap.y_range + (cmap.theta_cut,)))
@@ -323,13 +360,15 @@ def _read_stored_png(project, name: str, rel: str, what: str, shape: tuple) -> n
     if img is None:
         raise ProjectError(f"{who} is not an image OpenCV can read (damaged or unknown format)")
     if img.shape != shape:
-        raise ProjectError(f"{who} is {img.shape[1]}x{img.shape[0]}, but the texture is recorded as "
-                           f"{shape[1]}x{shape[0]}")
+        raise ProjectError(
+            f"{who} is {img.shape[1]}x{img.shape[0]}, but the texture is recorded as {shape[1]}x{shape[0]}"
+        )
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB) if img.ndim == 3 else img
 
 
-def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndarray, *,
-                        face_mask: np.ndarray | None = None) -> TextureJob:
+def load_stored_texture(
+    project, name: str, vertices: np.ndarray, faces: np.ndarray, *, face_mask: np.ndarray | None = None
+) -> TextureJob:
     """The texture stored with a fitted expression (``result.texture``) as the :class:`TextureJob`
     its extraction gave, for showing it (the studio, on opening a project) or writing it again.
 
@@ -381,8 +420,10 @@ def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndar
     ids = list(stored.weight_maps)
     missing = [pid for pid in ids if pid not in result.cameras]
     if missing:
-        raise ProjectError(f"expression {name!r}: the texture has weight maps of photos without a camera "
-                           f"({', '.join(missing)}); extract the texture again")
+        raise ProjectError(
+            f"expression {name!r}: the texture has weight maps of photos without a camera "
+            f"({', '.join(missing)}); extract the texture again"
+        )
     weights = np.zeros((len(ids), S, S), np.float32)
     for i, pid in enumerate(ids):
         png = _read_stored_png(project, name, stored.weight_maps[pid], f"weight map of photo {pid!r}", (S, S))
@@ -398,8 +439,17 @@ def load_stored_texture(project, name: str, vertices: np.ndarray, faces: np.ndar
     single = None
     if report.get("single_view_fallback") and face_mask is not None and len(face_mask) == len(V):
         single = single_view_weights(V, face_mask)
-    tex = CylindricalTexture(image=image, weight_maps=weights, uv=cmap.uv(V), coverage=coverage, surface=surface,
-                             cylinder=cmap, seam_vertices=vidx, seam_faces=sfaces, seam_uv=seam_uv)
+    tex = CylindricalTexture(
+        image=image,
+        weight_maps=weights,
+        uv=cmap.uv(V),
+        coverage=coverage,
+        surface=surface,
+        cylinder=cmap,
+        seam_vertices=vidx,
+        seam_faces=sfaces,
+        seam_uv=seam_uv,
+    )
     inputs = TextureInputs(name, V, F, ids, [result.cameras[pid] for pid in ids], None)
     return TextureJob(inputs, S, tex, single, report)
 
@@ -415,21 +465,29 @@ def load_texture_photos(project, inputs: TextureInputs, max_side: int = MAX_WORK
     return photos
 
 
-def texture_expression(project, name: str, size: int = 1024, *, face_mask: np.ndarray | None = None,
-                       vertices: np.ndarray | None = None, faces: np.ndarray | None = None,
-                       progress: Callable[[str, float], None] | None = None,
-                       cancel: Callable[[], bool] | None = None) -> TextureJob:
+def texture_expression(
+    project,
+    name: str,
+    size: int = 1024,
+    *,
+    face_mask: np.ndarray | None = None,
+    vertices: np.ndarray | None = None,
+    faces: np.ndarray | None = None,
+    progress: Callable[[str, float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> TextureJob:
     """:func:`load_texture_inputs` then :func:`extract_texture` (progress 0 → 1 over both)."""
+
     def stage(label: str, frac: float) -> None:
         if progress is not None:
             progress(label, frac)
 
     stage("loading photos", 0.0)
     if cancel is not None and cancel():
-
         raise Cancelled("texture extraction cancelled")
     inputs = load_texture_inputs(project, name, vertices, faces, photo_side_for(size))
-    job = extract_texture(inputs, size, face_mask=face_mask, cancel=cancel,
-                          progress=lambda label, f: stage(label, 0.1 + 0.85 * f))
+    job = extract_texture(
+        inputs, size, face_mask=face_mask, cancel=cancel, progress=lambda label, f: stage(label, 0.1 + 0.85 * f)
+    )
     stage("done", 1.0)
     return job

@@ -307,9 +307,9 @@ class ViewDependentTexture:
             shares = apply_single_view(g, np.zeros(len(pts)) if s is None else s)  # normalised
             colors = _floating_alignment((H, W), rows, cols, colors, shares)
         if have.any():
-            out[have] = blend(
-                np.array(colors)[:, have], apply_single_view(g[:, have], None if s is None else s[have])
-            )[0]
+            out[have] = blend(np.array(colors)[:, have], apply_single_view(g[:, have], None if s is None else s[have]))[
+                0
+            ]
         filled = ~have
         unseen = np.zeros(len(pts), bool)
         if filled.any():  # §5.2.3 keeps two photographs; where both are occluded, use them all
@@ -339,9 +339,18 @@ class ViewDependentTexture:
         gl = self._gl
         if gl is None or gl.renderer is not renderer or not gl.usable:
             gl = self._gl = ViewDependentGL(
-                renderer, self.vertices, self.faces, self.normals, self.cameras, self.photos, self._depths_far,
-                self.feather_maps, centre=self.centre, single_view=self.single_view,
-                tol_mm=self.tol_mm, far_sentinel_mm=FAR_SENTINEL_MM,
+                renderer,
+                self.vertices,
+                self.faces,
+                self.normals,
+                self.cameras,
+                self.photos,
+                self._depths_far,
+                self.feather_maps,
+                centre=self.centre,
+                single_view=self.single_view,
+                tol_mm=self.tol_mm,
+                far_sentinel_mm=FAR_SENTINEL_MM,
             )
         return gl
 
@@ -349,7 +358,10 @@ class ViewDependentTexture:
         """The per-pixel weights and blend in a fragment shader (:mod:`photomodel.rendering.view_dependent`)."""
         selected = [k for k in range(len(V)) if V[k] > 0]  # the two of §5.2.3 (or one)
         frame = self.gl_state().render(
-            camera, selected, [V[k] for k in selected], background=background,
+            camera,
+            selected,
+            [V[k] for k in selected],
+            background=background,
             shift=self.registration_shift if align else None,
         )
         color, idx = frame.color, frame.fallback
@@ -431,8 +443,14 @@ class ViewDependentTexture:
             x_b[flat, 2] = 1.0
             x_b = x_b.reshape(h, w, 3)
             gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
-            back = cv2.remap(x_b, gx - f_ba[..., 0], gy - f_ba[..., 1], cv2.INTER_LINEAR,
-                             borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            back = cv2.remap(
+                x_b,
+                gx - f_ba[..., 0],
+                gy - f_ba[..., 1],
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=0,
+            )
             on = x_b[..., 2] > 0
             out[r0:r1, c0:c1, :2] = np.where(on[..., None], f_ab, 0.0)
             # on the model at both ends (displaced off it: no shift)
@@ -462,8 +480,9 @@ class ViewDependentTexture:
         for k in range(len(self.cameras)) if photos is None else photos:
             self._photo_surface(int(k))
 
-    def register_pairs(self, pairs: Sequence[tuple[int, int]] | None = None,
-                       cancel: Callable[[], bool] | None = None) -> int:
+    def register_pairs(
+        self, pairs: Sequence[tuple[int, int]] | None = None, cancel: Callable[[], bool] | None = None
+    ) -> int:
         """Compute the registration of ``pairs`` (default :meth:`orbit_pairs`) ahead of the
         frames that need them — on any thread, after :meth:`prepare_surfaces` (no GL here), so
         the studio's orbit never waits a pair's ~0.2 s. A frame asking for a pair being computed

@@ -32,7 +32,6 @@ from photomodel.texturing.weights import positional_certainty
 __all__ = ["render_depth", "front_facing", "visible", "vertex_visibility"]
 
 
-
 def render_depth(camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Depth map of a mesh seen by ``camera`` (the Z-buffer of §5.2.1).
 

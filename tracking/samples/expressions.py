@@ -183,8 +183,14 @@ def _frown(points: np.ndarray, L: np.ndarray) -> np.ndarray:
     return _brow_weight(points, L)[:, None] * move
 
 
-_FIELDS = {"smile": _smile, "open_mouth": _open_mouth, "brows_raised": _brows_raised, "frown": _frown,
-           "cheek_smile": _cheek_smile, "surprise": _surprise}
+_FIELDS = {
+    "smile": _smile,
+    "open_mouth": _open_mouth,
+    "brows_raised": _brows_raised,
+    "frown": _frown,
+    "cheek_smile": _cheek_smile,
+    "surprise": _surprise,
+}
 
 
 def expression_displacement(name: str, points: np.ndarray, landmarks: np.ndarray) -> np.ndarray:

@@ -102,8 +102,9 @@ def sample_face_model(names: tuple = EXPRESSION_NAMES, basis: str = "gram_schmid
     C = true_correspondence(mesh, scan)
     E = C[None] + expression_displacements(C, scan.landmarks, names)
     uv = scan_uv_of_points(scan, C)
-    tex = cv2.resize(scan.texture, None, fx=1.0 / TEXTURE_DOWNSAMPLE, fy=1.0 / TEXTURE_DOWNSAMPLE,
-                     interpolation=cv2.INTER_AREA)  # fmt: skip
+    tex = cv2.resize(
+        scan.texture, None, fx=1.0 / TEXTURE_DOWNSAMPLE, fy=1.0 / TEXTURE_DOWNSAMPLE, interpolation=cv2.INTER_AREA
+    )
     regions = control_regions(mesh.regions, C, mesh.landmarks)
     # drop triangles whose corners lie on different charts of the scan's texture atlas
     tri_uv = uv[mesh.faces]
@@ -165,7 +166,7 @@ class VideoTruth:
                     "R": self.R[i].round(10).tolist(),
                     "t": self.t[i].round(6).tolist(),
                     "weights": self.weights[i].round(8).tolist(),
-                }  # fmt: skip
+                }
                 for i in range(self.frames)
             ],
         }
@@ -174,10 +175,14 @@ class VideoTruth:
     def from_dict(cls, d: dict) -> VideoTruth:
         fr = d["frames"]
         return cls(
-            np.array([f["R"] for f in fr], float), np.array([f["t"] for f in fr], float),
-            np.array([f["weights"] for f in fr], float), tuple(d["names"]), float(d["focal_px"]),
-            int(d["width"]), int(d["height"]),
-        )  # fmt: skip
+            np.array([f["R"] for f in fr], float),
+            np.array([f["t"] for f in fr], float),
+            np.array([f["weights"] for f in fr], float),
+            tuple(d["names"]),
+            float(d["focal_px"]),
+            int(d["width"]),
+            int(d["height"]),
+        )
 
 
 def video_camera(focal_px: float = VIDEO_FOCAL_PX, size: int = VIDEO_SIZE) -> Camera:
@@ -185,8 +190,9 @@ def video_camera(focal_px: float = VIDEO_FOCAL_PX, size: int = VIDEO_SIZE) -> Ca
     return Camera(np.eye(3), np.zeros(3), focal_px, size, size)
 
 
-def video_truth(frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NAMES,
-                yaw_deg: float = 14.0) -> VideoTruth:  # fmt: skip
+def video_truth(
+    frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NAMES, yaw_deg: float = 14.0
+) -> VideoTruth:
     """Smooth head motion and region weights for a ``frames``-long synthetic video.
 
     Head: yaw ±``yaw_deg`` (14°), pitch ±7°, roll ±4°, translation ±12 mm sideways, ±15 mm in depth, as sums
@@ -206,11 +212,13 @@ def video_truth(frames: int = 40, *, seed: int = 6, names: tuple = EXPRESSION_NA
     R0 = np.diag([1.0, -1.0, -1.0])
 
     R = np.array([rodrigues(np.array([p, y, r])) @ R0 for p, y, r in zip(pitch, yaw, roll, strict=True)])
-    centre_cam = np.column_stack([
-        12.0 * np.sin(2 * np.pi * 0.6 * s + ph[3]),
-        8.0 * np.sin(2 * np.pi * 0.8 * s + ph[4]),
-        VIDEO_DISTANCE_MM + 15.0 * np.sin(2 * np.pi * 0.5 * s + ph[5]),
-    ])  # fmt: skip
+    centre_cam = np.column_stack(
+        [
+            12.0 * np.sin(2 * np.pi * 0.6 * s + ph[3]),
+            8.0 * np.sin(2 * np.pi * 0.8 * s + ph[4]),
+            VIDEO_DISTANCE_MM + 15.0 * np.sin(2 * np.pi * 0.5 * s + ph[5]),
+        ]
+    )
     t = centre_cam - np.einsum("tij,j->ti", R, HEAD_CENTRE_MM)
     m = len(names)
     W = np.zeros((T, len(CONTROL_REGIONS), m))
@@ -269,9 +277,14 @@ def render_video_frame(truth: VideoTruth, i: int, *, supersample: int = 3) -> np
     scan = load_james_scan()
     V, _ = true_scan_vertices(truth, i)
     res = get_renderer().render(
-        truth.camera(i), V, scan.faces, uv=scan.uv, texture=_scan_texture_handle(),
-        background=BACKGROUND_RGB, supersample=supersample,
-    )  # fmt: skip
+        truth.camera(i),
+        V,
+        scan.faces,
+        uv=scan.uv,
+        texture=_scan_texture_handle(),
+        background=BACKGROUND_RGB,
+        supersample=supersample,
+    )
     return res.color
 
 
@@ -302,7 +315,6 @@ def fitted_sample_project(progress=None) -> Path:
     minute on two cores) and reused; ``progress(stage, fraction)`` is told how far it got. Tests and
     benchmarks track with the face model of this project (:func:`fitted_sample_model`).
     """
-
 
     src = SAMPLE_PROJECT
     project = load_project(src)
@@ -387,4 +399,3 @@ def model_gauge(model: FaceModel, iterations: int = 15) -> tuple[float, np.ndarr
         s, R, t = similarity_transform(P, closest)
     _GAUGES[key] = (model, (s, R, t))
     return s, R, t
-
