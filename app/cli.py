@@ -33,20 +33,20 @@ from typing import TYPE_CHECKING
 from tqdm import tqdm
 
 from app.edit_command import add_edit_parser
-from app.progress import StageProgress
 from app.rig_command import add_rig_parsers
+from app.terminal_progress import StageProgress
 from photomodel.errors import FaceStudioError, MissingClicks, ProjectError
 from photomodel.landmarks import place_landmarks
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, uses_person_prior
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.intake import add_photos, default_features, new_project_from_photos, photo_files
 from photomodel.photos.reading import PHOTO_SUFFIXES
+from photomodel.photos.stills import new_project_from_video
 from photomodel.project import load_project, record_fit, save_project, save_results
 from photomodel.samples.sample_data import sample_data_dir
 from photomodel.texturing.job import TEXTURE_SIZES, encode_texture_outputs, fitted_expressions, texture_expression
-from tracking.results import default_out_dir, load_track_results
 from tracking.run import track_video
-from tracking.stills import new_project_from_video
+from tracking.track_result import default_out_dir, load_track_results
 
 if TYPE_CHECKING:  # the batch module loads Dask: imported where track-many runs
     from tracking.many_shots import BatchProgress, BatchResult
@@ -55,7 +55,7 @@ if TYPE_CHECKING:  # the batch module loads Dask: imported where track-many runs
 
 
 def _progress_bar(enabled: bool, task: str):
-    """The command's progress on stderr (:class:`app.progress.StageProgress`: a bar on a terminal,
+    """The command's progress on stderr (:class:`app.terminal_progress.StageProgress`: a bar on a terminal,
     a line per stage and 10 % step in a log; silent with --json unless a TTY), twice: to close, to call."""
     progress = StageProgress(task, enabled=enabled)
     return progress, progress
@@ -139,7 +139,7 @@ def _grouped_reasons(reasons: list[str]) -> list[str]:
 
 def cmd_new(args) -> int:
     """``facestudio new``: a project from a folder of photos, or from stills a clip's frames give
-    (:mod:`tracking.stills`), with automatic landmarks."""
+    (:mod:`photomodel.photos.stills`), with automatic landmarks."""
     target = Path(args.project)
     if target.exists():
         raise ProjectError(

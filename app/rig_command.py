@@ -30,9 +30,9 @@ from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.project import load_project, save_project, store_rig
 from photomodel.rig.build import RigBuilder
 from photomodel.rig.ict import ARKIT_SHAPES
+from tracking.face_from_project import model_expressions
 from tracking.performance import arkit_weights, blend_shapes, track_performance
-from tracking.project_model import model_expressions
-from tracking.results import FACING, load_track_results
+from tracking.track_result import FACING, load_track_results
 
 __all__ = ["add_rig_parsers", "cmd_rig", "cmd_export"]
 

@@ -34,7 +34,7 @@
   head's (1 = as deep as the generic head scaled to this face). The texture is made too
   (``facestudio texture``) and a picture written to ``<out>/real_sample.png``.
 * ``stills`` — the real clip as a user with only footage would start: ``facestudio new P --video
-  CLIP`` (:mod:`tracking.stills` picks the stills) + ``fit``, looking at every 3rd … 7th frame
+  CLIP`` (:mod:`photomodel.photos.stills` picks the stills) + ``fit``, looking at every 3rd … 7th frame
   (five draws: which frames are looked at moves what is picked). Per draw ``every``, ``frames``
   (the stills), ``rms_px``, ``depth_ratio``, ``hand_stills`` (stills in the frames where a hand is
   over her mouth or nose, 60 and 69–226, labelled by looking); over the draws ``rms_mean_px``, ``rms_worst_px``,
@@ -65,13 +65,13 @@ from photomodel.camera import orbit_camera
 from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.reading import read_photo
+from photomodel.photos.stills import write_stills
+from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
 from photomodel.samples import synthetic
 from photomodel.samples.real_clip import FRAMES, clip_path, real_sample_project
 from photomodel.samples.sample_data import load_james_scan
 from photomodel.texturing.view_dependent import ViewDependentTexture
-from tracking.stills import write_stills
-from tracking.video import VideoFrames
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 

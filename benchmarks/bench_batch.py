@@ -4,7 +4,7 @@ against the same shots tracked one after another, and a worker killed mid-shot.
 The shots: ``--shots`` (4) clips of ``--frames`` (100) frames made from the sample video
 (``sample_projects/james/video/james_track.mp4``, 40 frames, played forward, back, forward again),
 each with the sample's first-pose file, tracked with the fitted sample project's face model
-(:func:`tracking.samples.ground_truth.fitted_sample_project`), plots and overlay video included
+(:func:`tracking.synthetic_sequences.ground_truth.fitted_sample_project`), plots and overlay video included
 (what the command does).
 
 * ``sequential_s`` — the shots one after another in one worker process (a 1-worker
@@ -43,8 +43,8 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 from tracking.many_shots import EXIT_AFTER_ENV, track_many  # noqa: E402
-from tracking.results import load_track_results  # noqa: E402
-from tracking.samples.ground_truth import fitted_sample_project  # noqa: E402
+from tracking.synthetic_sequences.ground_truth import fitted_sample_project  # noqa: E402
+from tracking.track_result import load_track_results  # noqa: E402
 
 SAMPLE_VIDEO = REPO / "sample_projects" / "james" / "video"
 KILL_FRAMES, KILL_AFTER = 20, 12

@@ -21,7 +21,7 @@ The ``smooth`` object of ``--json`` holds the means over the sequences; the tabl
 **Edits** (:func:`tracking.edit_video.edit_frames`, §4–5): on the smoothed (b) track, the smile is
 suppressed (×0) and magnified (×1.5) over the whole clip (Eq. 25); the written frames (float,
 before any encoding) are compared with frames rendered from the truth with the same edit applied
-to its weights (the scan deformed per region, :func:`tracking.samples.ground_truth.render_video_frame`
+to its weights (the scan deformed per region, :func:`tracking.synthetic_sequences.ground_truth.render_video_frame`
 — not the tracker's model), at :data:`EDIT_FRAMES` frames across the smile. ``psnr_face_db``:
 over the face — the pixels that the model's control regions (mouth with jaw, eyes, forehead:
 membership over 0.5) cover at the tracked pose, with the tracked or the edited weights;
@@ -55,18 +55,18 @@ for p in (REPO, REPO / "benchmarks"):
 from bench_track import first_pose  # noqa: E402
 
 from photomodel.rendering.renderer import get_renderer  # noqa: E402
+from tracking.blendshape_face import render_model  # noqa: E402
 from tracking.edit import scale_expression, scale_factors  # noqa: E402
 from tracking.edit_video import edit_frames  # noqa: E402
-from tracking.facemodel import render_model  # noqa: E402
 from tracking.frame_fit import FrameFitter, track_frames  # noqa: E402
-from tracking.samples.expressions import EXPRESSION_NAMES  # noqa: E402
-from tracking.samples.ground_truth import (  # noqa: E402
+from tracking.smooth import SmoothOptions, jitter, smooth_clip, weight_curves  # noqa: E402
+from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES  # noqa: E402
+from tracking.synthetic_sequences.ground_truth import (  # noqa: E402
     fitted_sample_model,
     render_video_frame,
     sample_face_model,
     video_truth,
 )
-from tracking.smooth import SmoothOptions, jitter, smooth_clip, weight_curves  # noqa: E402
 
 #: Frames of the smoothing sequences (the sample's motion sampled like a 25–30 fps clip).
 SMOOTH_FRAMES = 100

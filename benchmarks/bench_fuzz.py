@@ -16,7 +16,7 @@ Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON objec
   order, number formatting, BOM and CRLF); ``loaded`` counts those that load equal to the
   original (the bar: all of them).
 * ``monkey`` — seeded random artist actions on the studio, each seed in its own process
-  (``benchmarks/monkey.py``, ``monkey_section``; included when that file is there).
+  (``benchmarks/fuzz_monkey.py``, ``monkey_section``; included when that file is there).
 
 Mutants are checked in ``--workers`` processes (default: every core), each running hypothesis
 on its own seed; the figures do not depend on the number of workers' timing, only on the seeds.
@@ -207,7 +207,7 @@ def benign_section(args, log) -> dict:
 
 #: Benchmark sections in order; each takes ``(args, log)`` and returns the keys it adds.
 SECTIONS = {"fuzz": fuzz_section, "benign": benign_section}
-if (Path(__file__).with_name("monkey.py")).exists():  # the studio's monkey section (benchmarks/monkey.py)
+if (Path(__file__).with_name("monkey.py")).exists():  # the studio's monkey section (benchmarks/fuzz_monkey.py)
     from monkey import monkey_section  # noqa: E402
 
     SECTIONS["monkey"] = monkey_section

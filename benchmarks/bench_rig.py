@@ -13,7 +13,7 @@ Sections of the one JSON object:
   there. ``shapes``: the shapes that move the face ≥ 2 mm (the ones averaged);
   ``rel_err_pct_mean`` / ``_max`` over them and the identities; ``registration_landmark_mm``:
   the landmark RMS of ICT's registration onto the generic mesh (after the non-rigid fit).
-* ``glb`` — the fitted sample project (:func:`tracking.samples.ground_truth.fitted_sample_project`,
+* ``glb`` — the fitted sample project (:func:`tracking.synthetic_sequences.ground_truth.fitted_sample_project`,
   copied) rigged (``facestudio rig``), its sample video tracked for ``--frames`` frames and exported
   (``facestudio export --track --glb --csv``); read back with pygltflib: ``targets`` vs
   ``expected_targets`` (the rig's shapes + the photographed expressions × the 3 control regions),
@@ -44,10 +44,10 @@ from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.project import load_project
 from photomodel.rig.build import RigBuilder
 from photomodel.rig.ict import ARKIT_SHAPES, load_ict
-from tracking.facemodel import CONTROL_REGIONS
+from tracking.blendshape_face import CONTROL_REGIONS
 from tracking.performance import arkit_weights, blend_shapes, track_performance
-from tracking.results import load_track_results
-from tracking.samples.ground_truth import fitted_sample_project
+from tracking.synthetic_sequences.ground_truth import fitted_sample_project
+from tracking.track_result import load_track_results
 
 REPO = Path(__file__).resolve().parents[1]
 #: A shape counts in the round trip when it moves some face vertex at least this much (mm).

@@ -2,9 +2,9 @@
 tracking at 300×300 on synthetic sequences with known truth.
 
 The tracked face model is the one a user of the sample gets: the sample project's expressions
-fitted and textured from their photos (:func:`tracking.samples.ground_truth.fitted_sample_model`, built by
-:func:`tracking.project_model.face_model_from_project`). Sequences (same head motion and region
-weights, :func:`tracking.samples.ground_truth.video_truth`):
+fitted and textured from their photos (:func:`tracking.synthetic_sequences.ground_truth.fitted_sample_model`, built by
+:func:`tracking.face_from_project.face_model_from_project`). Sequences (same head motion and region
+weights, :func:`tracking.synthetic_sequences.ground_truth.video_truth`):
 
 * ``a`` — frames rendered from that fitted face model itself (the paper's synthetic test);
 * ``b`` — the sample video: the scan deformed per region and rendered (end to end);
@@ -14,16 +14,16 @@ weights, :func:`tracking.samples.ground_truth.video_truth`):
 * ``f`` — (b) with a textured hand-sized patch (:func:`occlude_mouth`: skin colour, finger creases)
   sliding across the mouth: the robust error (:attr:`tracking.frame_fit.TrackOptions.robust_scale`)
   must keep pose and expression from following it;
-* ``g`` — expressions outside the model's set (:data:`tracking.samples.expressions.OUTSIDE_EXPRESSIONS`:
+* ``g`` — expressions outside the model's set (:data:`tracking.synthetic_sequences.expressions.OUTSIDE_EXPRESSIONS`:
   a smile with raised cheeks and lower lids, a surprise with the lower lip pulled down; the
-  same head motion, :func:`tracking.samples.ground_truth.outside_truth`), tracked with the model of (e),
+  same head motion, :func:`tracking.synthetic_sequences.ground_truth.outside_truth`), tracked with the model of (e),
   whose ``frown`` is the only shape near the eyes that moves them down-and-in: the coherence
   prior (:attr:`tracking.frame_fit.TrackOptions.coherence`) keeps the eye region from borrowing it.
 
 The first frame starts from :func:`tracking.frame_fit.pose_from_clicks` on the 13 initial features clicked
 with 0.5 px noise (the user's clicks), a neutral face. A model from photos has its own head frame
 and scale (1/1.13 of the real head on the sample): for (b)–(e) the tracked pose is compared with the
-truth through one fixed similarity (:func:`tracking.samples.ground_truth.model_gauge`: the model's neutral
+truth through one fixed similarity (:func:`tracking.synthetic_sequences.ground_truth.model_gauge`: the model's neutral
 registered onto the scan's surface) and camera-space positions are scaled by it. Metrics per
 sequence (means over frames): rotation error (deg), translation error of the model centre (mm),
 geometry error ``geom_err_mm`` (the issue's measure: mean surface distance from the tracked mesh's
@@ -84,19 +84,19 @@ if str(REPO) not in sys.path:
 from app.cli import main as cli_main  # noqa: E402
 from photomodel.camera import rotation_angle_deg  # noqa: E402
 from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
+from photomodel.photos.video import VideoFrames  # noqa: E402
 from photomodel.project import load_project  # noqa: E402
 from photomodel.rendering.renderer import get_renderer  # noqa: E402
 from photomodel.samples.real_clip import clip_path, real_sample_project  # noqa: E402
 from photomodel.samples.synthetic import ScanSurface  # noqa: E402
+from tracking.blendshape_face import render_model  # noqa: E402
 from tracking.detected_pose import LOST_PX, detected_features, landmark_error_px  # noqa: E402
-from tracking.facemodel import render_model  # noqa: E402
+from tracking.face_from_project import project_face_model  # noqa: E402
 from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, pose_from_clicks, track_frames  # noqa: E402
 from tracking.overlay_video import overlay_frame  # noqa: E402
-from tracking.project_model import project_face_model  # noqa: E402
-from tracking.results import load_track_results  # noqa: E402
 from tracking.run import track_video  # noqa: E402
-from tracking.samples.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS  # noqa: E402
-from tracking.samples.ground_truth import (  # noqa: E402
+from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS  # noqa: E402
+from tracking.synthetic_sequences.ground_truth import (  # noqa: E402
     BACKGROUND_RGB,
     fitted_sample_model,
     model_gauge,
@@ -106,7 +106,7 @@ from tracking.samples.ground_truth import (  # noqa: E402
     true_scan_vertices,
     video_truth,
 )
-from tracking.video import VideoFrames  # noqa: E402
+from tracking.track_result import load_track_results  # noqa: E402
 
 
 def _device() -> str:
@@ -216,7 +216,7 @@ def best_correlations(truth, results) -> dict:
     return out
 
 
-#: The default draw: head-motion phases of :func:`tracking.samples.ground_truth.video_truth` and the
+#: The default draw: head-motion phases of :func:`tracking.synthetic_sequences.ground_truth.video_truth` and the
 #: first frame's click noise (:func:`first_pose`).
 DEFAULT_DRAW = (6, 2)
 

@@ -95,7 +95,7 @@ def main(argv=None) -> int:  # noqa: C901 - one optional screenshot after anothe
 
     try:
         if args.only == "tracking":  # the sample fitted and textured (cached), and its video
-            from tracking.samples.ground_truth import fitted_sample_project
+            from tracking.synthetic_sequences.ground_truth import fitted_sample_project
 
             shutil.copytree(fitted_sample_project().parent, tmp / "james")
             shutil.copytree(REPO / "sample_projects" / "james" / "video", tmp / "james" / "video")

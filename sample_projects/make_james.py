@@ -12,7 +12,7 @@ It writes, into ``--out``:
   rendered by :mod:`photomodel.rendering.renderer` from the 5-camera rig of
   :func:`photomodel.samples.synthetic.rig` at 1000×1000 on a light grey background;
 * ``photos/<expression>_<id>.jpg`` for ``smile``, ``open_mouth``, ``brows_raised`` and
-  ``frown`` — the scan deformed by that expression's smooth field (:mod:`tracking.samples.expressions`;
+  ``frown`` — the scan deformed by that expression's smooth field (:mod:`tracking.synthetic_sequences.expressions`;
   ``frown`` is the extra expression the sample video never uses) and photographed by the same
   rig, the same cameras photo for photo. JPEG (quality :data:`JPEG_QUALITY`), as real cameras
   write, to keep the repository small (2.7 MB for the 20; the neutral's PNGs predate them and
@@ -26,7 +26,7 @@ It writes, into ``--out``:
 * ``ground_truth.json`` — per expression: true cameras (the same rig), noise-free projections,
   visibility and true 3D feature positions (``features_3d``: the generic vertices' true positions
   on the neutral scan plus the expression's displacement, the rows of
-  :func:`tracking.samples.expressions.true_expression_geometry`); the top-level ``features_3d`` is the
+  :func:`tracking.synthetic_sequences.expressions.true_expression_geometry`); the top-level ``features_3d`` is the
   neutral's; the seed and the scan alignment. The fit never reads it.
 
 Everything is deterministic. The neutral's clicks and curves come from ``default_rng(SEED)``,
@@ -55,7 +55,7 @@ from photomodel.modeling.generic_mesh import IBUG68_NAMES, load_generic_mesh  # 
 from photomodel.project import CurveDef, Expression, Feature, Photo, new_project, save_project  # noqa: E402
 from photomodel.samples import synthetic  # noqa: E402
 from photomodel.samples.sample_data import load_james_scan  # noqa: E402
-from tracking.samples.expressions import (  # noqa: E402
+from tracking.synthetic_sequences.expressions import (  # noqa: E402
     deformed_scan_vertices,
     expression_displacement,
     true_expression_geometry,
@@ -77,7 +77,7 @@ CLICK_TOL_MM = synthetic.CLICK_TOL_MM
 #: visibility accepts surfaces seen edge-on (n·view > 0 rather than the clicks' 0.1).
 CURVE_MIN_COS = 0.0
 #: The expressions photographed, neutral first; the others are the smooth deformations of the
-#: scan of :mod:`tracking.samples.expressions` (its basic expressions and its extra one).
+#: scan of :mod:`tracking.synthetic_sequences.expressions` (its basic expressions and its extra one).
 NEUTRAL = "neutral"
 EXPRESSIONS = (NEUTRAL, "smile", "open_mouth", "brows_raised", "frown")
 #: JPEG quality of the expression photos (the neutral's are PNG, kept as first published).
@@ -100,7 +100,7 @@ def feature_list(mesh, extras: dict[str, int]) -> list:
 
 
 def expression_scan(scan, name: str):
-    """The james scan in expression ``name`` (:mod:`tracking.samples.expressions`): a new
+    """The james scan in expression ``name`` (:mod:`tracking.synthetic_sequences.expressions`): a new
     :class:`~photomodel.samples.sample_data.Scan` with the deformed vertices and landmarks (its own
     welded surface for visibility and surface distances); the scan itself for ``neutral``."""
     if name == NEUTRAL:
@@ -250,7 +250,9 @@ def build(out: Path, overlays: Path | None = None, expressions=EXPRESSIONS) -> d
             Expression(expression, photos, cameras_from=None if expression == NEUTRAL else NEUTRAL)
         )
         gt_expressions[expression] = {
-            "deformation": "none" if expression == NEUTRAL else f"tracking.samples.expressions, {expression!r}",
+            "deformation": "none"
+            if expression == NEUTRAL
+            else f"tracking.synthetic_sequences.expressions, {expression!r}",
             "features_3d": {n: np.round(points3d[j], 5).tolist() for j, n in enumerate(names)},
             "photos": gt_photos,
         }

@@ -1,5 +1,5 @@
 """Build the sample tracking video of the ``james`` project: frames of the scan blended per region with
-smoothly varying expression weights under smooth head motion (:mod:`tracking.samples.ground_truth`).
+smoothly varying expression weights under smooth head motion (:mod:`tracking.synthetic_sequences.ground_truth`).
 
 Run from the repository root::
 
@@ -29,7 +29,7 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 from photomodel.project import load_project  # noqa: E402
-from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth  # noqa: E402
+from tracking.synthetic_sequences.ground_truth import render_video_frame, sample_face_model, video_truth  # noqa: E402
 
 FPS = 10
 PROJECT = REPO / "sample_projects" / "james" / "james.facestudio.json"

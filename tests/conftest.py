@@ -13,7 +13,7 @@ from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.samples.sample_data import load_james_scan, load_template
 from photomodel.samples.synthetic import load_ground_truth
 from tracking.run import track_video
-from tracking.samples.ground_truth import fitted_sample_project
+from tracking.synthetic_sequences.ground_truth import fitted_sample_project
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
@@ -32,7 +32,7 @@ def project_copy(tmp_path):
 @pytest.fixture(scope="session")
 def fitted_sample():
     """The sample project with every expression fitted and textured (made once, cached:
-    :func:`tracking.samples.ground_truth.fitted_sample_project`); read it, do not change it."""
+    :func:`tracking.synthetic_sequences.ground_truth.fitted_sample_project`); read it, do not change it."""
 
     return fitted_sample_project()
 
@@ -96,8 +96,8 @@ def sample_truth():
 @pytest.fixture(scope="session")
 def sample_video_truth():
     """The sample video's ``video_truth.json`` (head pose and region weights per frame) as a
-    :class:`tracking.samples.ground_truth.VideoTruth`; read it, do not change it."""
-    from tracking.samples.ground_truth import VideoTruth
+    :class:`tracking.synthetic_sequences.ground_truth.VideoTruth`; read it, do not change it."""
+    from tracking.synthetic_sequences.ground_truth import VideoTruth
 
     return VideoTruth.from_dict(json.loads((SAMPLE_PROJECT / "video_truth.json").read_text()))
 

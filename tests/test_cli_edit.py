@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from app.cli import main
+from photomodel.photos.video import VideoFrames
 from tracking.edit import load_edits
 from tracking.edit_video import write_video
-from tracking.results import load_track_results
-from tracking.video import VideoFrames
+from tracking.track_result import load_track_results
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ from photomodel.errors import NoFaceFound, PhotoError
 from photomodel.photos.exif import EXIF_IFD, TAG_FOCAL_LENGTH, TAG_FOCAL_LENGTH_35MM
 from photomodel.photos.intake import add_photos, new_project_from_photos
 from photomodel.project import Feature, load_project, save_project
-from photomodel.project.model import Expression, ExpressionResult
+from photomodel.project.datamodel import Expression, ExpressionResult
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
 #: Where the fake placer puts its points, as fractions of the image it is given.

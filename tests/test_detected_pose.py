@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 from photomodel.camera import rotation_angle_deg
+from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
 from tracking import detected_pose
 from tracking.detected_pose import DEFAULT_FOCAL_WIDTHS, Redetector, landmark_error_px, video_focal_px
 from tracking.first_pose import pose_from_spec
 from tracking.frame_fit import FrameFitter, FrameResult, FrameState
-from tracking.results import load_track_results
 from tracking.run import _work_fitter, _work_frame, track_video
-from tracking.samples.ground_truth import fitted_sample_model, model_gauge
-from tracking.video import VideoFrames
+from tracking.synthetic_sequences.ground_truth import fitted_sample_model, model_gauge
+from tracking.track_result import load_track_results
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 FRAMES = 3

@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from tracking.blendshape_face import WEIGHT_RANGE
 from tracking.edit import (
     EditError,
     apply_edits,
@@ -16,9 +17,8 @@ from tracking.edit import (
     scale_expression,
     scale_factors,
 )
-from tracking.facemodel import WEIGHT_RANGE
-from tracking.samples.expressions import EXPRESSION_NAMES
-from tracking.samples.ground_truth import sample_face_model, video_truth
+from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES
+from tracking.synthetic_sequences.ground_truth import sample_face_model, video_truth
 
 SMILE = EXPRESSION_NAMES.index("smile")
 MOUTH = 1

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 from photomodel.rendering.renderer import get_renderer
+from tracking.blendshape_face import render_model
 from tracking.edit import EditError, load_edits
 from tracking.edit_session import EditSession
-from tracking.facemodel import render_model
 from tracking.frame_fit import FrameFitter, FrameState
-from tracking.samples.expressions import EXPRESSION_NAMES
-from tracking.samples.ground_truth import BACKGROUND_RGB, sample_face_model, video_truth
+from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES
+from tracking.synthetic_sequences.ground_truth import BACKGROUND_RGB, sample_face_model, video_truth
 
 SMILE = EXPRESSION_NAMES.index("smile")
 

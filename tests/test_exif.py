@@ -1,4 +1,4 @@
-"""Focal lengths from EXIF (photomodel/exif.py) and their use when photos are added (app.model).
+"""Focal lengths from EXIF (photomodel/exif.py) and their use when photos are added (app.studio_state).
 
 The photos are small JPEGs written by Pillow with the EXIF tags each test needs; each test first
 checks that the tags were written, so a Pillow that stopped writing them fails loudly here rather
@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 from PIL.TiffImagePlugin import IFDRational
 
-from app.model import StudioModel
+from app.studio_state import StudioModel
 from photomodel.photos.exif import (
     EXIF_IFD,
     TAG_EXIF_IMAGE_HEIGHT,

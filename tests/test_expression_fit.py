@@ -20,7 +20,11 @@ from photomodel.errors import FitError
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, source_cameras
 from photomodel.project import ExpressionResult, load_project
 from photomodel.samples.synthetic import deformed_scan, surface_distance
-from tracking.samples.expressions import deformed_scan_vertices, expression_displacement, true_expression_geometry
+from tracking.synthetic_sequences.expressions import (
+    deformed_scan_vertices,
+    expression_displacement,
+    true_expression_geometry,
+)
 
 SAMPLE_PROJECT = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 PROJECT = SAMPLE_PROJECT / "james.facestudio.json"

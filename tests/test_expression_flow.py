@@ -6,11 +6,11 @@ import pytest
 
 from photomodel.camera import Camera
 from photomodel.rendering.renderer import get_renderer
+from tracking.blendshape_face import render_model
 from tracking.edit import scale_expression
 from tracking.expression_flow import edit_frame, expression_flow
-from tracking.facemodel import render_model
-from tracking.samples.expressions import EXPRESSION_NAMES
-from tracking.samples.ground_truth import BACKGROUND_RGB, sample_face_model, video_truth
+from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES
+from tracking.synthetic_sequences.ground_truth import BACKGROUND_RGB, sample_face_model, video_truth
 
 SMILE = EXPRESSION_NAMES.index("smile")
 

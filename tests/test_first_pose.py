@@ -12,7 +12,7 @@ import pytest
 from photomodel.errors import FitError
 from photomodel.project import load_project
 from tracking.first_pose import load_first_pose
-from tracking.samples.ground_truth import sample_face_model
+from tracking.synthetic_sequences.ground_truth import sample_face_model
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 VIDEO = SAMPLE / "video" / "james_track.mp4"

@@ -25,8 +25,8 @@ from PySide6.QtCore import QPoint, QPointF, QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from app.cli import main
-from app.model import autosave_path  # noqa: E402
 from app.qt.main_window import MainWindow, guess_preset  # noqa: E402
+from app.studio_state import autosave_path  # noqa: E402
 from photomodel.alignment import align_to_truth, camera_errors  # noqa: E402
 from photomodel.project import load_project  # noqa: E402
 from photomodel.samples.synthetic import load_ground_truth  # noqa: E402

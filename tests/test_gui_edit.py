@@ -17,10 +17,10 @@ pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
 
-from app.model import StudioModel  # noqa: E402
 from app.qt.tracking_view import TrackingView  # noqa: E402
+from app.studio_state import StudioModel  # noqa: E402
 from tracking.edit import load_edits  # noqa: E402
-from tracking.results import load_track_results, state_of  # noqa: E402
+from tracking.track_result import load_track_results, state_of  # noqa: E402
 
 SHOT = Path(__file__).resolve().parents[1] / "docs" / "img" / "edit_view.png"
 

@@ -8,7 +8,7 @@ undo history is emptied and at the end, that undoing every edit gives the opened
 (result records excepted). pytest-qt fails a test on any exception in a Qt virtual or slot.
 
 A few seeds of :data:`ACTIONS_PER_SEED` actions keep this file near 40 s on the 2-core machine;
-``benchmarks/monkey.py`` runs thousands of actions, each seed in its own process.
+``benchmarks/fuzz_monkey.py`` runs thousands of actions, each seed in its own process.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ import pytest
 from app.cli import main
 from photomodel.errors import FaceStudioError
 from tracking.many_shots import EXIT_AFTER_ENV, SUMMARY_CSV, SUMMARY_JSON, plan_shots, track_many
-from tracking.results import load_track_results
+from tracking.track_result import load_track_results
 
 SAMPLE_VIDEO = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "video"
 FRAMES = 4

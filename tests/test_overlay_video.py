@@ -37,7 +37,7 @@ def test_overlay_tints_an_occluder_and_little_else():
 
     from tracking.frame_fit import FrameFitter
     from tracking.overlay_video import overlay_frame
-    from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth
+    from tracking.synthetic_sequences.ground_truth import render_video_frame, sample_face_model, video_truth
 
     model, truth, i = sample_face_model(), video_truth(8), 3
     frame = render_video_frame(truth, i).astype(np.float32)

@@ -1,4 +1,4 @@
-"""Tests of photomodel.project.model: look-ups, observations, default result paths, checks against
+"""Tests of photomodel.project.datamodel: look-ups, observations, default result paths, checks against
 the generic mesh and the photos on disk, camera groups."""
 
 from __future__ import annotations

@@ -13,10 +13,10 @@ import pytest
 
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import decode_png
+from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
-from tracking.results import load_track_results
 from tracking.review import TrackReview
-from tracking.video import VideoFrames
+from tracking.track_result import load_track_results
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 VIDEO = SAMPLE / "video" / "james_track.mp4"

@@ -21,9 +21,9 @@ from app.cli import main
 from photomodel.camera import rotation_angle_deg
 from photomodel.errors import FaceStudioError, FitError
 from photomodel.project import load_project
-from tracking.results import load_track_results
 from tracking.run import track_video
-from tracking.samples.ground_truth import fitted_sample_model, model_gauge, sample_face_model
+from tracking.synthetic_sequences.ground_truth import fitted_sample_model, model_gauge, sample_face_model
+from tracking.track_result import load_track_results
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 PROJECT = SAMPLE / "james.facestudio.json"
@@ -77,7 +77,7 @@ def test_results_are_valid_and_follow_the_true_motion(straight, truth, gauge):
         for r, ws in f["weights"].items():
             assert abs(sum(ws.values()) - 1.0) < 1e-9, r
         # the model from photos reproduces a frame to ~0.065 RMS at the true parameters
-        # (tests/test_project_model.py); divergence is flagged above 0.12
+        # (tests/test_face_from_project.py); divergence is flagged above 0.12
         assert not f["diverged"] and 0 < f["rms"] < 0.08
         # the tracker on the real pipeline's video (not a test of fit accuracy, which test_track_fit
         # pins): the sample video starts from 13 clicks with 0.5 px noise. The model from photos

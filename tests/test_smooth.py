@@ -4,10 +4,8 @@ import numpy as np
 import pytest
 
 from photomodel.rendering.renderer import get_renderer
-from tracking.facemodel import WEIGHT_RANGE, render_model
+from tracking.blendshape_face import WEIGHT_RANGE, render_model
 from tracking.frame_fit import FrameFitter, FrameState
-from tracking.samples.expressions import EXPRESSION_NAMES
-from tracking.samples.ground_truth import BACKGROUND_RGB, sample_face_model, video_truth
 from tracking.smooth import (
     SmoothOptions,
     _solve_in_range,
@@ -18,6 +16,8 @@ from tracking.smooth import (
     solve_clip,
     weight_curves,
 )
+from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES
+from tracking.synthetic_sequences.ground_truth import BACKGROUND_RGB, sample_face_model, video_truth
 
 
 def test_difference_penalties_are_the_stencils_of_eq_15():

@@ -1,4 +1,4 @@
-"""Stills from footage (tracking/stills.py) and ``facestudio new --video``.
+"""Stills from footage (photomodel/photos/stills.py) and ``facestudio new --video``.
 
 Ground truth the code does not produce: the sample video's frames (nothing covers the face in
 any of them) with fingers painted over the mouth in frames the test chooses; the real clip's
@@ -15,12 +15,10 @@ import cv2
 import numpy as np
 import pytest
 
-import tracking.stills
+import photomodel.photos.stills
 from app.cli import main as facestudio
 from photomodel.landmarks.detect import detect_468
-from photomodel.project import load_project
-from photomodel.samples.real_clip import clip_path
-from tracking.stills import (
+from photomodel.photos.stills import (
     MIN_YAW_STEP_DEG,
     FrameLook,
     StillsError,
@@ -30,7 +28,9 @@ from tracking.stills import (
     remove_stills,
     write_stills,
 )
-from tracking.video import VideoFrames
+from photomodel.photos.video import VideoFrames
+from photomodel.project import load_project
+from photomodel.samples.real_clip import clip_path
 
 SAMPLE_VIDEO = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "video" / "james_track.mp4"
 #: The real clip's frames with a hand over the mouth or nose, looked at frame by frame: the hand
@@ -196,7 +196,7 @@ def test_looking_can_be_cancelled_and_ctrl_c_after_the_stills_leaves_nothing(tmp
     def interrupted(*args, **kwargs):  # Ctrl-C while the stills' landmarks are being placed
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(tracking.stills, "new_project_from_photos", interrupted)
+    monkeypatch.setattr(photomodel.photos.stills, "new_project_from_photos", interrupted)
     project = tmp_path / "me.facestudio.json"
     assert facestudio(["new", str(project), "--video", str(SAMPLE_VIDEO), "--every", "8"]) == 130
     assert "nothing was written" in capsys.readouterr().err

@@ -1,4 +1,4 @@
-"""The studio's model (app.model) without any window: the state the GUI, scripts and tests share."""
+"""The studio's model (app.studio_state) without any window: the state the GUI, scripts and tests share."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.model import MissingPhotos, Signal, StudioModel, autosave_path, newer_autosave
+from app.studio_state import MissingPhotos, Signal, StudioModel, autosave_path, newer_autosave
 from photomodel.errors import ProjectError
 from photomodel.project import load_project
 from photomodel.samples.synthetic import load_ground_truth

@@ -12,7 +12,11 @@ from trimesh.proximity import closest_point_naive
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, orbit_camera
 from photomodel.project import load_project
 from photomodel.samples import synthetic
-from tracking.samples.expressions import deformed_scan_vertices, expression_displacement, true_expression_geometry
+from tracking.synthetic_sequences.expressions import (
+    deformed_scan_vertices,
+    expression_displacement,
+    true_expression_geometry,
+)
 
 EXPRESSIONS = ("smile", "open_mouth", "brows_raised", "frown")
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -356,7 +360,7 @@ def test_ground_truth_per_expression():
     names = ["chin", "nose_tip", "brow_r_mid"]
     np.testing.assert_array_equal(gt.true_points(names), gt.true_points(names, "neutral"))  # old API: neutral
     drop = gt.true_points(["chin"], "open_mouth") - gt.true_points(["chin"])
-    assert drop[0, 1] < -10.0  # the chin moves ~17 mm down (tracking.samples.expressions.JAW_ANGLE_DEG)
+    assert drop[0, 1] < -10.0  # the chin moves ~17 mm down (tracking.synthetic_sequences.expressions.JAW_ANGLE_DEG)
     # the smile's Gaussian falloff (σ 11 mm about the mouth corners) leaves the nose tip in place
     np.testing.assert_allclose(gt.true_points(["nose_tip"], "smile"), gt.true_points(["nose_tip"]), atol=1e-3)
     assert gt.visible["smile"]["front"] and gt.cameras["frown"].keys() == gt.cameras["neutral"].keys()

@@ -9,7 +9,7 @@ import pytest
 from photomodel.camera import rodrigues, rotation_angle_deg
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, nearest_rotation, pose_from_clicks, predict
-from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth
+from tracking.synthetic_sequences.ground_truth import render_video_frame, sample_face_model, video_truth
 
 
 @pytest.fixture(scope="module")
@@ -173,16 +173,16 @@ def test_first_pose_from_clicks(setup):
 
 @pytest.fixture(scope="module")
 def frown_model():
-    from tracking.samples.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS
+    from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES, EXTRA_EXPRESSIONS
 
     return sample_face_model(EXPRESSION_NAMES + EXTRA_EXPRESSIONS)
 
 
 def test_home_regions_are_where_the_expressions_were_made(frown_model):
-    from tracking.facemodel import CONTROL_REGIONS
+    from tracking.blendshape_face import CONTROL_REGIONS
     from tracking.frame_fit import home_regions
 
-    # the sample's fields (tracking.samples.expressions): smile and open mouth move the mouth and
+    # the sample's fields (tracking.synthetic_sequences.expressions): smile and open mouth move the mouth and
     # jaw, brows raised and frown move the brows
     home = [CONTROL_REGIONS[r] if k else "neutral" for k, r in enumerate(home_regions(frown_model))]
     assert dict(zip(frown_model.names, home, strict=True)) == {
@@ -195,7 +195,7 @@ def test_home_regions_are_where_the_expressions_were_made(frown_model):
 
 
 def test_coherence_prior_costs_what_a_region_shows_beyond_the_home_region(frown_model, setup):
-    from tracking.facemodel import CONTROL_REGIONS
+    from tracking.blendshape_face import CONTROL_REGIONS
 
     truth = setup[1]
     model = frown_model

@@ -23,9 +23,9 @@ from PySide6.QtWidgets import QFileDialog  # noqa: E402
 from app.qt.main_window import MainWindow  # noqa: E402
 from app.qt.tracking_view import MARKER_COLOR, plot_with_marker  # noqa: E402
 from photomodel.camera import rotation_angle_deg
-from tracking.results import default_out_dir, load_track_results  # noqa: E402
-from tracking.samples.ground_truth import sample_face_model
-from tracking.video import VideoFrames
+from photomodel.photos.video import VideoFrames
+from tracking.synthetic_sequences.ground_truth import sample_face_model
+from tracking.track_result import default_out_dir, load_track_results  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 

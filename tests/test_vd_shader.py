@@ -1,4 +1,4 @@
-"""The fragment-shader path of view-dependent texturing (photomodel.rendering.view_dependent) against the numpy
+"""The fragment-shader path of view-dependent texturing (photomodel.rendering.view_dependent_pass) against the numpy
 path and against a synthetic scene whose answer is known (Pighin et al. 2002, §5.2.3).
 
 * On the sample project (fitted mesh, recovered cameras, the five 1000×1000 photos) the shader
@@ -25,7 +25,7 @@ from photomodel.modeling.fit import fit_expression
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.project import load_project
 from photomodel.rendering.renderer import get_renderer
-from photomodel.rendering.view_dependent import ViewDependentGL
+from photomodel.rendering.view_dependent_pass import ViewDependentGL
 from photomodel.texturing.cylindrical import single_view_weights
 from photomodel.texturing.view_dependent import ViewDependentTexture, render_view_dependent
 

@@ -1,4 +1,4 @@
-"""Tests of tracking.video: a frame folder tracks like the video file it was taken from, and a
+"""Tests of photomodel.photos.video: a frame folder tracks like the video file it was taken from, and a
 missing or unreadable video is named (by the library and by ``facestudio track``)."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from app.cli import main
-from tracking.results import load_track_results
+from photomodel.photos.video import VideoError, VideoFrames, frame_files
 from tracking.run import track_video
-from tracking.video import VideoError, VideoFrames, frame_files
+from tracking.track_result import load_track_results
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 VIDEO = SAMPLE / "video" / "james_track.mp4"

@@ -12,16 +12,16 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
-import app.model  # noqa: E402
-from app.model import StudioModel  # noqa: E402
+import app.studio_state  # noqa: E402
 from app.qt.commands import SetPointCommand  # noqa: E402
 from app.qt.workers import FitController  # noqa: E402
+from app.studio_state import StudioModel  # noqa: E402
 from photomodel.modeling import overlay as overlay_module  # noqa: E402
 
 
 @pytest.fixture
 def overlay_threads(monkeypatch):
-    """The thread of every :func:`photomodel.modeling.overlay.photo_overlay` call, in order."""
+    """The thread of every :func:`photomodel.modeling.wireframe.photo_overlay` call, in order."""
     calls = []
     original = overlay_module.photo_overlay
 
@@ -29,7 +29,7 @@ def overlay_threads(monkeypatch):
         calls.append(threading.get_ident())
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(app.model, "photo_overlay", recorded)  # where the studio's model looks it up
+    monkeypatch.setattr(app.studio_state, "photo_overlay", recorded)  # where the studio's model looks it up
     return calls
 
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from photomodel.errors import NoFaceFound
 from photomodel.landmarks import place_landmarks, place_landmarks_near
-from tracking.video import frame_uint8
+from photomodel.photos.video import frame_uint8
 
 __all__ = [
     "DEFAULT_FOCAL_WIDTHS",

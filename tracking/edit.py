@@ -1,7 +1,7 @@
 """Expression edits of a tracked clip (Yang et al. 2012, §4–5, Eq. 25) and their file, ``edits.json``.
 
 An edit changes the region blending weights ``W_t`` (T, R, m) of the frames; the edited
-parameters are the model's ``α`` closest to them (:meth:`tracking.facemodel.FaceModel.alpha_of_weights`,
+parameters are the model's ``α`` closest to them (:meth:`tracking.blendshape_face.FaceModel.alpha_of_weights`,
 exact for weights the model can reach). The edits of a clip are a list applied in order:
 
 * ``scale`` — magnify (factor > 1) or suppress (< 1) one expression (Eq. 25,
@@ -10,7 +10,7 @@ exact for weights the model can reach). The edits of a clip are a list applied i
   weights still sum to 1). ``f`` is a number, or a curve ``[[frame, f], …]`` interpolated linearly
   (held beyond its ends). Over a ``span`` the factor ramps in and out over ``ramp`` frames at the
   span's ends that are inside the clip (a smoothstep: no jump at the span's edge). The
-  edited weights are limited to :data:`tracking.facemodel.WEIGHT_RANGE` (a frame's change is
+  edited weights are limited to :data:`tracking.blendshape_face.WEIGHT_RANGE` (a frame's change is
   shortened), the model's extrapolation limit.
 * ``replace`` — §5.2: the span's weights replaced by an interpolation through a chosen frame's:
   the chosen frame's weights at the span's centre, linear from the frames just outside the span
@@ -40,7 +40,7 @@ import numpy as np
 
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import atomic_write_bytes
-from tracking.facemodel import WEIGHT_RANGE, FaceModel
+from tracking.blendshape_face import WEIGHT_RANGE, FaceModel
 
 __all__ = [
     "FORMAT",

@@ -3,7 +3,7 @@
 A short sequence of steps over arrays (:func:`edit_track`):
 
 1. the results of ``facestudio track`` (``track.json``) and the footage they name are read, the
-   project's face model rebuilt (:func:`tracking.project_model.project_face_model`, as the review does);
+   project's face model rebuilt (:func:`tracking.face_from_project.project_face_model`, as the review does);
 2. optionally the expression weights of the whole clip are solved again, temporally smooth
    (:func:`tracking.smooth.smooth_clip`, §3.1.4);
 3. the edits are applied to the weight curves (:mod:`tracking.edit`, §4–5);
@@ -31,15 +31,15 @@ import cv2
 import numpy as np
 
 from photomodel.errors import FaceStudioError
+from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
 from photomodel.rendering.renderer import get_renderer
 from tracking.edit import edited_alphas, edits_document, save_edits
 from tracking.expression_flow import FlowOptions, edit_frame
+from tracking.face_from_project import project_face_model
 from tracking.frame_fit import FrameFitter
-from tracking.project_model import project_face_model
-from tracking.results import load_track_results, state_of
 from tracking.smooth import SmoothOptions, smooth_clip, weight_curves
-from tracking.video import VideoFrames
+from tracking.track_result import load_track_results, state_of
 
 __all__ = ["EditReport", "most_similar_frames", "edit_track", "write_frames", "write_video"]
 

@@ -39,7 +39,7 @@ import cv2
 import numpy as np
 
 from photomodel.camera import Camera
-from tracking.facemodel import FaceModel, render_model
+from tracking.blendshape_face import FaceModel, render_model
 
 __all__ = [
     "FALLOFF_CUT",

@@ -23,7 +23,7 @@ import numpy as np
 
 from photomodel.camera import focal_mm_to_px, rodrigues
 from photomodel.errors import FaceStudioError, FitError
-from tracking.facemodel import CONTROL_REGIONS, FaceModel
+from tracking.blendshape_face import CONTROL_REGIONS, FaceModel
 from tracking.frame_fit import FrameState, pose_from_clicks
 
 __all__ = ["FirstPose", "default_first_pose_path", "load_first_pose", "read_pose_spec", "spec_focal", "pose_from_spec"]

@@ -2,7 +2,7 @@
 
 Parameters of a frame: head rotation ``R`` (updated as ``R ← R̂(ω) R``, App. B.2), translation ``t``
 (camera-space position, mm, of the model's centre ``c``, so ``X_cam = R (X − c) + t``) and the
-expression parameters ``α_r`` of every control region (:mod:`tracking.facemodel`). The error is
+expression parameters ``α_r`` of every control region (:mod:`tracking.blendshape_face`). The error is
 
     ε(p) = ½ ‖I_t − Î(p)‖² + D(p),   D(p) = c Σ_r Σ_k [min(0, w_rk)² + max(0, w_rk − 1)²],
 
@@ -46,7 +46,7 @@ next one is solved with the previous Jacobian first, and the phase ends there wh
 tolerance (:meth:`FrameFitter._lm`).
 
 Cost: the model is rasterised once into barycentric coordinates and triangle ids, only over its
-bounding box (:func:`tracking.facemodel.render_model`, ~7 ms of GL on llvmpipe plus ~4 ms of numpy
+bounding box (:func:`tracking.blendshape_face.render_model`, ~7 ms of GL on llvmpipe plus ~4 ms of numpy
 at 300×300); the unfiltered analytic Jacobian has rows only at the covered pixels (it vanishes
 elsewhere), the filtered one is bandpassed for all its columns in one call (~8 of its ~18 ms);
 everything is float32 and laid out so that products run along the pixels; BLAS is kept to one
@@ -56,7 +56,7 @@ Jacobians (§6.1.3): ``"analytic"`` — Eq. (7): the image gradient (Sobel) time
 the surface point under each pixel, ``∂x/∂p = ∂P/∂m' · ∂m'/∂p`` with ``∂P/∂m'`` of App. B.1 and
 ``∂m'/∂ω_l = e_l × R(m − c)``, ``∂m'/∂t_l = e_l``, ``∂m'/∂α = R Σ_k ∂W_k/∂α E_k`` (App. B.2), plus the
 blending term ``Σ_k ∂W_k/∂α Î_k``. The per-vertex derivatives are interpolated at every pixel from
-the barycentric render (:class:`tracking.facemodel.ModelRender`) — no loop over pixels or vertices.
+the barycentric render (:class:`tracking.blendshape_face.ModelRender`) — no loop over pixels or vertices.
 Note the sign: a surface moving by ``δx`` changes the image at a fixed pixel by ``−∇Î·δx``
 (Eq. 7 is written without it; the finite-difference test pins it). ``"fd"`` — central differences
 (§6.1.3.1), two renderings per parameter. ``benchmarks/bench_track.py --jacobians`` compares them;
@@ -78,7 +78,7 @@ from threadpoolctl import ThreadpoolController
 from photomodel.camera import Camera, rodrigues, rotation_vector
 from photomodel.errors import FitError
 from photomodel.rendering.renderer import get_renderer
-from tracking.facemodel import WEIGHT_RANGE, FaceModel, ModelRender, render_model, smooth_membership
+from tracking.blendshape_face import WEIGHT_RANGE, FaceModel, ModelRender, render_model, smooth_membership
 
 __all__ = [
     "DEFAULT_JACOBIANS",

@@ -11,7 +11,7 @@ worker died is rescheduled on another.
 
 * **A shot** is :func:`tracking.run.track_video` run in a worker: the same resumable, cancel-safe run
   as ``facestudio track``, its results in the same folder (``<out>/track_<video stem>``, default
-  ``<project folder>/results``), every file written atomically by :mod:`tracking.results`.
+  ``<project folder>/results``), every file written atomically by :mod:`tracking.track_result`.
 * **Workers** are processes with one thread each (``threads_per_worker=1``). The GL context is the
   renderer's (:func:`photomodel.rendering.renderer.get_renderer`: one per thread), made by the first
   shot a worker tracks and kept for its next ones; the parent process never makes one. The face
@@ -54,9 +54,9 @@ from threadpoolctl import threadpool_limits
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.project import load_project
-from tracking.project_model import project_face_model
-from tracking.results import load_track_results
+from tracking.face_from_project import project_face_model
 from tracking.run import SAVE_EVERY, track_video
+from tracking.track_result import load_track_results
 
 __all__ = [
     "SUMMARY_JSON",
@@ -283,7 +283,7 @@ _MODELS: dict = {}
 
 
 def _worker_model(project_path: Path, expressions: tuple | None):
-    """The face model of the project (:func:`tracking.project_model.project_face_model`), built
+    """The face model of the project (:func:`tracking.face_from_project.project_face_model`), built
     once per worker process for a project file as it is now, and its source sentence."""
     key = (str(project_path), project_path.stat().st_mtime_ns, expressions)
     if key not in _MODELS:

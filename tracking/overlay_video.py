@@ -15,10 +15,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from tracking.facemodel import render_model
+from photomodel.photos.video import VideoError, VideoFrames
+from tracking.blendshape_face import render_model
 from tracking.frame_fit import FrameFitter, outlier_pixels
-from tracking.results import state_of
-from tracking.video import VideoError, VideoFrames
+from tracking.track_result import state_of
 
 __all__ = ["OVERLAY_ALPHA", "OCCLUDED_RGB", "overlay_frame", "write_overlay_video"]
 

@@ -5,7 +5,7 @@ The targets of ``facestudio export --glb`` are
 * the rig's shapes (ARKit's names, :mod:`photomodel.rig`, stored by ``facestudio rig``), and
 * the **photographed expressions, one target per control region**: the tracking model blends
   each region with its own weights (Pighin et al. 2002, §6.1.1, Eq. 4), ``X_i = Σ_r μ_ir Σ_k
-  w_rk E_k,i`` with ``Σ_k w_rk = 1`` in every region (:func:`tracking.facemodel.expression_basis`)
+  w_rk E_k,i`` with ``Σ_k w_rk = 1`` in every region (:func:`tracking.blendshape_face.expression_basis`)
   and the rest region neutral, so
 
       X = E_1 + Σ_(r ≠ rest) Σ_(k ≥ 2) w_rk · μ_r (E_k − E_1)
@@ -27,8 +27,8 @@ from scipy.optimize import lsq_linear
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.gltf_animation import Performance
 from photomodel.project import load_rig_shapes
-from tracking.facemodel import CONTROL_REGIONS, FaceModel
-from tracking.project_model import face_model_from_project
+from tracking.blendshape_face import CONTROL_REGIONS, FaceModel
+from tracking.face_from_project import face_model_from_project
 
 __all__ = ["BlendShapes", "arkit_weights", "blend_shapes", "track_performance", "region_targets"]
 

@@ -2,7 +2,7 @@
 
 The paper shows, for each tracked sequence, the expression weights of each region, the head's
 rotation and translation, and the fitting error over the frames. :func:`track_plots` draws the
-same from tracking records (:mod:`tracking.results`):
+same from tracking records (:mod:`tracking.track_result`):
 
 * ``weights.png`` — one panel per control region with parameters, one curve per basic expression
   (the neutral one included: in each region the weights sum to 1);
@@ -199,7 +199,7 @@ def track_plots(
 
     Parameters
     ----------
-    frames : list of per-frame records (:func:`tracking.results.frame_record`: ``frame``, ``weights``
+    frames : list of per-frame records (:func:`tracking.track_result.frame_record`: ``frame``, ``weights``
         {region: {expression: w}}, ``head_rotation_deg`` (3,), ``centre_mm`` (3,), ``rms``, ``diverged``).
     regions : control regions to plot (those with expression parameters).
     expressions : basic expression names, neutral first.

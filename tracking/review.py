@@ -1,6 +1,6 @@
 """Tracking results opened for review: the state of the studio's tracking view, without Qt.
 
-:class:`TrackReview` holds one results folder — its ``track.json`` (:mod:`tracking.results`), the
+:class:`TrackReview` holds one results folder — its ``track.json`` (:mod:`tracking.track_result`), the
 frame records, the footage of the tracked frames and the plots (:mod:`tracking.plots`) — and, built
 on first use, a :class:`tracking.frame_fit.FrameFitter` of the run's model and camera, which renders
 a frame's overlay (:func:`tracking.overlay_video.overlay_frame`, the code path of ``overlay.mp4``)
@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 
 from photomodel.errors import FaceStudioError
+from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
+from tracking.face_from_project import project_face_model
 from tracking.frame_fit import DIVERGED_RMS, FrameFitter
 from tracking.overlay_video import overlay_frame
 from tracking.plots import track_plots
-from tracking.project_model import project_face_model
-from tracking.results import load_track_results, state_of
-from tracking.video import VideoFrames
+from tracking.track_result import load_track_results, state_of
 
 __all__ = ["TrackReview"]
 

@@ -1,11 +1,11 @@
 """Tracking one video of a project, cancel-safe and resumable: ``facestudio track`` (Pighin et al. 2002, §6.2).
 
-:func:`track_video` reads the footage (:mod:`tracking.video`), fits the face model to every frame with
+:func:`track_video` reads the footage (:mod:`photomodel.photos.video`), fits the face model to every frame with
 :class:`tracking.frame_fit.FrameFitter` (pose, then expression; each frame predicted from the two before,
 §6.2) and writes into an output folder:
 
 * ``track.json`` and ``track.csv`` — the run's settings and one record per frame
-  (:mod:`tracking.results`); ``track.json`` is the source of truth for continuing;
+  (:mod:`tracking.track_result`); ``track.json`` is the source of truth for continuing;
 * ``weights.png``, ``rotation.png``, ``translation.png``, ``rms.png`` — plots like Figs. 12–19
   (:mod:`tracking.plots`);
 * ``overlay.mp4`` — the model rendered over the footage, alpha blended, with its silhouette
@@ -27,11 +27,11 @@ pose in several rounds like frame 0, and tracks on from there; ``track.json`` re
 
 Where the pieces come from
 --------------------------
-* **Video**: a file OpenCV decodes or a folder of PNG/JPG frames (:class:`tracking.video.VideoFrames`).
+* **Video**: a file OpenCV decodes or a folder of PNG/JPG frames (:class:`photomodel.photos.video.VideoFrames`).
 * **Face model**: the blend-shape model of the project's fitted and textured expressions
-  (:func:`tracking.project_model.project_face_model`; ``facestudio fit`` then ``facestudio texture``
+  (:func:`tracking.face_from_project.project_face_model`; ``facestudio fit`` then ``facestudio texture``
   make them), recorded with its source in ``track.json``. A caller may pass its own
-  :class:`tracking.facemodel.FaceModel` with a ``model_source``.
+  :class:`tracking.blendshape_face.FaceModel` with a ``model_source``.
 * **First frame's pose** (the user's part, §6.2): a JSON file (:mod:`tracking.first_pose`) with the
   video camera's focal length and either a pose or the image positions of at least six of the
   project's features in frame 0; by default ``<video stem>.first_pose.json`` beside a video file,
@@ -60,9 +60,11 @@ import numpy as np
 
 from photomodel.errors import FaceStudioError, FitError
 from photomodel.exchange.files import atomic_write_bytes, encode_png
+from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
+from tracking.blendshape_face import FaceModel
 from tracking.detected_pose import REDETECT_EVERY, Redetector, detected_spec, video_focal_px
-from tracking.facemodel import FaceModel
+from tracking.face_from_project import project_face_model
 from tracking.first_pose import (
     FirstPose,
     default_first_pose_path,
@@ -74,8 +76,7 @@ from tracking.first_pose import (
 from tracking.frame_fit import DIVERGED_RMS, FrameFitter, TrackOptions, track_frames
 from tracking.overlay_video import write_overlay_video
 from tracking.plots import track_plots
-from tracking.project_model import project_face_model
-from tracking.results import (
+from tracking.track_result import (
     continue_results,
     default_out_dir,
     frame_record,
@@ -85,7 +86,6 @@ from tracking.results import (
     save_results,
     state_of,
 )
-from tracking.video import VideoFrames
 
 __all__ = ["SAVE_EVERY", "WORK_FACE_PX", "TrackResult", "track_video"]
 
@@ -118,7 +118,7 @@ class TrackResult:
     seconds : float, fitting time of this run.
     files : dict name → Path of the files written.
     corrected : int or None, the frame this run corrected (re-tracked from the user's pose), if any.
-    ignored : list of Path, images of a frame folder that are not frames (:func:`tracking.video.frame_files`).
+    ignored : list of Path, images of a frame folder that are not frames (:func:`photomodel.photos.video.frame_files`).
     first_pose : str, where frame 0's pose came from (a file, or the landmark detector).
     """
 
@@ -170,10 +170,10 @@ def track_video(
     Parameters
     ----------
     project_path : the project file (``*.facestudio.json``).
-    video : a video file or a folder of PNG/JPG frames (:class:`tracking.video.VideoFrames`).
+    video : a video file or a folder of PNG/JPG frames (:class:`photomodel.photos.video.VideoFrames`).
     out_dir : output folder (default ``<project folder>/results/track_<video stem>``); created.
     model, model_source : the face model and a sentence on its origin (default
-        :func:`tracking.project_model.project_face_model` of the project's ``expressions``, default
+        :func:`tracking.face_from_project.project_face_model` of the project's ``expressions``, default
         all, neutral first).
     first_pose : first-pose JSON path or dict (:func:`tracking.first_pose.load_first_pose`); default
         :func:`tracking.first_pose.default_first_pose_path` when that file exists, else the

@@ -33,7 +33,7 @@ again at the new pose and weights. Two rounds are the default.
 **The convex range.** The model's weights of each region sum to 1 by construction (Eq. 4 of
 Pighin et al.); the tracker keeps them in ``[0, 1]`` with its piecewise-quadratic penalty ``D``
 (``c (w − bound)²`` outside, ``c`` = :attr:`tracking.frame_fit.TrackOptions.penalty` × covered
-pixels) and never beyond :data:`tracking.facemodel.WEIGHT_RANGE`. The clip solve uses the same
+pixels) and never beyond :data:`tracking.blendshape_face.WEIGHT_RANGE`. The clip solve uses the same
 ``D``, which is convex and piecewise quadratic: the system is solved with the pieces of ``D`` that
 the weights of the last solution are on, until those pieces stop changing (Newton's method on the
 pieces, an active set; at most :data:`ACTIVE_SET_PASSES` passes, starting with none — a weight
@@ -50,7 +50,7 @@ import numpy as np
 import scipy.sparse as sparse
 import scipy.sparse.linalg as splinalg
 
-from tracking.facemodel import WEIGHT_RANGE, FaceModel
+from tracking.blendshape_face import WEIGHT_RANGE, FaceModel
 from tracking.frame_fit import FrameFitter, FrameState
 
 __all__ = [

@@ -1,1 +1,1 @@
-"""The studio's Qt widgets; everything Qt lives here (app/model.py is the Qt-free state)."""
+"""The studio's Qt widgets; everything Qt lives here (app/studio_state.py is the Qt-free state)."""

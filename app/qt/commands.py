@@ -1,4 +1,4 @@
-"""Undoable edits of a :class:`~app.model.StudioModel`: one :class:`QUndoCommand` per artist action.
+"""Undoable edits of a :class:`~app.studio_state.StudioModel`: one :class:`QUndoCommand` per artist action.
 
 Each command calls the model's edit primitives in ``redo`` and restores what they returned in
 ``undo``, so the undo stack (``QUndoStack``, shown in the Edit menu) covers every change of the
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from PySide6.QtGui import QUndoCommand
 
-from app.model import StudioModel
+from app.studio_state import StudioModel
 from photomodel.project import CurveDef, Expression, Feature, Photo
 
 

@@ -50,7 +50,7 @@ from photomodel.modeling.fit import Cancelled
 from tracking.edit import DEFAULT_RAMP, edits_document, save_edits
 from tracking.edit_session import EditSession
 from tracking.edit_video import edit_frames, write_frames, write_video
-from tracking.results import state_of
+from tracking.track_result import state_of
 
 __all__ = ["CurvePlot", "EditPanel", "export_session"]
 

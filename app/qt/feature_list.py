@@ -36,9 +36,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.model import StudioModel
 from app.qt.commands import SetHiddenCommand, SetPoseCommand
 from app.qt.photo_view import residual_color
+from app.studio_state import StudioModel
 from photomodel.modeling.fit import uses_person_prior
 
 _NAME_ROLE = Qt.ItemDataRole.UserRole

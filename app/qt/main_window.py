@@ -6,7 +6,7 @@ per tab, the tab title showing the photo's reprojection RMS after a fit); the
 the right. The toolbar holds the expression, the editing mode (points / draw curve), the fit
 and overlay switches, and the current photo's starting view and camera group.
 
-Everything the window shows observes one :class:`~app.model.StudioModel`; edits are
+Everything the window shows observes one :class:`~app.studio_state.StudioModel`; edits are
 :mod:`app.qt.commands` pushed on a :class:`QUndoStack`; fits run in a worker
 (:class:`~app.qt.workers.FitController`). Files: new, open (with recovery of a newer autosave),
 save, save as, recent files (``QSettings``), an unsaved-changes prompt, and an autosave timer
@@ -25,7 +25,7 @@ Texture (§5.2): *Texture → Extract texture* runs :mod:`photomodel.texturing.j
 shows the model with the cylindrical texture or view-dependently (a toggle), and the
 :class:`~app.qt.texture_views.WeightMapPanel` dock shows the weight maps. A project saved with
 textures shows them again when it is opened (read back from its files as each expression is
-shown, :meth:`~app.model.StudioModel.load_stored_texture`; a damaged file is named in the status
+shown, :meth:`~app.studio_state.StudioModel.load_stored_texture`; a damaged file is named in the status
 bar and that texture is simply not shown). *Expression → Side by
 side* docks the :class:`~app.qt.texture_views.ExpressionsView`. *Tracking → Track video…* / *Open
 results…* dock the :class:`~app.qt.tracking_view.TrackingView` (§6.2: the footage with the model
@@ -61,7 +61,6 @@ from PySide6.QtWidgets import (
     QTabWidget,
 )
 
-from app.model import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, remove_autosave
 from app.qt.commands import (
     AddExpressionCommand,
     AddPhotosCommand,
@@ -79,6 +78,7 @@ from app.qt.texture_views import ExpressionsView, WeightMapPanel
 from app.qt.tracking_view import TrackingView
 from app.qt.view3d import View3D
 from app.qt.workers import FitController, JobController
+from app.studio_state import IMAGE_SUFFIXES, MissingPhotos, StudioModel, newer_autosave, remove_autosave
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import FaceStudioError, ProjectError
 from photomodel.photos.intake import gather_photo_files

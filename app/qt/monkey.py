@@ -18,7 +18,7 @@ written and read back with the loader's checks); before every step that empties 
 the project with the one opened (result records excepted: fits and textures are not edits),
 then redoes them all and compares again.
 
-Used by ``tests/test_gui_monkey.py`` (a few seeds in the suite) and ``benchmarks/monkey.py``
+Used by ``tests/test_gui_monkey.py`` (a few seeds in the suite) and ``benchmarks/fuzz_monkey.py``
 (each seed in its own process, so that a crash is counted). Not imported by the studio itself.
 """
 

@@ -11,7 +11,7 @@ being read (the core reports progress once a photo); the project is untouched th
   the core function, then opens it (the clicks it placed are automatic: violet diamonds in the
   photo views, see :mod:`app.qt.photo_view`).
 * **New from video…** asks for a clip (a video file) and where to save the project, and makes it
-  as ``facestudio new --video`` does (:func:`tracking.stills.new_project_from_video`: stills
+  as ``facestudio new --video`` does (:func:`photomodel.photos.stills.new_project_from_video`: stills
   picked where the face is clear and least expressive across the head's turn, written beside the
   project), then opens it. Cancel while the clip is looked at writes nothing; later, the stills
   written are removed again.
@@ -41,8 +41,8 @@ from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.workers import JobController
 from photomodel.modeling.fit import Cancelled
 from photomodel.photos.intake import add_photos, default_features, new_project_from_photos
+from photomodel.photos.stills import new_project_from_video
 from photomodel.project import FILE_SUFFIX, save_project
-from tracking.stills import new_project_from_video
 
 #: The video files *New from video…* offers (anything OpenCV decodes is read).
 VIDEO_FILTER = "Videos (*.mp4 *.mov *.avi *.mkv *.webm *.m4v);;All files (*)"

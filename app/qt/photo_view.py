@@ -21,7 +21,7 @@ red ≥ 4 px; white before any fit); hidden features are drawn hollow and grey. 
 until the artist drags them (then they are the artist's clicks, round; undo makes them automatic
 again). Once a fit exists,
 the active feature's *predicted* position — the fitted mesh's vertex of that feature projected
-with this photo's fitted camera (:meth:`~app.model.StudioModel.predicted_uv`) — is drawn as a
+with this photo's fitted camera (:meth:`~app.studio_state.StudioModel.predicted_uv`) — is drawn as a
 dashed cyan ghost cross: where to click a feature not clicked here yet, or how far a click is
 from the current fit.
 """
@@ -43,8 +43,8 @@ from PySide6.QtWidgets import (
     QMenu,
 )
 
-from app.model import StudioModel
 from app.qt.commands import SetCurveCommand, SetHiddenCommand, SetPointCommand
+from app.studio_state import StudioModel
 from photomodel.errors import FaceStudioError
 from photomodel.photos.reading import read_photo
 

@@ -1,7 +1,7 @@
 """The rig panel: the project's blend shapes (ARKit names, then the photographed expressions), a slider each.
 
-Moving a slider sets the shape's weight in the :class:`~app.model.StudioModel`
-(:meth:`~app.model.StudioModel.set_rig_weight`); the 3D view then shows the rig's neutral
+Moving a slider sets the shape's weight in the :class:`~app.studio_state.StudioModel`
+(:meth:`~app.studio_state.StudioModel.set_rig_weight`); the 3D view then shows the rig's neutral
 + Σ wᵢ·Δᵢ live. *Reset* puts every weight back to 0. Without a rig the panel says how to make
 one (``facestudio rig PROJECT``, or *Rig ▸ Build rig*). The weights are the view's, never the
 project's: nothing here modifies the project.
@@ -21,7 +21,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.model import StudioModel
+from app.studio_state import StudioModel
 
 #: Slider steps over the weight range [0, 1].
 STEPS = 100

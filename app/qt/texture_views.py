@@ -7,7 +7,7 @@
   (:mod:`photomodel.rendering.renderer`) from one camera, next to each other, with its name and
   reprojection RMS; a click on one makes it the current expression.
 
-Both observe the :class:`~app.model.StudioModel` and hold no state of their own.
+Both observe the :class:`~app.studio_state.StudioModel` and hold no state of their own.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.model import StudioModel
+from app.studio_state import StudioModel
 from photomodel.camera import orbit_camera
 from photomodel.rendering.renderer import get_renderer
 

@@ -2,7 +2,7 @@
 
 :class:`TrackingView` (docked by the main window, *Tracking → Track video…* / *Open results…*)
 runs :func:`tracking.run.track_video` in its own :class:`~app.qt.workers.JobController` behind a
-cancellable progress dialog; the results land in :func:`tracking.results.default_out_dir`
+cancellable progress dialog; the results land in :func:`tracking.track_result.default_out_dir`
 (``<project folder>/results/track_<video stem>``), cancel-safe and resumable, exactly as
 ``facestudio track`` writes them. It then shows
 
@@ -61,23 +61,23 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.model import StudioModel
 from app.qt.edit_panel import EditPanel
 from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.texture_views import to_qimage
 from app.qt.workers import JobController
+from app.studio_state import StudioModel
 from photomodel.camera import focal_mm_to_px
 from photomodel.errors import FaceStudioError
+from photomodel.photos.video import VideoError, VideoFrames
 from tracking.detected_pose import detected_spec, video_focal_px
+from tracking.face_from_project import project_face_model
 from tracking.first_pose import default_first_pose_path
 from tracking.frame_fit import FrameFitter, pose_from_clicks
 from tracking.overlay_video import overlay_frame
 from tracking.plots import MARGINS
-from tracking.project_model import project_face_model
-from tracking.results import default_out_dir
 from tracking.review import TrackReview
 from tracking.run import track_video
-from tracking.video import VideoError, VideoFrames
+from tracking.track_result import default_out_dir
 
 if TYPE_CHECKING:
     from tracking.review import TrackReview
@@ -673,8 +673,8 @@ class FirstPoseDialog(QDialog):
     frame : int, the frame shown and clicked (default 0).
     clicks : {feature: (u, v)} px, optional, initial marker positions (instead of the file's).
     focal_px : float, optional, the video camera's focal length (fixed when correcting).
-    model : tracking.facemodel.FaceModel, optional, the face model to solve with (default: the
-        project's, :func:`tracking.project_model.project_face_model`, built on the first *Solve*).
+    model : tracking.blendshape_face.FaceModel, optional, the face model to solve with (default: the
+        project's, :func:`tracking.face_from_project.project_face_model`, built on the first *Solve*).
     correct : bool, correction mode (see above).
 
     Attributes

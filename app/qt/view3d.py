@@ -18,10 +18,10 @@ stalled 4 frames, the longest 350 ms (``benchmarks/bench_texture.py``'s ``vd_orb
 Left-drag orbits, the wheel zooms, a click (press and release
 without moving) on the mesh picks the nearest named feature as the active one; the project's
 features are drawn as dots, the active one ringed and named; the pose feature to click next (the
-first of the fit's checklist, :meth:`~app.model.StudioModel.next_feature`) is ringed in orange and
+first of the fit's checklist, :meth:`~app.studio_state.StudioModel.next_feature`) is ringed in orange and
 named "next".
 While a weight of the project's rig is not 0 (the studio's rig panel, :class:`~app.qt.rig_panel.RigPanel`)
-the view shows the rig's neutral + Σ wᵢ·Δᵢ (:meth:`~app.model.StudioModel.rig_vertices`), with the
+the view shows the rig's neutral + Σ wᵢ·Δᵢ (:meth:`~app.studio_state.StudioModel.rig_vertices`), with the
 neutral's cylindrical texture when that is the expression shown, else shaded.
 """
 
@@ -36,9 +36,9 @@ from PySide6.QtCore import QPointF, QRectF, QSize, Qt, QTimer, Signal
 from PySide6.QtGui import QColor, QImage, QPainter, QPen
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
-from app.model import StudioModel
+from app.studio_state import StudioModel
 from photomodel.camera import focal_mm_to_px, orbit_camera
-from photomodel.modeling.overlay import visible_points
+from photomodel.modeling.wireframe import visible_points
 from photomodel.rendering.renderer import get_renderer
 
 #: A click within this many pixels of a feature's projection picks it.

@@ -25,7 +25,7 @@ import traceback
 
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
-from app.model import StudioModel
+from app.studio_state import StudioModel
 from photomodel.errors import FaceStudioError
 from photomodel.modeling.fit import Cancelled
 

@@ -118,7 +118,7 @@ class Face468:
     spread : (468,) float or None
         how far each point moves between the :data:`SHIFT_AVERAGE` crops: the RMS distance of its
         nine positions from their mean, photo pixels. The face mesh guesses where it cannot see
-        (a hand over the mouth), and a guess moves with the crop: ``tracking.stills`` tells
+        (a hand over the mouth), and a guess moves with the crop: ``photomodel.photos.stills`` tells
         occluded frames by it. None from one crop (:func:`detect_468_near`).
     """
 

@@ -1,6 +1,6 @@
 """The project file (format version 5, reads 1 to 4) in one place, for the CLI and the studio alike.
 
-* :mod:`~photomodel.project.model` — the dataclasses (``Project``, ``Expression``, ``Photo``,
+* :mod:`~photomodel.project.datamodel` — the dataclasses (``Project``, ``Expression``, ``Photo``,
   ``Feature``, ``CurveDef``, ``ExpressionResult``, ``TextureResult``), format constants, ``new_project``;
 * :mod:`~photomodel.project.codec` — ``Project`` ⇄ the JSON-able dict of the file (rounding,
   canonical order, relative paths);
@@ -16,8 +16,7 @@
 The format is documented field by field in ``docs/project-format.md``.
 """
 
-from photomodel.project.io import default_filename, encode_project, load_project, save_project, write_project
-from photomodel.project.model import (
+from photomodel.project.datamodel import (
     BUILTIN_MESH,
     FILE_SUFFIX,
     FORMAT_NAME,
@@ -32,6 +31,7 @@ from photomodel.project.model import (
     TextureResult,
     new_project,
 )
+from photomodel.project.io import default_filename, encode_project, load_project, save_project, write_project
 from photomodel.project.results import (
     RIG_FILE,
     expression_result,

@@ -1,4 +1,4 @@
-"""A :class:`~photomodel.project.model.Project` and the JSON-able dict of its file, both ways.
+"""A :class:`~photomodel.project.datamodel.Project` and the JSON-able dict of its file, both ways.
 
 Writing (:func:`project_to_dict`) rounds to the documented precision (clicks 1e-3 px, 3-D points
 and translations 1e-4 mm, rotations at full precision so they stay orthonormal), puts names in
@@ -20,8 +20,7 @@ import numpy as np
 
 from photomodel.camera import Camera
 from photomodel.errors import ProjectError
-from photomodel.project.jsontext import plain
-from photomodel.project.model import (
+from photomodel.project.datamodel import (
     FORMAT_NAME,
     FORMAT_VERSION,
     CurveDef,
@@ -33,6 +32,7 @@ from photomodel.project.model import (
     RigRecord,
     TextureResult,
 )
+from photomodel.project.jsontext import plain
 from photomodel.project.validate import validate
 
 _PIXEL_DECIMALS = 3  # 1e-3 px: far below click accuracy, keeps files readable

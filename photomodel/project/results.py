@@ -1,11 +1,11 @@
 """Storing results into a project: a fit (its record and mesh files) and a texture (its files and record).
 
 The one path shared by ``facestudio fit`` / ``facestudio texture`` (:mod:`app.cli`) and the studio
-(:meth:`app.model.StudioModel.save`):
+(:meth:`app.studio_state.StudioModel.save`):
 
 * :func:`record_fit` puts a :class:`~photomodel.modeling.fit.FitResult` into the project in
   memory (:func:`expression_result`, the one place a fit becomes an
-  :class:`~photomodel.project.model.ExpressionResult`; no file yet). A new fit replaces the whole
+  :class:`~photomodel.project.datamodel.ExpressionResult`; no file yet). A new fit replaces the whole
   result, so a texture made for the previous mesh is dropped.
 * :func:`save_results` stores the fitted meshes (``results/<expr>.obj|.ply``) and encoded
   textures (:func:`texture_files`, or :func:`photomodel.texturing.job.encode_texture_outputs`)
@@ -44,8 +44,8 @@ import numpy as np
 from photomodel.errors import FitError, ProjectError
 from photomodel.exchange import files as exchange_files  # looked up at call time (tests replace it)
 from photomodel.exchange.mesh import write_mesh
+from photomodel.project.datamodel import ExpressionResult, Project, RigRecord, TextureResult
 from photomodel.project.io import default_filename, encode_project, target_file, write_project
-from photomodel.project.model import ExpressionResult, Project, RigRecord, TextureResult
 from photomodel.texturing.job import encode_texture_outputs
 
 

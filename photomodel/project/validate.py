@@ -4,7 +4,7 @@
 :func:`photomodel.project.jsontext.parse_json`):
 
 1. ``format`` and ``version`` (a newer version is refused: "written by a newer Face Studio";
-   an older one is upgraded in memory, see :data:`~photomodel.project.model.FORMAT_VERSION`);
+   an older one is upgraded in memory, see :data:`~photomodel.project.datamodel.FORMAT_VERSION`);
 2. the structure, against ``schema.json`` beside this module (JSON Schema draft 2020-12, shipped
    with the package) — the single most relevant schema error is reported, worded with the
    schema's ``x-expected`` notes;
@@ -36,8 +36,8 @@ from jsonschema.exceptions import ValidationError, best_match
 
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import ProjectError
+from photomodel.project.datamodel import FORMAT_NAME, FORMAT_VERSION
 from photomodel.project.jsontext import check_depth
-from photomodel.project.model import FORMAT_NAME, FORMAT_VERSION
 from photomodel.project.problems import did_you_mean, fmt_key, fmt_path, listing, problems_error, short
 
 #: A click may lie outside its photo by at most this fraction of the image width/height.

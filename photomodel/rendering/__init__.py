@@ -5,7 +5,7 @@
 | :mod:`~photomodel.rendering.renderer` | the renderer (moderngl on EGL, one per thread): ``render``, |
 | | ``rasterize_barycentric``, textures, programs for shader code beside it; ``vertex_normals`` |
 | :mod:`~photomodel.rendering.barycentric` | the pass behind ``rasterize_barycentric``, and its result |
-| :mod:`~photomodel.rendering.view_dependent` | view-dependent texturing in shaders on the renderer's context |
+| :mod:`~photomodel.rendering.view_dependent_pass` | view-dependent texturing in shaders on the renderer's context |
 | :mod:`~photomodel.rendering.sampling` | bilinear look-ups on the CPU: images at pixels, textures at ``uv`` |
 | :mod:`~photomodel.rendering.depth` | the depth-map visibility test (§5.2.1): texturing, overlay, synthetic |
 

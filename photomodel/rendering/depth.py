@@ -5,7 +5,7 @@ the visibility of each face point by applying the viewing transformation and com
 resulting depth to the corresponding value in the depth map." It is the one depth test of Face
 Studio: texturing (:mod:`photomodel.texturing.visibility` adds the front-facing test of §5.2.1
 and the depth maps), the fitted-mesh wireframe overlay
-(:func:`photomodel.modeling.overlay.visible_points`) and the synthetic artist who decides which
+(:func:`photomodel.modeling.wireframe.visible_points`) and the synthetic artist who decides which
 features to click (:func:`photomodel.samples.synthetic.visible`) all call :func:`depth_visible`;
 they differ only in how the map is read at a point (:func:`surface_depth`).
 
@@ -145,7 +145,7 @@ def surface_depth(depth: np.ndarray, uv: np.ndarray, *, lookup: str = "bilinear"
         ``[0, W-1] × [0, H-1]`` where at least one of the four is covered (needs ``W, H ≥ 2``).
         ``"max3x3"`` — the deepest of the 3×3 pixels around the nearest one, background far:
         tolerant along silhouettes on a coarse map (the wireframe overlay's half-resolution map,
-        :func:`photomodel.modeling.overlay.visible_points`); read where the nearest pixel is in the map.
+        :func:`photomodel.modeling.wireframe.visible_points`); read where the nearest pixel is in the map.
 
     Returns
     -------

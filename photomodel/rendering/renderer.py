@@ -49,7 +49,7 @@ Code beside this module
 -----------------------
 :mod:`photomodel.rendering.barycentric` holds the barycentric pass that
 :meth:`Renderer.rasterize_barycentric` runs (shaders, buffers kept between calls, its result).
-:mod:`photomodel.rendering.view_dependent` (view-dependent texturing in fragment shaders) draws in the same
+:mod:`photomodel.rendering.view_dependent_pass` (view-dependent texturing in fragment shaders) draws in the same
 context through public methods only: :meth:`Renderer.context` (the checked moderngl context),
 :meth:`Renderer.program` (programs compiled once per renderer) and
 :meth:`Renderer.defer_release` (GL objects dropped by a finaliser, which may run in any thread,
@@ -367,7 +367,7 @@ class Renderer:
     def context(self):
         """The moderngl context, for GL code beside this module that draws with this renderer.
 
-        :mod:`photomodel.rendering.view_dependent` (view-dependent texturing in a fragment shader) builds its
+        :mod:`photomodel.rendering.view_dependent_pass` (view-dependent texturing in a fragment shader) builds its
         textures, buffers and framebuffers in this context, so everything Face Studio draws
         shares one context per thread. Enter it (``with renderer.context() as ctx:``) around
         GL calls; objects made in it die with :meth:`release`, after which this raises.

@@ -17,7 +17,7 @@ with bilinear colour lookups, depth-map visibility (§5.2.1), the image-space fe
 ``F_k(x_k, y_k)``, ``P_k = n · d_k`` and ``V_k`` at that pixel.
 
 * ``method="shader"`` (the default) does this in fragment shaders
-  (:mod:`photomodel.rendering.view_dependent`, on the one renderer's GL context): the photographs, their depth
+  (:mod:`photomodel.rendering.view_dependent_pass`, on the one renderer's GL context): the photographs, their depth
   maps and feather maps are textures uploaded once; a frame is a G-buffer pass of the mesh and
   a full-screen pass that computes the weights, visibility and blend per pixel, exactly as the
   numpy path does. Pixels that neither selected photograph sees (a few hundred in a
@@ -87,7 +87,7 @@ from photomodel.exchange.uv import check_mesh
 from photomodel.rendering.depth import DEPTH_TOL_MM, FAR_SENTINEL_MM, project_points
 from photomodel.rendering.renderer import get_renderer, vertex_normals
 from photomodel.rendering.sampling import sample_image
-from photomodel.rendering.view_dependent import ViewDependentGL
+from photomodel.rendering.view_dependent_pass import ViewDependentGL
 from photomodel.texturing.cylindrical import check_photos
 from photomodel.texturing.visibility import render_depth
 from photomodel.texturing.weights import (
@@ -209,7 +209,7 @@ class ViewDependentTexture:
         self.centre = V.mean(axis=0) if centre is None else np.asarray(centre, dtype=float).reshape(3)
         self.directions = view_directions(self.cameras, self.centre)
         self._gl_textures = None
-        self._gl = None  # photomodel.rendering.view_dependent.ViewDependentGL of this thread's renderer
+        self._gl = None  # photomodel.rendering.view_dependent_pass.ViewDependentGL of this thread's renderer
         self._surfaces: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # per photograph
         self._shifts: dict[tuple[int, int], np.ndarray] = {}  # registration maps per pair
         self._pair_locks: dict[tuple[int, int], threading.Lock] = {}  # one computation per pair at a time
@@ -333,7 +333,7 @@ class ViewDependentTexture:
 
     def gl_state(self):
         """The GPU copy of the photographs, maps and mesh for this thread's renderer
-        (:class:`photomodel.rendering.view_dependent.ViewDependentGL`), made on first use."""
+        (:class:`photomodel.rendering.view_dependent_pass.ViewDependentGL`), made on first use."""
 
         renderer = get_renderer()
         gl = self._gl
@@ -355,7 +355,7 @@ class ViewDependentTexture:
         return gl
 
     def _render_shader(self, camera, views, V, background, align) -> ViewDependentRender:
-        """The per-pixel weights and blend in a fragment shader (:mod:`photomodel.rendering.view_dependent`)."""
+        """The per-pixel weights and blend in a fragment shader (:mod:`photomodel.rendering.view_dependent_pass`)."""
         selected = [k for k in range(len(V)) if V[k] > 0]  # the two of §5.2.3 (or one)
         frame = self.gl_state().render(
             camera,
@@ -389,7 +389,7 @@ class ViewDependentTexture:
 
     def registration_shift(self, a: int, b: int) -> np.ndarray:
         """The floating-texture registration of photographs ``a`` and ``b`` over ``a``'s image
-        (:data:`photomodel.rendering.view_dependent.ShiftFunction`), computed once per pair.
+        (:data:`photomodel.rendering.view_dependent_pass.ShiftFunction`), computed once per pair.
 
         Photograph B is reprojected into A's image through the model (B's colour at the
         surface point each pixel of A sees; A's own where B does not see it, so that nothing

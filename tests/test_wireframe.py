@@ -1,4 +1,4 @@
-"""The wireframe overlay (photomodel.modeling.overlay): lines on the surface, carried by deformations,
+"""The wireframe overlay (photomodel.modeling.wireframe): lines on the surface, carried by deformations,
 hidden lines removed."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 
 from photomodel.camera import orbit_camera
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.modeling.overlay import CURVE, GRID, OUTLINE, line_points, mesh_lines, project_lines, visible_points
+from photomodel.modeling.wireframe import CURVE, GRID, OUTLINE, line_points, mesh_lines, project_lines, visible_points
 
 
 def _grid_mesh(n: int = 21, size: float = 100.0):

@@ -1,7 +1,7 @@
 """The monkey section of ``benchmarks/bench_fuzz.py``: thousands of random artist actions on the studio.
 
-    .venv/bin/python benchmarks/monkey.py [--seeds 20] [--actions 110] [--json]   # the section alone
-    .venv/bin/python benchmarks/monkey.py --seed N --actions K [--empty]          # one seed (a child)
+    .venv/bin/python benchmarks/fuzz_monkey.py [--seeds 20] [--actions 110] [--json]   # the section alone
+    .venv/bin/python benchmarks/fuzz_monkey.py --seed N --actions K [--empty]          # one seed (a child)
 
 :func:`monkey_section` runs each seed in its own process (this file with ``--seed``), so that a
 crash — a signal such as a segmentation fault, a non-zero exit, a hang past the time limit — is

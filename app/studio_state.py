@@ -35,8 +35,8 @@ from photomodel.errors import FaceStudioError, FitError, ProjectError
 from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.checklist import ChecklistItem, click_checklist
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.modeling.overlay import mesh_lines, photo_overlay
 from photomodel.modeling.refit import Refitter
+from photomodel.modeling.wireframe import mesh_lines, photo_overlay
 from photomodel.photos.exif import focal_mm_guess_from_exif
 from photomodel.photos.reading import PHOTO_SUFFIXES, photo_size
 from photomodel.project import (
@@ -57,7 +57,7 @@ from photomodel.project import (
 from photomodel.rig.build import RigBuilder
 from photomodel.texturing.job import load_stored_texture, load_texture_photos, photo_side_for, texture_expression
 from photomodel.texturing.view_dependent import ViewDependentTexture
-from tracking.project_model import register_expression
+from tracking.face_from_project import register_expression
 
 #: Suffix of the autosave file written next to the project (``<file>.autosave``).
 AUTOSAVE_SUFFIX = ".autosave"
@@ -141,7 +141,7 @@ class RigState:
     names : list of str, the rig's ARKit shapes, then the photographed expressions.
     deltas : (k, N, 3) float mm, each shape's displacement from ``vertices``; a photographed
         expression's is its fitted mesh registered onto the neutral
-        (:func:`tracking.project_model.register_expression`) minus the neutral.
+        (:func:`tracking.face_from_project.register_expression`) minus the neutral.
     arkit : int, how many of ``names`` are the rig's (ARKit) shapes; the rest are photographed.
     weights : (k,) float in [0, 1].
     """
@@ -176,7 +176,7 @@ class FitState:
         The in-memory result (warm start of the next refit); None for a loaded result.
     elapsed_s : float or None, wall time of the fit.
     saved : bool, the mesh files on disk hold ``vertices``.
-    overlays : dict photo id → photomodel.modeling.overlay.PhotoOverlay
+    overlays : dict photo id → photomodel.modeling.wireframe.PhotoOverlay
         The wireframe overlays of this fit computed so far (by the fit's worker for the photo on
         screen, by :meth:`StudioModel.overlay` for the others when they are shown).
     """
@@ -274,7 +274,7 @@ class StudioModel:
 
     @property
     def overlay_lines(self):
-        """The wireframe overlay's lines on the generic mesh (:func:`photomodel.modeling.overlay.mesh_lines`)."""
+        """The wireframe overlay's lines on the generic mesh (:func:`photomodel.modeling.wireframe.mesh_lines`)."""
         if self._lines is None:
             self._lines = mesh_lines(self.mesh.vertices, self.mesh.faces, curves=self.mesh.curves)
         return self._lines
@@ -691,11 +691,11 @@ class StudioModel:
         ----------
         result : photomodel.modeling.fit.FitResult, the fit (cameras and vertices).
         photo_ids : iterable of str; ids the fit has no camera for are skipped.
-        lines : photomodel.modeling.overlay.MeshLines, :attr:`overlay_lines` read on the GUI thread.
+        lines : photomodel.modeling.wireframe.MeshLines, :attr:`overlay_lines` read on the GUI thread.
 
         Returns
         -------
-        dict photo id → photomodel.modeling.overlay.PhotoOverlay, for :meth:`apply_fit` ``overlays``.
+        dict photo id → photomodel.modeling.wireframe.PhotoOverlay, for :meth:`apply_fit` ``overlays``.
         """
 
         cams = dict(zip(result.photo_ids, result.cameras, strict=True))
@@ -703,7 +703,7 @@ class StudioModel:
         return {pid: photo_overlay(cams[pid], result.vertices, faces, lines) for pid in photo_ids if pid in cams}
 
     def overlay(self, photo_id: str, expression: str | None = None):
-        """The wireframe overlay (:class:`photomodel.modeling.overlay.PhotoOverlay`) of a fit in one photo, or None.
+        """The wireframe overlay (:class:`photomodel.modeling.wireframe.PhotoOverlay`) of a fit in one photo, or None.
 
         Taken from the fit's cache (filled by the fit's worker); computed here, on the calling
         thread, and cached when missing (a photo that was not on screen when the fit ran).

@@ -1,4 +1,4 @@
-"""Tests of tracking.facemodel: the blend-shape model (§6.1.1) and its rendering (Eq. 5)."""
+"""Tests of tracking.blendshape_face: the blend-shape model (§6.1.1) and its rendering (Eq. 5)."""
 
 import numpy as np
 import pytest
@@ -7,9 +7,9 @@ from photomodel.camera import Camera
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.rendering.renderer import get_renderer
 from photomodel.samples.sample_data import load_james_scan
-from tracking.facemodel import CONTROL_REGIONS, expression_basis, render_model
-from tracking.samples.expressions import EXPRESSION_NAMES, true_expression_geometry
-from tracking.samples.ground_truth import render_video_frame, sample_face_model, video_truth
+from tracking.blendshape_face import CONTROL_REGIONS, expression_basis, render_model
+from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES, true_expression_geometry
+from tracking.synthetic_sequences.ground_truth import render_video_frame, sample_face_model, video_truth
 
 
 @pytest.fixture(scope="module")

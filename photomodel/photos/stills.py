@@ -71,8 +71,8 @@ from photomodel.exchange.files import atomic_write_bytes
 from photomodel.landmarks.detect import EYE_OUTER, Face468, detect_468
 from photomodel.landmarks.mapping import estimate_yaw_deg, level_frame
 from photomodel.photos.intake import new_project_from_photos
+from photomodel.photos.video import VideoFrames, frame_uint8
 from photomodel.project import FILE_SUFFIX, CurveDef, Feature, Project, save_project
-from tracking.video import VideoFrames, frame_uint8
 
 __all__ = [
     "FrameLook",
@@ -358,7 +358,7 @@ def new_project_from_video(
     Raises
     ------
     StillsError when no face is found in the frames looked at, or every one is occluded;
-    tracking.video.VideoError when the clip cannot be read.
+    photomodel.photos.video.VideoError when the clip cannot be read.
     """
     video = VideoFrames(clip)
     report = None if progress is None else (lambda stage, f: progress(stage, 0.8 * f))

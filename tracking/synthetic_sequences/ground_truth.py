@@ -4,7 +4,7 @@ Tests, benchmarks and ``sample_projects/make_james_video.py`` use this module; t
 (:mod:`tracking.frame_fit`, :mod:`tracking.run`) never does.
 
 * :func:`sample_face_model` — the blend-shape model (§6.1.1) of the james basic expressions
-  (:mod:`tracking.samples.expressions`) on the generic mesh, from their **true** geometries (the generic
+  (:mod:`tracking.synthetic_sequences.expressions`) on the generic mesh, from their **true** geometries (the generic
   vertices' true positions on the scan moved by each expression's deformation field). Texture: the
   scan's own photographic texture, reached through the true correspondence (each generic vertex
   gets the uv of its true point on the scan), downsampled ×:data:`TEXTURE_DOWNSAMPLE` (a 300-px
@@ -40,9 +40,9 @@ from photomodel.samples.fetch import cache_dir
 from photomodel.samples.sample_data import load_james_scan
 from photomodel.samples.synthetic import HEAD_CENTRE_MM, barycentric_coordinates, scan_surface, true_correspondence
 from photomodel.texturing.job import encode_texture_outputs, texture_expression
-from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions
-from tracking.project_model import face_model_from_project
-from tracking.samples.expressions import EXPRESSION_NAMES, OUTSIDE_EXPRESSIONS, expression_displacements
+from tracking.blendshape_face import CONTROL_REGIONS, FaceModel, build_face_model, control_regions
+from tracking.face_from_project import face_model_from_project
+from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES, OUTSIDE_EXPRESSIONS, expression_displacements
 
 __all__ = [
     "FITTED_SAMPLE_VERSION",
@@ -241,7 +241,7 @@ def video_truth(
 
 def outside_truth(frames: int = 40, *, seed: int = 6, yaw_deg: float = 14.0) -> VideoTruth:
     """:func:`video_truth`'s head motion with expressions outside every model's set
-    (:data:`tracking.samples.expressions.OUTSIDE_EXPRESSIONS`), each over the whole face (mouth,
+    (:data:`tracking.synthetic_sequences.expressions.OUTSIDE_EXPRESSIONS`), each over the whole face (mouth,
     eyes and forehead alike): ``cheek_smile`` rises and falls early in the clip (up to 0.9),
     ``surprise`` late (up to 0.9), with a short overlap."""
     base = video_truth(frames, seed=seed, yaw_deg=yaw_deg)
@@ -362,7 +362,7 @@ def fitted_sample_project(progress=None) -> Path:
 def fitted_sample_model(names: tuple = EXPRESSION_NAMES) -> FaceModel:
     """The face model of the fitted sample project (:func:`fitted_sample_project`) on ``names``,
     E_1 = neutral — the model a user of the sample gets, built by
-    :func:`tracking.project_model.face_model_from_project`. Cached per arguments."""
+    :func:`tracking.face_from_project.face_model_from_project`. Cached per arguments."""
 
     return face_model_from_project(load_project(fitted_sample_project()), names)[0]
 

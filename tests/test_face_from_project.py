@@ -1,4 +1,4 @@
-"""Tests of tracking.project_model: the face model built from a project's fitted and textured
+"""Tests of tracking.face_from_project: the face model built from a project's fitted and textured
 expressions (the sample project, modeled from its photos), against the scan's true expressions."""
 
 from __future__ import annotations
@@ -13,14 +13,14 @@ from photomodel.errors import FitError, ProjectError
 from photomodel.project import load_project, new_project, save_project
 from photomodel.rendering.renderer import get_renderer
 from photomodel.samples.synthetic import ScanSurface
-from tracking.facemodel import CONTROL_REGIONS, render_model
-from tracking.project_model import (
+from tracking.blendshape_face import CONTROL_REGIONS, render_model
+from tracking.face_from_project import (
     face_model_from_project,
     model_expressions,
     project_face_model,
     register_expression,
 )
-from tracking.samples.ground_truth import (
+from tracking.synthetic_sequences.ground_truth import (
     fitted_sample_model,
     model_gauge,
     render_video_frame,

@@ -1,4 +1,4 @@
-"""Tests of tracking.results: ``track.json`` and ``track.csv`` of a run (``straight``,
+"""Tests of tracking.track_result: ``track.json`` and ``track.csv`` of a run (``straight``,
 tests/conftest.py: the first frames of the sample video), and continuing only results of the same
 settings."""
 
@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tracking.results import CSV_COLUMNS, load_track_results
 from tracking.run import track_video
+from tracking.track_result import CSV_COLUMNS, load_track_results
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 VIDEO = SAMPLE / "video" / "james_track.mp4"

@@ -25,7 +25,7 @@ import numpy as np
 from photomodel.camera import rotation_vector
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import atomic_write_bytes
-from tracking.facemodel import CONTROL_REGIONS, FaceModel
+from tracking.blendshape_face import CONTROL_REGIONS, FaceModel
 from tracking.frame_fit import FrameState, TrackOptions
 
 __all__ = [
@@ -68,7 +68,7 @@ def new_results(
 ) -> dict:
     """The ``track.json`` document of a run with no frames yet: its settings.
 
-    ``video``: the :class:`tracking.video.VideoFrames` tracked; ``first_pose``: its
+    ``video``: the :class:`photomodel.photos.video.VideoFrames` tracked; ``first_pose``: its
     :class:`tracking.first_pose.FirstPose`; the others as :func:`tracking.run.track_video` takes them.
     """
     regions = [r for r, a in zip(CONTROL_REGIONS, model.n_alpha, strict=True) if a]

@@ -34,7 +34,7 @@ texture``):
   expressions that move it (:data:`MOVES_REGION_MM`): in a model from photos, ``E_k − E_1`` in a
   region that ``E_k`` leaves still is the two fits' noise, and a parameter for it would let the
   tracker explain image noise with it (with the scan's exact expressions such directions vanish
-  by themselves, :data:`tracking.facemodel.MIN_DIRECTION_MM`).
+  by themselves, :data:`tracking.blendshape_face.MIN_DIRECTION_MM`).
 * **Triangles**: those that do not cross the cylinder's seam in any expression (the back of the
   head; a crossing triangle would smear the whole texture row).
 """
@@ -52,7 +52,7 @@ from photomodel.errors import FitError, ProjectError
 from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.texturing.job import stored_cylinder
-from tracking.facemodel import CONTROL_REGIONS, FaceModel, build_face_model, control_regions, smooth_membership
+from tracking.blendshape_face import CONTROL_REGIONS, FaceModel, build_face_model, control_regions, smooth_membership
 
 __all__ = [
     "MODEL_TEXTURE_SIZE",
