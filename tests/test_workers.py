@@ -16,7 +16,7 @@ import app.studio_state  # noqa: E402
 from app.qt.commands import SetPointCommand  # noqa: E402
 from app.qt.workers import FitController  # noqa: E402
 from app.studio_state import StudioModel  # noqa: E402
-from photomodel.modeling import overlay as overlay_module  # noqa: E402
+from photomodel.modeling import wireframe as overlay_module  # noqa: E402
 
 
 @pytest.fixture
