@@ -86,6 +86,8 @@ __all__ = [
     "FrameState",
     "FrameResult",
     "FrameFitter",
+    "Phase",
+    "ExpressionSystem",
     "predict",
     "nearest_rotation",
     "track_frames",
@@ -318,6 +320,46 @@ def home_regions(model: FaceModel) -> np.ndarray:
     home = 1 + np.argmax(energy, axis=1)
     home[0] = 0
     return home
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One Levenberg–Marquardt phase of a frame's fit (:meth:`FrameFitter.refine`).
+
+    Attributes
+    ----------
+    params : (k,) int, the parameters the phase moves: 0–2 rotation ω, 3–5 translation, 6+ α.
+    iterations : int, most LM iterations.
+    jacobian : str, ``"analytic"`` or ``"fd"`` (see :data:`DEFAULT_JACOBIANS`).
+    filtered : bool, ε on the bandpassed images (:attr:`TrackOptions.bandpass`).
+    tolerance_mm : float or None, the step size (mm) that ends the phase; None:
+        :attr:`TrackOptions.step_tolerance_mm`.
+    reuse : bool, solve a step with the previous Jacobian first after an accepted one (the tracked
+        frames' economy; off for a frame far from its optimum, see :meth:`FrameFitter.fit`).
+    """
+
+    params: np.ndarray
+    iterations: int
+    jacobian: str
+    filtered: bool
+    tolerance_mm: float | None = None
+    reuse: bool = True
+
+
+@dataclass
+class ExpressionSystem:
+    """A frame's image term linearised with respect to ``α`` (:meth:`FrameFitter.linearise_expression`).
+
+    Attributes
+    ----------
+    JtJ : (a, a) float, ``JᵀJ`` of the weighted residual's Jacobian (Gauss–Newton Hessian).
+    Jtr : (a,) float, ``Jᵀ r`` with ``r = I_t − Î`` the weighted residual.
+    pixels : int, covered pixels (the scale of the penalty D).
+    """
+
+    JtJ: np.ndarray
+    Jtr: np.ndarray
+    pixels: int
 
 
 @dataclass
@@ -614,6 +656,40 @@ class FrameFitter:
             cols.append(((imgs[0] - imgs[1]) / np.float32(2 * h)).reshape(-1))
         return np.stack(cols, axis=1)
 
+    # -- the whole-clip solve's seam (tracking.smooth) ----------------------------------
+    def linearise_expression(self, frame: np.ndarray, state: FrameState) -> ExpressionSystem:
+        """The frame's ε linearised at ``state`` with respect to ``α`` alone, as the expression
+        phase sees it: bandpassed (when :attr:`TrackOptions.bandpass` is set), face- and
+        robust-weighted (a robust scale of this frame's own, as :meth:`fit` starts a frame), with
+        :attr:`TrackOptions.expression_jacobian`; without the penalty D. Renders once.
+
+        Parameters
+        ----------
+        frame : (H, W, 3) float image in [0, 1].
+        state : FrameState, where to linearise.
+        """
+        o = self.options
+        filtered = o.bandpass is not None
+        frame = np.asarray(frame, np.float32)
+        self._start_frame(weighted=True)
+        ev = self._evaluate(frame, state, filtered)
+        Jt, JtJ, rows = self._system(frame, ev, 6 + np.arange(self.n_alpha), o.expression_jacobian, filtered)
+        r = self._residual(ev, rows)
+        return ExpressionSystem(JtJ, (Jt @ r).astype(float), len(ev.render.pixels))
+
+    def refine(self, frame: np.ndarray, state: FrameState, phase: Phase) -> FrameState:
+        """``state`` after one LM ``phase`` on ``frame`` (H, W, 3) float in [0, 1], started as a
+        new frame (its own robust scale, ε weighing the face as the last round of :meth:`fit`).
+        The parameters outside ``phase.params`` are held."""
+        self._start_frame(weighted=True)
+        return self._lm(np.asarray(frame, np.float32), state, phase, []).state
+
+    def _start_frame(self, weighted: bool) -> None:
+        """Forget the robust scale of the previous frame (:meth:`_robust`); ``weighted``: ε weighs
+        the face (:attr:`TrackOptions.outside_weight`) and uses the robust error."""
+        self._sigma2 = {}
+        self._weighted = weighted
+
     # -- LM ---------------------------------------------------------------------------
     def _step(self, state: FrameState, params: np.ndarray, delta: np.ndarray) -> FrameState:
         st = state.copy()
@@ -701,10 +777,9 @@ class FrameFitter:
             A[np.ix_(sel, sel)] += hD[np.ix_(ia, ia)]
         return A, g
 
-    def _lm(
-        self, frame, state, params, iterations, method, filtered, history, render=None, tolerance_mm=None, reuse=True
-    ):
-        """Levenberg–Marquardt on ``params`` from ``state`` (or the evaluation of ``render``).
+    def _lm(self, frame, state: FrameState, phase: Phase, history: list, render=None) -> _Eval:
+        """Levenberg–Marquardt of ``phase`` from ``state`` (or the evaluation of ``render``);
+        ``history`` gets ε after each accepted step.
 
         Ends when a step would move the surface by less than the tolerance (checked before
         rendering it) or has just done so; when the predicted decrease of ε is negligible; after a
@@ -714,13 +789,15 @@ class FrameFitter:
         the previous Jacobian (only the residual is new; the Jacobian barely changed over the step);
         if that step is under the tolerance the phase ends without a new Jacobian — the usual end of
         a tracked frame. Otherwise the step is solved again with the Jacobian of the new point.
-        ``reuse=False`` turns this off (see :meth:`fit`)."""
+        ``phase.reuse=False`` turns this off (see :meth:`fit`)."""
         o = self.options
-        tol = o.step_tolerance_mm if tolerance_mm is None else tolerance_mm
+        params, method, filtered = phase.params, phase.jacobian, phase.filtered
+        tol = o.step_tolerance_mm if phase.tolerance_mm is None else phase.tolerance_mm
+        reuse = phase.reuse
         ev = self._evaluate(frame, state, filtered, render)
         lam = o.damping
         system = None
-        for _ in range(iterations):
+        for _ in range(phase.iterations):
             reused = system is not None and reuse
             A, g = self._normal_equations(system, ev, params) if reused else (None, None)
             if A is None:
@@ -812,7 +889,7 @@ class FrameFitter:
         start = self.evaluations
         history: list[float] = []
         ev = None
-        self._sigma2 = {}
+        self._start_frame(weighted=True)
         # a frame fitted in several rounds starts far from its optimum (the first frame, from the
         # user's pose and a neutral face): no tracking economies there (see fit())
         far = o.rounds > 1
@@ -823,32 +900,15 @@ class FrameFitter:
             # silhouette against the background pulls it in from afar); the last round weighs the
             # face alone (TrackOptions.outside_weight)
             self._weighted = k == rounds - 1
-            ev = self._lm(
-                frame,
-                initial.copy() if ev is None else ev.state,
-                np.arange(6),
-                o.pose_iterations,
-                o.pose_jacobian,
-                False,
-                history,
-                None if ev is None else ev.render,
-                pose_tol,
-                not far,
-            )
+            pose = Phase(np.arange(6), o.pose_iterations, o.pose_jacobian, False, pose_tol, not far)
+            if ev is None:
+                ev = self._lm(frame, initial.copy(), pose, history)
+            else:
+                ev = self._lm(frame, ev.state, pose, history, ev.render)
             if not self.n_alpha:
                 if o.bandpass is not None:  # a pose-only model: the pose on the bandpassed images too
-                    ev = self._lm(
-                        frame,
-                        ev.state,
-                        np.arange(6),
-                        o.expression_iterations,
-                        o.pose_jacobian,
-                        True,
-                        history,
-                        ev.render,
-                        None,
-                        not far,
-                    )
+                    pose = Phase(np.arange(6), o.expression_iterations, o.pose_jacobian, True, None, not far)
+                    ev = self._lm(frame, ev.state, pose, history, ev.render)
                 continue
             filtered = o.bandpass is not None
             groups = (
@@ -859,18 +919,8 @@ class FrameFitter:
             for params in groups:
                 if o.joint:
                     params = np.concatenate([np.arange(6), params])
-                ev = self._lm(
-                    frame,
-                    ev.state,
-                    params,
-                    o.expression_iterations,
-                    o.expression_jacobian,
-                    filtered,
-                    history,
-                    ev.render,
-                    None,
-                    not far,
-                )
+                expression = Phase(params, o.expression_iterations, o.expression_jacobian, filtered, None, not far)
+                ev = self._lm(frame, ev.state, expression, history, ev.render)
         npx, rms = len(ev.render.pixels), ev.rms  # the last rendering's unfiltered RMS
         return FrameResult(
             state=ev.state,

@@ -51,7 +51,7 @@ import scipy.sparse as sparse
 import scipy.sparse.linalg as splinalg
 
 from tracking.blendshape_face import WEIGHT_RANGE, FaceModel
-from tracking.frame_fit import FrameFitter, FrameState
+from tracking.frame_fit import FrameFitter, FrameState, Phase
 
 __all__ = [
     "ACTIVE_SET_PASSES",
@@ -171,15 +171,8 @@ def linearise_frame(fitter: FrameFitter, frame: np.ndarray, state: FrameState) -
     (:class:`tracking.frame_fit.FrameFitter`, Eq. 7 of Pighin et al.) — without the penalty ``D``
     (the clip solve adds it, see the module docstring); ``pixels``: covered pixels (``D``'s scale).
     """
-    o = fitter.options
-    filtered = o.bandpass is not None
-    fitter._sigma2 = {}  # the robust scale is the frame's own (as in FrameFitter.fit)
-    fitter._weighted = True
-    params = 6 + np.arange(fitter.n_alpha)
-    ev = fitter._evaluate(np.asarray(frame, np.float32), state, filtered)
-    Jt, JtJ, rows = fitter._system(frame, ev, params, o.expression_jacobian, filtered)
-    r = fitter._residual(ev, rows)
-    return JtJ, (Jt @ r).astype(float), len(ev.render.pixels)
+    system = fitter.linearise_expression(frame, state)
+    return system.JtJ, system.Jtr, system.pixels
 
 
 def _penalty_terms(model: FaceModel, alpha: np.ndarray, c: np.ndarray, sides: np.ndarray):
@@ -239,22 +232,9 @@ def _solve_in_range(model, A, B, alpha0, pixels, penalty, lams) -> np.ndarray:
 def _refit_pose(fitter: FrameFitter, frame: np.ndarray, state: FrameState, iterations: int) -> FrameState:
     """The frame's pose refitted with its ``α`` held: LM on the 6 pose parameters (the tracker's,
     on the bandpassed ε of its last phase)."""
-    fitter._sigma2 = {}
-    fitter._weighted = True
     o = fitter.options
-    ev = fitter._lm(
-        np.asarray(frame, np.float32),
-        state,
-        np.arange(6),
-        iterations,
-        o.pose_jacobian,
-        o.bandpass is not None,
-        [],
-        None,
-        o.step_tolerance_mm,
-        False,
-    )
-    return ev.state
+    pose = Phase(np.arange(6), iterations, o.pose_jacobian, o.bandpass is not None, o.step_tolerance_mm, reuse=False)
+    return fitter.refine(frame, state, pose)
 
 
 def smooth_clip(
