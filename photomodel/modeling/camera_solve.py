@@ -10,7 +10,7 @@ recovered from. :func:`solve_cameras` keeps the paper's method at its core and a
 1. **Every feature clicked in ≥ 2 photos places the cameras**, not only the flagged pose
    features (a profile with 3 pose features and 20 other clicks solves).
 2. **Cheap starts, one polish.** (a) the presets, registered to the clicks
-   (:meth:`photomodel.modeling.pose._Problem.register`); (b) each photo placed on its own by a
+   (:meth:`photomodel.modeling.pose.PoseProblem.register`); (b) each photo placed on its own by a
    perspective-n-point solve (OpenCV's SQPnP, a global solver) of its clicks against the generic
    head's feature positions at the lens guess. Each
    photo starts from its PnP pose where that agrees with its preset (within 30°) and fits the
@@ -98,7 +98,14 @@ from photomodel.alignment import similarity_transform
 from photomodel.camera import Camera, focal_px_to_mm, rotation_angle_deg
 from photomodel.errors import FitError
 from photomodel.modeling.bundle import BundleProblem
-from photomodel.modeling.pose import MIN_POINTS, MIN_POINTS_PER_VIEW, PoseResult, _Problem, _validate, project_all
+from photomodel.modeling.pose import (
+    MIN_POINTS,
+    MIN_POINTS_PER_VIEW,
+    PoseProblem,
+    PoseResult,
+    project_all,
+    validate_pose_inputs,
+)
 from photomodel.modeling.refine import triangulate
 
 #: BLAS thread control: the polish's matrices are small (≤ ~70 × 70), where a multi-threaded
@@ -320,7 +327,7 @@ def _pnp(X, x, f, pp):
 def _als(obs, valid, cameras, points, fixed_focal):
     """:data:`ALS_SWEEPS` sweeps of the paper's alternation from ``cameras``; ``(cameras, points,
     sweeps)``, the last finite estimate if a sweep breaks down."""
-    prob = _Problem(obs, valid, cameras, fixed_focal)
+    prob = PoseProblem(obs, valid, cameras, fixed_focal)
     st = prob.state_from(cameras, points)
     good, sweeps = st.copy(), 0
     with np.errstate(all="ignore"):
@@ -478,7 +485,7 @@ def _solve(obs, initial_cameras, points, groups, fixed_focal, robust, prior, nam
     o, v, p0 = obs[:, fidx], valid[:, fidx], pts0[fidx]
     o = np.where(v[..., None], o, np.nan)
     # the paper's input rules (shapes, counts, collinearity, equations) with the names
-    _validate(o, cams, p0, [pname[i] for i in fidx], vname, fixed_focal)
+    validate_pose_inputs(o, cams, p0, [pname[i] for i in fidx], vname, fixed_focal)
 
     wsub = None if weights is None else np.asarray(weights, float)[:, fidx]
     prob = BundleProblem(o, v, np.stack([c.principal_point for c in cams]), grp, not fixed_focal, weights=wsub)
@@ -913,7 +920,7 @@ def _blame(
 def _registered(o, v, cameras, points, fixed_focal) -> list[Camera]:
     """The presets with each photo's image scale and offset fitted to its clicks (the start of
     :func:`photomodel.modeling.pose.recover_poses`)."""
-    prob = _Problem(o, v, cameras, fixed_focal)
+    prob = PoseProblem(o, v, cameras, fixed_focal)
     st = prob.state_from(cameras, points)
     with np.errstate(all="ignore"):
         prob.register(st)

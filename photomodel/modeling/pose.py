@@ -44,7 +44,7 @@ Two properties of the alternation matter in practice:
   explain the offset and the next steps rotate the camera far away (side views ended behind
   the head in our tests). Before the first sweep each camera's image scale and offset are
   therefore fitted to its clicks (linear least squares in ``(s, s t_x, s t_y)``,
-  :meth:`_Problem.register`, *beyond the paper*).
+  :meth:`PoseProblem.register`, *beyond the paper*).
 * **Limit.** Because ``w`` is frozen while ``m``, ``R`` and ``η`` are solved for, the
   alternation's limit satisfies the normal equations with the *clicked* ``x`` where the exact
   gradient has the *predicted* one (the ``x η r_z`` terms). With exact clicks both vanish; with
@@ -104,6 +104,8 @@ __all__ = [
     "PoseResult",
     "recover_poses",
     "reprojection_residuals",
+    "PoseProblem",
+    "validate_pose_inputs",
     "MIN_POINTS_PER_VIEW",
     "MIN_POINTS",
 ]
@@ -189,7 +191,7 @@ def _rms_summary(res: np.ndarray, valid: np.ndarray) -> tuple[float, np.ndarray,
 # ----------------------------------------------------------------------------------------------
 # input validation (the boundary: errors name the photo / feature)
 # ----------------------------------------------------------------------------------------------
-def _validate(observations, cameras, points, names, view_names, fixed_focal):
+def validate_pose_inputs(observations, cameras, points, names, view_names, fixed_focal):
     """Check the inputs of :func:`recover_poses`; return ``obs (k,n,2)``, ``valid (k,n)``, points, cameras."""
     obs, pts, cams, vname, pname = _check_shapes(observations, cameras, points, names, view_names)
     nan, R, t = _check_values(obs, pts, cams, vname, pname)
@@ -371,7 +373,7 @@ def _gram(M: np.ndarray) -> np.ndarray:
     return M.transpose(0, 2, 1) @ M
 
 
-class _Problem:
+class PoseProblem:
     """The clicks in the paper's image coordinates and the operations on a :class:`_State`.
 
     Everything is dense over (camera, point) with weight 0 where a feature is not clicked, so a
@@ -616,7 +618,7 @@ class _Problem:
 #: Below this RMS (px) the clicks are reproduced exactly for every practical purpose (exact synthetic clicks).
 _RMS_FLOOR = 1e-6
 #: With ``accelerate``: sweeps of the alternation before the joint polish takes over. From the presets
-#: (after :meth:`_Problem.register`) one to ten sweeps all led the polish to the peer's minimum on 72
+#: (after :meth:`PoseProblem.register`) one to ten sweeps all led the polish to the peer's minimum on 72
 #: synthetic rigs; the alternation's progress per sweep is small after the first few.
 _ALS_SWEEPS_BEFORE_POLISH = 3
 #: Initial Levenberg–Marquardt damping of the polish (relative to the normal matrix' diagonal).
@@ -682,8 +684,8 @@ def recover_poses(
         features or fewer equations than unknowns; a camera or point that is not finite; a clicked
         feature behind its initial camera; or a solve that diverged.
     """
-    obs, valid, pts, cams = _validate(observations, cameras, points, names, view_names, fixed_focal)
-    prob = _Problem(obs, valid, cams, fixed_focal)
+    obs, valid, pts, cams = validate_pose_inputs(observations, cameras, points, names, view_names, fixed_focal)
+    prob = PoseProblem(obs, valid, cams, fixed_focal)
     st = prob.state_from(cams, pts)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         prob.register(st)
