@@ -47,6 +47,11 @@ class EditSession:
     def frame_count(self) -> int:
         return len(self.frames)
 
+    @property
+    def can_redo(self) -> bool:
+        """Whether an undone edit is left to :meth:`redo`."""
+        return bool(self._redo)
+
     def add(self, edit: dict) -> None:
         """Append ``edit`` (checked: :func:`tracking.edit.check_edit`); the redo list is cleared."""
         self.edits.append(check_edit(dict(edit), self.fitter.model.names, self.frame_count))

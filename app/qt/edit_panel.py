@@ -480,7 +480,7 @@ class EditPanel(QWidget):
         for b in (self.scale_button, self.replace_button):
             b.setEnabled(has and not busy)
         self.undo_button.setEnabled(bool(self.session and self.session.edits) and not busy)
-        self.redo_button.setEnabled(bool(self.session and self.session._redo) and not busy)
+        self.redo_button.setEnabled(bool(self.session and self.session.can_redo) and not busy)
         self.export_button.setEnabled(has and not busy)
         self.cancel_button.setEnabled(busy)
 

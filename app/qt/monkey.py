@@ -334,7 +334,7 @@ class Monkey:
 
     def _pick_feature(self) -> None:
         panel = self.window.panel
-        item = self._pick(panel._feature_items())
+        item = self._pick(panel.feature_items())
         if item is not None:
             panel.features.setCurrentItem(item)
 
