@@ -16,7 +16,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from photomodel.errors import ProjectError
-from photomodel.project import Project, load_project, save_project
+from photomodel.project import load_project, save_project
+from photomodel.project.codec import project_from_dict
 from photomodel.samples.project_mutants import (
     MUTATIONS,
     benign_mutants,
@@ -83,7 +84,7 @@ def test_deep_dict_given_to_from_dict_is_a_project_error():
         node = node["a"]
     d = replaced(base().tree, RESULT + ("report",), lambda r: deep)
     with pytest.raises(ProjectError, match="nested too deeply"):
-        Project.from_dict(d)
+        project_from_dict(d)
 
 
 def _first_click(tree) -> str:

@@ -26,6 +26,7 @@ from project_samples import (
 from photomodel.camera import PRESET_AZIMUTH_DEG, orbit_camera
 from photomodel.errors import ProjectError
 from photomodel.project import load_project, project_schema, save_project
+from photomodel.project.codec import project_to_dict
 from photomodel.project.validate import _validator
 
 
@@ -321,7 +322,7 @@ def test_invalid_project_is_not_written(tmp_path):
 )
 def test_texture_validation_names_the_field(tmp_path, mutate, expected):
     p = textured_project(tmp_path)
-    d = p.to_dict()
+    d = project_to_dict(p, p.path)
     mutate(d["expressions"][0]["result"]["texture"])
     with pytest.raises(ProjectError) as exc:
         load_dict(tmp_path, d)

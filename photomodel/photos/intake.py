@@ -45,7 +45,8 @@ from photomodel.photos.reading import (
     unreadable_note,
     unreadable_photos_in_folder,
 )
-from photomodel.project.datamodel import FILE_SUFFIX, CurveDef, Expression, Feature, Photo, Project, new_project
+from photomodel.project.datamodel import CurveDef, Expression, Feature, Photo, Project, new_project
+from photomodel.project.format import FILE_SUFFIX
 from photomodel.project.validate import OUT_OF_BOUNDS_MARGIN
 
 #: A placer: ``(RGB uint8 image (h, w, 3), feature names) → placement`` with ``points`` (name →

@@ -1,7 +1,9 @@
 """The project file (format version 5, reads 1 to 4) in one place, for the CLI and the studio alike.
 
+* :mod:`~photomodel.project.format` — the format's constants (name, version, file suffix, built-in
+  mesh, click sources);
 * :mod:`~photomodel.project.datamodel` — the dataclasses (``Project``, ``Expression``, ``Photo``,
-  ``Feature``, ``CurveDef``, ``ExpressionResult``, ``TextureResult``), format constants, ``new_project``;
+  ``Feature``, ``CurveDef``, ``ExpressionResult``, ``TextureResult``), ``new_project``;
 * :mod:`~photomodel.project.codec` — ``Project`` ⇄ the JSON-able dict of the file (rounding,
   canonical order, relative paths);
 * :mod:`~photomodel.project.jsontext` — strict JSON parsing (line/column, duplicate keys, NaN
@@ -17,10 +19,6 @@ The format is documented field by field in ``docs/project-format.md``.
 """
 
 from photomodel.project.datamodel import (
-    BUILTIN_MESH,
-    FILE_SUFFIX,
-    FORMAT_NAME,
-    FORMAT_VERSION,
     CurveDef,
     Expression,
     ExpressionResult,
@@ -31,6 +29,7 @@ from photomodel.project.datamodel import (
     TextureResult,
     new_project,
 )
+from photomodel.project.format import BUILTIN_MESH, FILE_SUFFIX, FORMAT_NAME, FORMAT_VERSION
 from photomodel.project.io import default_filename, encode_project, load_project, save_project, write_project
 from photomodel.project.results import (
     RIG_FILE,

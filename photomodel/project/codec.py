@@ -21,8 +21,6 @@ import numpy as np
 from photomodel.camera import Camera
 from photomodel.errors import ProjectError
 from photomodel.project.datamodel import (
-    FORMAT_NAME,
-    FORMAT_VERSION,
     CurveDef,
     Expression,
     ExpressionResult,
@@ -32,6 +30,7 @@ from photomodel.project.datamodel import (
     RigRecord,
     TextureResult,
 )
+from photomodel.project.format import FORMAT_NAME, FORMAT_VERSION
 from photomodel.project.jsontext import plain
 from photomodel.project.validate import validate
 

@@ -8,8 +8,10 @@ path stored in it is relative to the folder that holds the file. Conventions are
 :mod:`photomodel.camera`: pixels ``u`` right, ``v`` down, pixel centres at integers; millimetres
 in the world.
 
-The dict form written to disk is :mod:`photomodel.project.codec`'s, its checks
-:mod:`photomodel.project.validate`'s, reading and writing the file :mod:`photomodel.project.io`'s.
+The format's name, version and file suffix are :mod:`photomodel.project.format`'s. This module
+knows nothing of the file: the dict form written to disk is :mod:`photomodel.project.codec`'s
+(``project_to_dict`` / ``project_from_dict``), its checks :mod:`photomodel.project.validate`'s,
+reading and writing the file :mod:`photomodel.project.io`'s.
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
@@ -27,29 +28,8 @@ import numpy as np
 from photomodel.camera import Camera
 from photomodel.errors import PhotoError, ProjectError
 from photomodel.photos.reading import photo_size
+from photomodel.project.format import BUILTIN_MESH, CLICK_SOURCES
 from photomodel.project.problems import did_you_mean, listing, problems_error
-
-FORMAT_NAME = "facestudio-project"
-#: The version this Face Studio writes; it reads every version from 1 up to this one.
-#: History (``docs/project-format.md``, "Versioning"):
-#:
-#: * 1 — the first format.
-#: * 2 — a photo may name its ``camera_group`` (photos taken with one camera and lens share one
-#:   focal length). Upgrading a version-1 file: nothing to do (no photo has a group).
-#: * 3 — a photo may say which of its clicks were placed automatically (``click_sources``:
-#:   feature → ``{"source": "auto", "confidence": c}``). Upgrading: nothing to do (every click
-#:   of an older file was made by hand, source ``"user"``).
-#: * 4 — a project may hold a ``rig``: ARKit-style blend shapes on the fitted neutral
-#:   (``facestudio rig``; the displacements in a file beside the project). Upgrading: nothing to
-#:   do (an older project has no rig).
-#: * 5 — a photo may say which of its curves were drawn automatically (``curve_sources``:
-#:   curve → ``"auto"``). Upgrading: nothing to do (every curve of an older file was drawn by
-#:   hand).
-FORMAT_VERSION = 5
-#: Where a click came from: the artist (``"user"``, the default) or the landmark detector.
-CLICK_SOURCES = ("user", "auto")
-FILE_SUFFIX = ".facestudio.json"
-BUILTIN_MESH = "builtin:template-v1"
 
 
 @dataclass
@@ -617,25 +597,6 @@ class Project:
                         )
         if problems:
             raise problems_error(self._source(), problems)
-
-    # -- (de)serialisation -----------------------------------------------------------
-    def to_dict(self) -> dict:
-        """The project as the JSON-able dict written to disk (rounded, canonical order)."""
-        # the codec builds these dataclasses, so it imports this module: a circular import at the top
-        from photomodel.project.codec import project_to_dict  # noqa: PLC0415
-
-        return project_to_dict(self, self.path)
-
-    @classmethod
-    def from_dict(cls, d: Any, path: str | os.PathLike | None = None) -> Project:
-        """Validate a parsed project dict and build the :class:`Project`.
-
-        ``path`` (the file it came from) is used for error messages and for resolving
-        relative paths. Raises :class:`ProjectError` naming the field at fault.
-        """
-        from photomodel.project.codec import project_from_dict  # noqa: PLC0415 - circular, as in to_dict
-
-        return project_from_dict(d, path)
 
     # -- internals ------------------------------------------------------------------
     def _source(self) -> str:

@@ -27,7 +27,8 @@ from pathlib import Path
 from photomodel.errors import ProjectError
 from photomodel.exchange.files import atomic_write_bytes, remove_stale_temp_files
 from photomodel.project.codec import project_from_dict, project_to_dict
-from photomodel.project.datamodel import FILE_SUFFIX, Project
+from photomodel.project.datamodel import Project
+from photomodel.project.format import FILE_SUFFIX
 from photomodel.project.jsontext import dumps, parse_json, scan_parsed
 from photomodel.project.problems import problems_error
 from photomodel.project.validate import validate

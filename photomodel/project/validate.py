@@ -36,7 +36,7 @@ from jsonschema.exceptions import ValidationError, best_match
 
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import ProjectError
-from photomodel.project.datamodel import FORMAT_NAME, FORMAT_VERSION
+from photomodel.project.format import FORMAT_NAME, FORMAT_VERSION
 from photomodel.project.jsontext import check_depth
 from photomodel.project.problems import did_you_mean, fmt_key, fmt_path, listing, problems_error, short
 
