@@ -52,10 +52,15 @@ from photomodel.project import (
     save_project,
     save_results,
     store_rig,
-    texture_files,
 )
 from photomodel.rig.build import RigBuilder
-from photomodel.texturing.job import load_stored_texture, load_texture_photos, photo_side_for, texture_expression
+from photomodel.texturing.job import (
+    encode_texture_outputs,
+    load_stored_texture,
+    load_texture_photos,
+    photo_side_for,
+    texture_expression,
+)
 from photomodel.texturing.view_dependent import ViewDependentTexture
 from tracking.face_from_project import register_expression
 
@@ -1065,7 +1070,7 @@ class StudioModel:
             and (moved or not fit.saved or not self._meshes_on_disk(name))
         }
         textures = [
-            (tex.job, *texture_files(self.project, tex.job, folder))
+            (tex.job, *encode_texture_outputs(self.project, tex.job, folder))
             for tex in self.textures.values()
             if moved or not tex.saved
         ]

@@ -41,7 +41,6 @@ from photomodel.project.results import (
     store_fit_result,
     store_rig,
     store_texture_result,
-    texture_files,
 )
 from photomodel.project.validate import OUT_OF_BOUNDS_MARGIN, ROTATION_TOL, project_schema
 
@@ -75,6 +74,5 @@ __all__ = [
     "store_fit_result",
     "store_rig",
     "store_texture_result",
-    "texture_files",
     "write_project",
 ]

@@ -8,8 +8,8 @@ The one path shared by ``facestudio fit`` / ``facestudio texture`` (:mod:`app.cl
   :class:`~photomodel.project.datamodel.ExpressionResult`; no file yet). A new fit replaces the whole
   result, so a texture made for the previous mesh is dropped.
 * :func:`save_results` stores the fitted meshes (``results/<expr>.obj|.ply``) and encoded
-  textures (:func:`texture_files`, or :func:`photomodel.texturing.job.encode_texture_outputs`)
-  and then the project file:
+  textures (:func:`photomodel.texturing.job.encode_texture_outputs`, which texturing supplies:
+  this module imports nothing of it) and then the project file:
 
   1. records the result files in the project (paths relative to the folder of the file being
      written);
@@ -45,8 +45,7 @@ from photomodel.errors import FitError, ProjectError
 from photomodel.exchange import files as exchange_files  # looked up at call time (tests replace it)
 from photomodel.exchange.mesh import write_mesh
 from photomodel.project.datamodel import ExpressionResult, Project, RigRecord, TextureResult
-from photomodel.project.io import default_filename, encode_project, target_file, write_project
-from photomodel.texturing.job import encode_texture_outputs
+from photomodel.project.io import encode_project, target_file, write_project
 
 
 # ---------------------------------------------------------------------------------------
@@ -149,21 +148,10 @@ def _record_meshes(project: Project, expression_name: str, folder: Path, paths: 
 # ---------------------------------------------------------------------------------------
 # a texture
 # ---------------------------------------------------------------------------------------
-def texture_files(project: Project, job, folder: Path | None = None) -> tuple[dict, dict]:
-    """:func:`photomodel.texturing.job.encode_texture_outputs` for a project saved into ``folder``
-    (default: its own): ``({absolute path: bytes}, paths relative to that folder)``."""
-
-    if folder is None or (project.path is not None and Path(folder) == project.path.parent):
-        return encode_texture_outputs(project, job)
-    at_folder = copy.copy(project)  # shares the expressions; resolves paths in ``folder``
-    at_folder.path = Path(folder).absolute() / default_filename(project.name)
-    return encode_texture_outputs(at_folder, job)
-
-
 def store_texture_result(project: Project, job, files: Mapping, rel: dict, folder: Path | None = None) -> None:
     """Write a texture's encoded files (each atomically, in order) and record the texture in the
-    expression's result; ``files, rel`` are :func:`texture_files`' for ``folder`` (default: the
-    project's). The project file itself is not written: the caller saves it (or uses
+    expression's result; ``files, rel`` are :func:`~photomodel.texturing.job.encode_texture_outputs`'
+    for ``folder`` (default: the project's). The project file itself is not written: the caller saves it (or uses
     :func:`save_results`, which does both)."""
     _check_fitted(project, job)
     _write_texture(job, files)
@@ -219,7 +207,8 @@ def save_results(
         ``<folder>/<name>.facestudio.json``); result files go into its folder.
     fits : {expression name: (N, 3) fitted vertices}, meshes to write (with ``faces``).
     faces : (M, 3) int, the generic mesh's faces.
-    textures : sequence of ``(job, files, rel)``, :func:`texture_files` for the target's folder.
+    textures : sequence of ``(job, files, rel)``, :func:`~photomodel.texturing.job.encode_texture_outputs`
+        for the target's folder.
 
     Raises
     ------

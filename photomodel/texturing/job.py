@@ -22,9 +22,11 @@ The way back, when the studio opens a textured project: :func:`load_stored_textu
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -39,6 +41,7 @@ from photomodel.exchange.ply import encode_colored_ply
 from photomodel.exchange.uv import merge_uv_seams
 from photomodel.modeling.fit import Cancelled
 from photomodel.photos.reading import MAX_WORKING_SIDE, read_photo
+from photomodel.project.io import default_filename
 from photomodel.texturing.cylindrical import (
     CylinderMap,
     CylindricalTexture,
@@ -291,14 +294,18 @@ def extract_texture(
     return TextureJob(inputs, int(size), tex, single, report)
 
 
-def encode_texture_outputs(project, job: TextureJob) -> tuple[dict, dict]:
+def encode_texture_outputs(project, job: TextureJob, folder: Path | None = None) -> tuple[dict, dict]:
     """Encode every file of a texture in memory: ``({absolute path: bytes}, relative paths)``.
 
     The relative paths are :meth:`Project.default_texture_paths` (``image``, ``weight_maps``
-    {photo id: path} for the photos used, ``obj``, ``mtl``, ``glb``, ``ply``); the project must
-    have a file (``project.path``) for them to resolve.
+    {photo id: path} for the photos used, ``obj``, ``mtl``, ``glb``, ``ply``), relative to
+    ``folder`` — the folder the project is being saved into (default: its own; the project must
+    then have a file, ``project.path``, for them to resolve).
     """
-
+    if folder is not None and (project.path is None or Path(folder) != project.path.parent):
+        at_folder = copy.copy(project)  # shares the expressions; resolves paths in ``folder``
+        at_folder.path = Path(folder).absolute() / default_filename(project.name)
+        project = at_folder
     if project.path is None:
         raise ProjectError("the project has no file yet: save it before writing the texture")
     name, tex = job.expression, job.texture
