@@ -8,7 +8,15 @@ import pytest
 
 from photomodel.camera import rodrigues, rotation_angle_deg
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, nearest_rotation, pose_from_clicks, predict
+from tracking.frame_fit import (
+    FrameFitter,
+    FrameState,
+    Phase,
+    TrackOptions,
+    nearest_rotation,
+    pose_from_clicks,
+    predict,
+)
 from tracking.synthetic_sequences.ground_truth import render_video_frame, sample_face_model, video_truth
 
 
@@ -86,6 +94,28 @@ def test_fit_recovers_a_known_pose_and_expression(setup):
     assert res.rms < 0.5 * rms0
     np.testing.assert_array_less(-0.5 - 1e-9, res.weights)
     np.testing.assert_array_less(res.weights, 1.5 + 1e-9)
+
+
+def test_the_clip_solves_seam_refines_a_pose_and_linearises_the_expression(setup):
+    # FrameFitter's public seam for tracking.smooth: one LM phase (refine) and the expression
+    # phase's linearisation (linearise_expression)
+    model, truth = setup
+    fitter = FrameFitter(model, truth.focal_px, truth.width, truth.height)
+    true = _state(model, truth, 5)
+    blank = np.zeros((truth.height, truth.width, 3), np.float32)
+    frame = fitter._evaluate(blank, true, False).render.image  # rendered from the model itself
+    start = FrameState(rodrigues(np.radians([1.0, -0.5, 0.3])) @ true.R, true.t + [2.0, -1.0, 4.0], true.alpha.copy())
+    pose = Phase(np.arange(6), 10, "analytic", filtered=False, reuse=False)
+    done = fitter.refine(frame, start, pose)
+    np.testing.assert_array_equal(done.alpha, true.alpha)  # the phase moves the pose only
+    assert rotation_angle_deg(done.R, true.R) < 0.5 * rotation_angle_deg(start.R, true.R)
+    assert np.linalg.norm(done.t - true.t) < 0.5 * np.linalg.norm(start.t - true.t)
+    system = fitter.linearise_expression(frame, true)
+    a = fitter.n_alpha
+    assert system.JtJ.shape == (a, a) and system.Jtr.shape == (a,) and system.pixels > 200
+    np.testing.assert_allclose(system.JtJ, system.JtJ.T, rtol=1e-6, atol=1e-9 * np.trace(system.JtJ))
+    # at the state the frame was rendered from the residual, and so Jᵀr, vanishes
+    assert np.abs(system.Jtr).max() < 1e-6 * np.sqrt(np.trace(system.JtJ))
 
 
 def test_penalty_gradient_matches_differences(setup):
