@@ -213,21 +213,22 @@ class FeaturePanel(QWidget):
             self._updating = False
         self._select_feature(self.model.active_feature)
 
-    def _feature_items(self):
+    def feature_items(self):
+        """The feature list's rows (every feature, under its group), top to bottom."""
         for i in range(self.features.topLevelItemCount()):
             g = self.features.topLevelItem(i)
             for j in range(g.childCount()):
                 yield g.child(j)
 
     def feature_item(self, name: str) -> QTreeWidgetItem | None:
-        for item in self._feature_items():
+        for item in self.feature_items():
             if item.data(0, _NAME_ROLE) == name:
                 return item
         return None
 
     def _apply_filter(self, text: str):
         text = text.strip().lower()
-        for item in self._feature_items():
+        for item in self.feature_items():
             item.setHidden(bool(text) and text not in item.data(0, _NAME_ROLE).lower())
         if text:
             for i in range(self.features.topLevelItemCount()):
@@ -426,7 +427,7 @@ class FeaturePanel(QWidget):
 
     def refresh_features_rms(self):
         rms = self._feature_rms()
-        for item in self._feature_items():
+        for item in self.feature_items():
             r = rms.get(item.data(0, _NAME_ROLE))
             text = "" if r is None else f"{r:.2f}"
             if item.text(2) != text:

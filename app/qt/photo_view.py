@@ -398,6 +398,11 @@ class PhotoView(QGraphicsView):
     def photo(self):
         return self.model.photo(self.photo_id, self.expression)
 
+    @property
+    def markers(self) -> dict[str, PointItem]:
+        """The click markers on the photo, by feature name."""
+        return self._items
+
     def _residuals(self) -> dict[str, float]:
         return self.model.click_residuals(self.expression).get(self.photo_id, {})
 
