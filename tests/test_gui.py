@@ -284,7 +284,7 @@ def test_two_instances_keep_their_own_recovery_files(qtbot, tmp_path, project_co
     c = window()
     assert not c.offer_recovery() and messages == [] and c.model.photos == []
     # b saves its project: its recovery file goes, a's stays
-    assert b._save_to(tmp_path / "b.facestudio.json")
+    assert b.save_to(tmp_path / "b.facestudio.json")
     assert not b.recovery_file.exists() and a.recovery_file.is_file()
 
     # an instance crashed with a's project in its recovery file: its lock names a dead process
@@ -320,7 +320,7 @@ def test_fit_can_be_cancelled(qtbot, studio_window, project_copy):
     studio_window.fits.cancel()  # what the progress dialog's Cancel button does
     qtbot.waitUntil(lambda: not studio_window.fits.busy, timeout=60_000)
     assert studio_window.model.fit() is None and studio_window.fit_label.text() == "fit cancelled"
-    assert studio_window._progress is None
+    assert studio_window.fit_progress is None
 
 
 def test_3d_view_picks_a_feature(qtbot, studio_window, project_copy):

@@ -17,7 +17,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
 
 from app.qt.commands import SetCurveCommand  # noqa: E402
-from app.qt.photo_view import AUTO_COLOR  # noqa: E402
+from app.qt.photo_items import AUTO_COLOR  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PHOTOS = ROOT / "sample_projects" / "james" / "photos"
@@ -54,13 +54,13 @@ def test_new_from_photos_auto_landmarks_drag_fit(qtbot, studio_window, tmp_path,
         "lip_upper",
         "lip_lower",
     }
-    pen = view._curve_items["lip_upper"].pen()
+    pen = view.curves.items["lip_upper"].pen()
     assert pen.color().rgb() == AUTO_COLOR.rgb() and pen.style() == Qt.PenStyle.DashLine
     # redrawn by the artist it is theirs (solid); undone, the detector's again
     line = front.curves["lip_upper"] + [0.0, 2.0]
     w.undo_stack.push(SetCurveCommand(model, "neutral", "neutral_front", "lip_upper", line))
     assert model.curve_source("neutral", "neutral_front", "lip_upper") == "user"
-    assert view._curve_items["lip_upper"].pen().style() == Qt.PenStyle.SolidLine
+    assert view.curves.items["lip_upper"].pen().style() == Qt.PenStyle.SolidLine
     w.undo_stack.undo()
     assert model.curve_source("neutral", "neutral_front", "lip_upper") == "auto"
 

@@ -113,7 +113,7 @@ def test_unexpected_errors_show_in_a_non_modal_box_and_are_kept(qtbot, studio_wi
             except ValueError:
                 w.report_unexpected(*sys.exc_info())  # what sys.excepthook gets (run_studio installs it)
         assert signal.args == [f"ValueError: {message}"]
-        box = w._error_box
+        box = w.error_box
         assert box.isVisible() and not box.isModal() and box.windowModality() == Qt.WindowModality.NonModal
         assert f"ValueError: {message}" in box.text() and ("earlier" in box.text()) == (n == 1)
     assert w.unexpected_errors == ["ValueError: first", "ValueError: second"]
@@ -165,7 +165,7 @@ def test_a_fit_of_photos_removed_meanwhile_is_not_stored(qtbot, studio_window, p
     assert w.run_fit()
     w.act_remove_photo.trigger()  # while the fit runs
     qtbot.waitUntil(lambda: not w.fits.busy, timeout=60_000)
-    assert w.model.fit() is None and w.model.expression.result is None and w._progress is None
+    assert w.model.fit() is None and w.model.expression.result is None and w.fit_progress is None
     project_from_dict(project_to_dict(w.model.project, project_copy))  # still valid
     assert w.save() and not messages
     w.undo_stack.undo()  # the photo is back; a new fit is of all five

@@ -104,11 +104,11 @@ def test_texture_action_shows_textures_and_weight_maps(qtbot, window, project_co
     assert np.abs(grey[:, 0] - grey[:, 2]).mean() < 2.0
 
     assert window.run_texture()
-    assert window._texture_progress is not None
+    assert window.texture_progress is not None
     qtbot.waitUntil(lambda: not window.jobs.busy and window.model.texture() is not None, timeout=60_000)
     tex = window.model.texture()
     assert tex.job.size == 256 and tex.job.texture.image.shape == (256, 256, 3)
-    assert window._texture_progress is None
+    assert window.texture_progress is None
     # the weight-map panel shows one image per photo
     assert window.weights_panel.image_count() == len(window.model.photos) == 5
     shown_ids = [window.weights_panel.maps.item(i).text() for i in range(5)]
@@ -160,7 +160,7 @@ def test_texture_can_be_cancelled(qtbot, window, project_copy, messages):
     assert window.run_texture()
     window.jobs.cancel()  # what the progress dialog's Cancel button does
     qtbot.waitUntil(lambda: not window.jobs.busy, timeout=60_000)
-    assert window.model.texture() is None and window._texture_progress is None
+    assert window.model.texture() is None and window.texture_progress is None
     assert window.weights_panel.image_count() == 0 and window.view3d.texture is None
     assert not window.model.project.expression("neutral").result.texture
 
@@ -236,7 +236,7 @@ def test_never_saved_project_is_recovered_at_next_start(qtbot, tmp_path, project
     assert m.path is None and m.modified and len(m.photos) == 2
     np.testing.assert_allclose(m.photos[0].points["nose_tip"], (500.0, 520.0))
     assert Path(m.photos[0].path).is_file()
-    assert w2._save_to(tmp_path / "saved.facestudio.json")
+    assert w2.save_to(tmp_path / "saved.facestudio.json")
     assert not w2.recovery_file.exists()  # it has a file now
 
     # declined: the recovery file is deleted, the window stays on its empty project
@@ -297,7 +297,7 @@ def test_opening_a_textured_project_shows_its_textures(qtbot, window, textured_c
     # "save as" elsewhere writes the textures it holds next to the new file
     moved = textured_copy.parent.parent / "moved" / textured_copy.name
     moved.parent.mkdir()
-    assert window._save_to(moved)
+    assert window.save_to(moved)
     again = load_project(moved).expression("neutral").result.texture
     assert (moved.parent / again.image).is_file()
     assert again.report["cylinder"] == stored.report["cylinder"]

@@ -37,7 +37,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.qt.commands import SetHiddenCommand, SetPoseCommand
-from app.qt.photo_view import residual_color
+from app.qt.photo_items import residual_color
 from app.studio_state import StudioModel
 from photomodel.modeling.fit import uses_person_prior
 

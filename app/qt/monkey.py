@@ -375,11 +375,11 @@ class Monkey:
 
     def _do_drag(self):
         view = self._view()
-        name = None if view is None else self._pick(view._items)
+        name = None if view is None else self._pick(view.markers)
         if name is None:
             return
         self._points_mode()
-        start = self._pos_of(view, view._items[name].pos().toTuple())
+        start = self._pos_of(view, view.markers[name].pos().toTuple())
         d = QPoint(*(int(x) for x in self.rng.integers(-40, 41, 2)))
         vp = view.viewport()
         QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, start)
@@ -447,8 +447,8 @@ class Monkey:
         w = self.window
         w.act_fit.trigger()
         QTest.qWait(int(self.rng.integers(0, 400)))
-        if w._progress is not None:
-            w._progress.cancel()  # the progress dialog's Cancel button
+        if w.fit_progress is not None:
+            w.fit_progress.cancel()  # the progress dialog's Cancel button
         else:
             w.fits.cancel()
         self.settle()

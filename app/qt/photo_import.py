@@ -37,7 +37,7 @@ from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog
 
 from app.qt.commands import AddPhotosCommand, DefineFeaturesCommand
-from app.qt.progress import close_progress, open_progress, update_progress
+from app.qt.progress import close_progress, update_progress
 from app.qt.workers import JobController
 from photomodel.modeling.fit import Cancelled
 from photomodel.photos.intake import add_photos, default_features, new_project_from_photos
@@ -166,7 +166,7 @@ class PhotoImporter(QObject):
         if self.jobs.start(work) is None:
             return False
         self._pending = pending
-        self._dialog = open_progress(self.window, "Photos", label, self.jobs.cancel)
+        self._dialog = self.window.open_progress("Photos", label, self.jobs.cancel)
         return True
 
     def _close(self):
@@ -178,7 +178,7 @@ class PhotoImporter(QObject):
         pending, self._pending = self._pending, None
         if pending[0] == "new":
             if self.window.open_project(pending[1], ask_to_save=False):
-                self.window._status(_summary(result, "new project"), 15000)
+                self.window.show_status(_summary(result, "new project"), 15000)
             return
         _, project, expression = pending
         snapshot, photos, warnings = result
@@ -196,7 +196,7 @@ class PhotoImporter(QObject):
         stack.push(AddPhotosCommand(model, expression, photos))
         stack.endMacro()
         self.window.show_photo(photos[0].id)
-        self.window._status(_summary(warnings, f"{len(photos)} photo(s) added"), 15000)
+        self.window.show_status(_summary(warnings, f"{len(photos)} photo(s) added"), 15000)
 
     def _on_failed(self, message: str):
         self._close()
@@ -206,7 +206,7 @@ class PhotoImporter(QObject):
     def _on_cancelled(self):
         self._close()
         self._pending = None
-        self.window._status("cancelled; nothing changed")
+        self.window.show_status("cancelled; nothing changed")
 
     def shutdown(self):
         self.jobs.shutdown()

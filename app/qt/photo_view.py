@@ -15,15 +15,11 @@ Mouse and keys (as in Blender / photogrammetry tools):
   active curve; ``Enter`` or a double-click finishes it, ``Backspace`` removes the last vertex,
   ``Esc`` cancels.
 
-Markers are coloured by their reprojection error after a fit (green < 1 px, yellow ~2 px,
-red ≥ 4 px; white before any fit); hidden features are drawn hollow and grey. Automatic clicks
-(placed by the landmark detector, ``"source": "auto"`` in the file) are drawn as violet diamonds
-until the artist drags them (then they are the artist's clicks, round; undo makes them automatic
-again). Once a fit exists,
-the active feature's *predicted* position — the fitted mesh's vertex of that feature projected
-with this photo's fitted camera (:meth:`~app.studio_state.StudioModel.predicted_uv`) — is drawn as a
-dashed cyan ghost cross: where to click a feature not clicked here yet, or how far a click is
-from the current fit.
+The markers, the predicted ghost and the mesh's lines are painted by :mod:`app.qt.photo_items`
+(colours by reprojection error, automatic clicks as violet diamonds); the drawn curves and the one
+being drawn are kept by :mod:`app.qt.photo_curves`. Once a fit exists, the active feature's
+*predicted* position (:meth:`~app.studio_state.StudioModel.predicted_uv`) is drawn as a dashed cyan
+ghost cross: where to click a feature not clicked here yet, or how far a click is from the fit.
 """
 
 from __future__ import annotations
@@ -32,261 +28,24 @@ import math
 import time
 
 import numpy as np
-from PySide6.QtCore import QLineF, QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QBrush, QColor, QFont, QImage, QPainter, QPainterPath, QPen, QPixmap, QTransform
-from PySide6.QtWidgets import (
-    QGraphicsItem,
-    QGraphicsPathItem,
-    QGraphicsPixmapItem,
-    QGraphicsScene,
-    QGraphicsView,
-    QMenu,
-)
+from PySide6.QtCore import QPointF, QRectF, Qt, Signal
+from PySide6.QtGui import QColor, QPainter, QPixmap, QTransform
+from PySide6.QtWidgets import QGraphicsPixmapItem, QGraphicsScene, QGraphicsView, QMenu
 
 from app.qt.commands import SetCurveCommand, SetHiddenCommand, SetPointCommand
+from app.qt.photo_curves import PhotoCurves
+from app.qt.photo_items import LinesItem, PointItem, PredictedItem, load_photo_image
 from app.studio_state import StudioModel
 from photomodel.errors import FaceStudioError
-from photomodel.photos.reading import read_photo
 
 #: A press closer than this (screen px) to a marker grabs it.
 HIT_RADIUS_PX = 9.0
 #: Freehand curve drawing adds a vertex every this many screen pixels.
 FREEHAND_STEP_PX = 4.0
-MARKER_RADIUS_PX = 5.0
 ZOOM_STEP = 1.2
 MIN_SCALE, MAX_SCALE = 0.02, 64.0
 
 POINTS, CURVE = "points", "curve"
-
-OVERLAY_COLORS = {0: QColor(0, 200, 255, 150), 1: QColor(255, 170, 0, 200), 2: QColor(255, 235, 0, 230)}
-DRAWN_CURVE_COLOR = QColor(255, 60, 200)
-#: Automatic clicks (the landmark detector's) are violet diamonds.
-AUTO_COLOR = QColor(190, 110, 255)
-#: The ghost marker of the active feature's predicted position (the current fit projected).
-PREDICTED_COLOR = QColor(0, 230, 255)
-
-
-def residual_color(px: float | None) -> QColor:
-    """Marker colour for a reprojection error in pixels (None: not fitted yet)."""
-    if px is None or not math.isfinite(px):
-        return QColor(255, 255, 255)
-    # green (0 px) → yellow (2 px) → red (4 px and more)
-    x = min(max(px / 4.0, 0.0), 1.0)
-    if x < 0.5:
-        return QColor(int(510 * x), 220, 40)
-    return QColor(255, int(220 * (1.0 - x) * 2), 40)
-
-
-def load_photo_image(path, width: int, height: int) -> tuple[QImage, str | None, float]:
-    """The photo as a QImage at its working resolution, through the modeling core's one reader
-    (:func:`photomodel.photos.reading.read_photo`: EXIF orientation applied — a phone's
-    portrait photo stands up, as its clicks were placed —, a truncated file refused, a very
-    large one reduced), the reason it cannot be shown (``None`` when it can) and its scale
-    (working pixels per original pixel). Unreadable: a grey placeholder of the stored size
-    naming the reason, scale 1."""
-    try:
-        photo = read_photo(path)
-    except FaceStudioError as exc:
-        reason = str(exc)
-    else:
-        a = np.ascontiguousarray(photo.image)
-        image = QImage(a.data, a.shape[1], a.shape[0], 3 * a.shape[1], QImage.Format.Format_RGB888).copy()
-        return image, None, photo.scale
-    ph = QImage(max(width, 1), max(height, 1), QImage.Format.Format_RGB32)
-    ph.fill(QColor(90, 90, 90))
-    p = QPainter(ph)
-    p.setPen(QColor(230, 230, 230))
-    f = QFont()
-    f.setPixelSize(max(12, width // 40))
-    p.setFont(f)
-    p.drawText(ph.rect(), Qt.AlignmentFlag.AlignCenter | Qt.TextFlag.TextWordWrap, f"photo not shown\n{reason}")
-    p.end()
-    return ph, reason, 1.0
-
-
-class PointItem(QGraphicsItem):
-    """A click marker: constant size on screen, coloured by its reprojection error."""
-
-    def __init__(self, name: str, uv, pose: bool):
-        super().__init__()
-        self.name = name
-        self.pose = pose
-        self.residual: float | None = None
-        self.active = False
-        self.hidden = False
-        self.auto: float | None | bool = False  # False: the artist's click; else the detector's confidence
-        self.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
-        # a repaint blits ~150 cached markers (~5 ms) instead of drawing them again (~25 ms)
-        self.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
-        self.setZValue(10)
-        self.setPos(QPointF(float(uv[0]), float(uv[1])))
-        self.setAcceptHoverEvents(True)
-        self._update_tip()
-
-    def _update_tip(self):
-        r = "not fitted" if self.residual is None else f"{self.residual:.2f} px from the fit"
-        extra = ", pose feature" if self.pose else ""
-        hid = " (hidden in this photo)" if self.hidden else ""
-        auto = ""
-        if self.is_auto:
-            conf = "" if self.auto is True else f", confidence {self.auto:.2f}"
-            auto = f" — automatic click{conf}; drag it to correct it"
-        self.setToolTip(f"{self.name}{hid}: {r}{extra}{auto}")
-
-    @property
-    def is_auto(self) -> bool:
-        return self.auto is not False
-
-    def set_auto(self, auto: bool, confidence: float | None = None) -> None:
-        """Mark the click as the detector's (with its confidence) or the artist's."""
-        value = (True if confidence is None else float(confidence)) if auto else False
-        if value != self.auto:
-            self.auto = value
-            self._update_tip()
-            self.update()
-
-    def _look(self):
-        color = residual_color(self.residual).rgb()
-        label = f"{self.residual:.1f}" if (self.active and self.residual is not None) else None
-        return color, label, self.active, self.hidden
-
-    def set_state(self, residual: float | None = None, active: bool | None = None, hidden: bool | None = None):
-        before = self._look()
-        self.residual = residual
-        if active is not None and active != self.active:
-            self.prepareGeometryChange()  # the label widens the bounding box
-            self.active = active
-            self.setZValue(11 if active else 10)
-        if hidden is not None:
-            self.hidden = hidden
-        self._update_tip()
-        if self._look() != before:  # repaint (and re-cache) only markers that look different
-            self.update()
-
-    def boundingRect(self) -> QRectF:
-        r = MARKER_RADIUS_PX + 4
-        return QRectF(-r, -r, 2 * r + (200 if self.active else 0), 2 * r)
-
-    def paint(self, painter: QPainter, option, widget=None):
-        painter.setRenderHint(QPainter.RenderHint.Antialiasing)
-        r = MARKER_RADIUS_PX + (1.5 if self.active else 0.0)
-        color = QColor(150, 150, 150) if self.hidden else residual_color(self.residual)
-        painter.setBrush(Qt.BrushStyle.NoBrush)
-        style = Qt.PenStyle.DashLine if self.hidden else Qt.PenStyle.SolidLine
-        if self.is_auto:  # the detector's click: a violet diamond around the residual-coloured dot
-            d = r + 1.5
-            diamond = [QPointF(0, -d), QPointF(d, 0), QPointF(0, d), QPointF(-d, 0), QPointF(0, -d)]
-            painter.setPen(QPen(QColor(0, 0, 0, 200), 3.0))
-            painter.drawPolyline(diamond)
-            painter.setPen(QPen(AUTO_COLOR, 1.8, style))
-            painter.drawPolyline(diamond)
-        else:
-            painter.setPen(QPen(QColor(0, 0, 0, 200), 3.0))
-            painter.drawEllipse(QPointF(0, 0), r, r)
-            painter.setPen(QPen(color, 1.6, style))
-            painter.drawEllipse(QPointF(0, 0), r, r)
-        if not self.hidden:  # a dot at the exact position
-            painter.setPen(Qt.PenStyle.NoPen)
-            painter.setBrush(QBrush(color))
-            painter.drawEllipse(QPointF(0, 0), 1.3, 1.3)
-        if self.pose and not self.hidden:  # pose features get a tick above
-            painter.setPen(QPen(color, 1.4))
-            painter.drawLine(QPointF(0, -r - 3), QPointF(0, -r))
-        if self.active:
-            painter.setBrush(Qt.BrushStyle.NoBrush)
-            painter.setPen(QPen(QColor(255, 255, 255), 2.0))
-            painter.drawEllipse(QPointF(0, 0), r + 3, r + 3)
-            f = painter.font()
-            f.setPixelSize(12)
-            f.setBold(True)
-            painter.setFont(f)
-            text = self.name if self.residual is None else f"{self.name}  {self.residual:.1f} px"
-            painter.setPen(QColor(0, 0, 0, 220))
-            painter.drawText(QPointF(r + 7, 5), text)
-            painter.setPen(QColor(255, 255, 255))
-            painter.drawText(QPointF(r + 6, 4), text)
-
-
-class PredictedItem(QGraphicsItem):
-    """The ghost marker: where the current fit puts the active feature in this photo."""
-
-    def __init__(self):
-        super().__init__()
-        self.name = ""
-        self.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
-        self.setZValue(9)  # under the clicks: a click on it lands on the photo, not on the ghost
-        self.setVisible(False)
-
-    def show_at(self, name: str, uv) -> None:
-        self.name = name
-        self.setPos(QPointF(float(uv[0]), float(uv[1])))
-        self.setToolTip(f"{name}: where the current fit puts it")
-        self.setVisible(True)
-        self.update()
-
-    def boundingRect(self) -> QRectF:
-        r = MARKER_RADIUS_PX + 8
-        return QRectF(-r, -r, 2 * r + 160, 2 * r)
-
-    def paint(self, painter: QPainter, option, widget=None):
-        painter.setRenderHint(QPainter.RenderHint.Antialiasing)
-        r = MARKER_RADIUS_PX + 3
-        for color, width in ((QColor(0, 0, 0, 160), 3.0), (PREDICTED_COLOR, 1.4)):
-            painter.setPen(QPen(color, width, Qt.PenStyle.DashLine))
-            painter.setBrush(Qt.BrushStyle.NoBrush)
-            painter.drawEllipse(QPointF(0, 0), r, r)
-            painter.drawLine(QPointF(-r - 4, 0), QPointF(-r + 3, 0))
-            painter.drawLine(QPointF(r - 3, 0), QPointF(r + 4, 0))
-            painter.drawLine(QPointF(0, -r - 4), QPointF(0, -r + 3))
-            painter.drawLine(QPointF(0, r - 3), QPointF(0, r + 4))
-        f = painter.font()
-        f.setPixelSize(11)
-        painter.setFont(f)
-        painter.setPen(PREDICTED_COLOR)
-        painter.drawText(QPointF(r + 6, r + 10), f"{self.name} (fit)")
-
-
-class LinesItem(QGraphicsItem):
-    """Line segments in scene coordinates drawn with cosmetic (screen-width) pens, by kind."""
-
-    def __init__(self, rect: QRectF):
-        super().__init__()
-        self._rect = QRectF(rect)
-        self._lines: dict[int, list[QLineF]] = {}
-        self.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)  # redrawn on zoom, not on every repaint
-        self.setZValue(5)
-
-    def set_lines(self, uv: np.ndarray, kinds: np.ndarray) -> None:
-        """``uv`` (M, 2, 2) px endpoints; ``kinds`` (M,) int (keys of :data:`OVERLAY_COLORS`)."""
-        self.prepareGeometryChange()
-        self._lines = {}
-        for k in np.unique(kinds):
-            seg = uv[kinds == k].reshape(-1, 4).tolist()
-            self._lines[int(k)] = [QLineF(a, b, c, d) for a, b, c, d in seg]
-        if len(uv):
-            lo, hi = uv.reshape(-1, 2).min(axis=0), uv.reshape(-1, 2).max(axis=0)
-            self._rect = QRectF(QPointF(*lo), QPointF(*hi)).adjusted(-2, -2, 2, 2)
-        self.update()
-
-    def clear(self) -> None:
-        self.prepareGeometryChange()
-        self._lines = {}
-        self.update()
-
-    @property
-    def count(self) -> int:
-        return sum(len(v) for v in self._lines.values())
-
-    def boundingRect(self) -> QRectF:
-        return self._rect
-
-    def paint(self, painter: QPainter, option, widget=None):
-        painter.setRenderHint(QPainter.RenderHint.Antialiasing)
-        for kind, lines in self._lines.items():
-            pen = QPen(OVERLAY_COLORS.get(kind, QColor(0, 200, 255)), 1.6 if kind else 1.0)
-            pen.setCosmetic(True)
-            painter.setPen(pen)
-            painter.drawLines(lines)
 
 
 class PhotoView(QGraphicsView):
@@ -308,19 +67,15 @@ class PhotoView(QGraphicsView):
         self.expression, self.photo_id = expression, photo_id
         self.mode = POINTS
         self.show_overlay = True
-        self.show_curves = True
         self.user_zoomed = False
         self.overlay_stale = True
         self.overlay_time_s: float | None = None
         self.overlay_compute_s: float | None = None
         self.overlay_from_cache = False
         self._items: dict[str, PointItem] = {}
-        self._curve_items: dict[str, QGraphicsPathItem] = {}
         self._drag: dict | None = None
         self._pan: QPointF | None = None
         self._space = False
-        self._drawing: list[QPointF] | None = None
-        self._freehand = False
         self.detached = False  # set by detach(): the model may no longer hold this photo
 
         self.setScene(QGraphicsScene(self))
@@ -354,12 +109,7 @@ class PhotoView(QGraphicsView):
         self.scene().setSceneRect(rect.adjusted(-photo.width, -photo.height, photo.width, photo.height))
         self.overlay_item = LinesItem(rect)
         self.scene().addItem(self.overlay_item)
-        self.preview_item = QGraphicsPathItem()
-        pen = QPen(DRAWN_CURVE_COLOR, 2.0, Qt.PenStyle.DashLine)
-        pen.setCosmetic(True)
-        self.preview_item.setPen(pen)
-        self.preview_item.setZValue(12)
-        self.scene().addItem(self.preview_item)
+        self.curves = PhotoCurves(self.scene())  # the drawn curves and the one being drawn
         self.predicted_item = PredictedItem()
         self.scene().addItem(self.predicted_item)
 
@@ -397,6 +147,11 @@ class PhotoView(QGraphicsView):
     @property
     def photo(self):
         return self.model.photo(self.photo_id, self.expression)
+
+    @property
+    def markers(self) -> dict[str, PointItem]:
+        """The click markers on the photo, by feature name."""
+        return self._items
 
     def _residuals(self) -> dict[str, float]:
         return self.model.click_residuals(self.expression).get(self.photo_id, {})
@@ -472,39 +227,14 @@ class PhotoView(QGraphicsView):
 
     # ------------------------------------------------------------------ curves
     def rebuild_curves(self):
-        for item in self._curve_items.values():
-            self.scene().removeItem(item)
-        self._curve_items = {}
-        for name, line in self.photo.curves.items():
-            self._add_curve_item(name, line)
-
-    def _add_curve_item(self, name, line):
-        path = QPainterPath(QPointF(*line[0]))
-        for p in line[1:]:
-            path.lineTo(QPointF(*p))
-        item = QGraphicsPathItem(path)
-        active = name == self.model.active_curve
-        auto = self.photo.curve_source(name) == "auto"
-        colour = AUTO_COLOR if auto else DRAWN_CURVE_COLOR
-        if not active:
-            colour = QColor(colour.red(), colour.green(), colour.blue(), 170)
-        pen = QPen(colour, 2.4 if active else 1.4, Qt.PenStyle.DashLine if auto else Qt.PenStyle.SolidLine)
-        pen.setCosmetic(True)
-        item.setPen(pen)
-        item.setZValue(8)
-        item.setToolTip(f"curve {name}" + (" (drawn automatically: redraw it to correct it)" if auto else ""))
-        item.setVisible(self.show_curves)
-        self.scene().addItem(item)
-        self._curve_items[name] = item
+        self.curves.rebuild(self.photo, self.model.active_curve)
 
     def _on_curves_changed(self, expression, photo_id, curve):
         if expression == self.expression and photo_id == self.photo_id:
             self.rebuild_curves()
 
     def set_curves_visible(self, visible: bool):
-        self.show_curves = visible
-        for item in self._curve_items.values():
-            item.setVisible(visible)
+        self.curves.set_visible(visible)
 
     # ------------------------------------------------------------------ overlay
     def set_overlay_visible(self, visible: bool):
@@ -693,12 +423,13 @@ class PhotoView(QGraphicsView):
             self._drag["moved"] = True
             event.accept()
             return
-        if self._drawing is not None:
-            if self._freehand and event.buttons() & Qt.MouseButton.LeftButton:
-                last = self.mapFromScene(self._drawing[-1])
+        drawing = self.curves.drawing
+        if drawing is not None:
+            if self.curves.freehand and event.buttons() & Qt.MouseButton.LeftButton:
+                last = self.mapFromScene(drawing[-1])
                 if math.hypot(pos.x() - last.x(), pos.y() - last.y()) >= FREEHAND_STEP_PX:
-                    self._drawing.append(self.mapToScene(pos.toPoint()))
-            self._update_preview(self.mapToScene(pos.toPoint()))
+                    drawing.append(self.mapToScene(pos.toPoint()))
+            self.curves.update_preview(self.mapToScene(pos.toPoint()))
             event.accept()
             return
         uv = self.image_pos(pos)
@@ -729,16 +460,16 @@ class PhotoView(QGraphicsView):
                 item.setPos(QPointF(*drag["old"]))
             event.accept()
             return
-        if self._drawing is not None and event.button() == Qt.MouseButton.LeftButton:
-            if self._freehand and len(self._drawing) > 2:
+        if self.curves.drawing is not None and event.button() == Qt.MouseButton.LeftButton:
+            if self.curves.freehand and len(self.curves.drawing) > 2:
                 self.finish_curve()  # a drag draws a whole curve at once
-            self._freehand = False
+            self.curves.freehand = False
             event.accept()
             return
         super().mouseReleaseEvent(event)
 
     def mouseDoubleClickEvent(self, event):
-        if self.mode == CURVE and self._drawing is not None:
+        if self.mode == CURVE and self.curves.drawing is not None:
             self.finish_curve()
             event.accept()
             return
@@ -749,47 +480,22 @@ class PhotoView(QGraphicsView):
         if self.model.active_curve is None:
             self.status_message.emit("pick a curve in the list first")
             return
-        p = self.mapToScene(pos.toPoint())
-        if self._drawing is None:
-            self._drawing = [p]
-            self._freehand = True
+        first = self.curves.drawing is None
+        self.curves.add_point(self.mapToScene(pos.toPoint()), freehand=first)
+        if first:
             self.status_message.emit(
                 f"drawing {self.model.active_curve}: click more points, Enter to finish, Esc to cancel"
             )
-        else:
-            self._drawing.append(p)
-            self._freehand = False
-        self._update_preview(p)
 
     def add_curve_point(self, u: float, v: float) -> None:
         """Append an image point to the curve being drawn (as a click in curve mode does)."""
-        p = QPointF(u, v)
-        if self._drawing is None:
-            self._drawing = [p]
-        else:
-            self._drawing.append(p)
-        self._update_preview(p)
-
-    def _update_preview(self, cursor: QPointF | None = None):
-        if not self._drawing:
-            self.preview_item.setPath(QPainterPath())
-            return
-        path = QPainterPath(self._drawing[0])
-        for p in self._drawing[1:]:
-            path.lineTo(p)
-        if cursor is not None:
-            path.lineTo(cursor)
-        self.preview_item.setPath(path)
+        self.curves.add_point(QPointF(u, v))
 
     def finish_curve(self) -> bool:
         """Bind the drawn polyline to the active curve (one undoable command)."""
-        pts, self._drawing, self._freehand = self._drawing, None, False
-        self.preview_item.setPath(QPainterPath())
-        if not pts:
+        line = self.curves.take()
+        if line is None:
             return False
-        line = np.array([[p.x(), p.y()] for p in pts])
-        keep = np.concatenate([[True], np.linalg.norm(np.diff(line, axis=0), axis=1) > 1e-6])
-        line = line[keep]
         curve = self.model.active_curve
         if curve is None or len(line) < 2:
             self.status_message.emit("a curve needs at least two points")
@@ -803,8 +509,7 @@ class PhotoView(QGraphicsView):
         return True
 
     def cancel_curve(self):
-        self._drawing, self._freehand = None, False
-        self.preview_item.setPath(QPainterPath())
+        self.curves.cancel()
 
     # ------------------------------------------------------------------ keys and menus
     def keyPressEvent(self, event):
@@ -812,15 +517,12 @@ class PhotoView(QGraphicsView):
         if key == Qt.Key.Key_Space and not event.isAutoRepeat():
             self._space = True
             self.viewport().setCursor(Qt.CursorShape.OpenHandCursor)
-        elif key in (Qt.Key.Key_Return, Qt.Key.Key_Enter) and self._drawing is not None:
+        elif key in (Qt.Key.Key_Return, Qt.Key.Key_Enter) and self.curves.drawing is not None:
             self.finish_curve()
-        elif key == Qt.Key.Key_Escape and self._drawing is not None:
+        elif key == Qt.Key.Key_Escape and self.curves.drawing is not None:
             self.cancel_curve()
-        elif key == Qt.Key.Key_Backspace and self._drawing is not None:
-            self._drawing.pop()
-            if not self._drawing:
-                self.cancel_curve()
-            self._update_preview()
+        elif key == Qt.Key.Key_Backspace and self.curves.drawing is not None:
+            self.curves.remove_last_point()
         elif key in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace):
             self.delete_active_click()
         elif key == Qt.Key.Key_H:
