@@ -114,6 +114,15 @@ def encode_textured_obj(
     elif check_exists and not png_path.is_file():
         raise ValueError(f"{png_path}: no texture image given and no such file to refer to")
 
+    text, n_texcoords = _obj_text(v, f, t, mtl_path.name)
+    files[mtl_path] = _mtl_text(rel).encode()
+    files[obj_path] = text.encode()
+    return TexturedObj(obj_path=obj_path, mtl_path=mtl_path, png_path=png_path, files=files, n_texcoords=n_texcoords)
+
+
+def _obj_text(v: np.ndarray, f: np.ndarray, t: np.ndarray, mtl_name: str) -> tuple[str, int]:
+    """The OBJ's text for the checked mesh ``v``, ``f`` with texture coordinates ``t`` (per vertex
+    or per corner) and the number of ``vt`` lines."""
     if t.ndim == 2:  # one vt per vertex, indexed like the positions
         vt, corner_vt = t, f
     else:
@@ -126,7 +135,7 @@ def encode_textured_obj(
         [
             "# Face Studio textured mesh\n",
             f"# {len(v)} vertices, {len(f)} triangles, {len(vt)} texture coordinates (v up)\n",
-            f"mtllib {mtl_path.name}\n",
+            f"mtllib {mtl_name}\n",
             ("v %.6f %.6f %.6f\n" * len(v)) % tuple(v.ravel()),
             ("vt %.7f %.7f\n" * len(vt)) % tuple(vt.ravel()),
             ("vn %.6f %.6f %.6f\n" * len(v)) % tuple(normals.ravel()),
@@ -134,7 +143,12 @@ def encode_textured_obj(
             ("f %d/%d/%d %d/%d/%d %d/%d/%d\n" * len(f)) % tuple(idx.ravel().tolist()),
         ]
     )
-    mtl = "".join(
+    return text, len(vt)
+
+
+def _mtl_text(texture_reference: str) -> str:
+    """The MTL's text: one material whose colour is the texture at ``texture_reference``."""
+    return "".join(
         [
             "# Face Studio material: colour from the texture only (no specular: the photographs' shading\n",
             "# is already in the texture)\n",
@@ -144,12 +158,9 @@ def encode_textured_obj(
             "Ks 0.000000 0.000000 0.000000\n",
             "d 1.0\n",
             "illum 1\n",
-            f"map_Kd {rel}\n",
+            f"map_Kd {texture_reference}\n",
         ]
     )
-    files[mtl_path] = mtl.encode()
-    files[obj_path] = text.encode()
-    return TexturedObj(obj_path=obj_path, mtl_path=mtl_path, png_path=png_path, files=files, n_texcoords=len(vt))
 
 
 def write_textured_obj(

@@ -535,72 +535,17 @@ class PoseProblem:
         (``nc = 7``; 6 with a fixed focal length, where ``s = f η``). Returns
         ``(state, iterations, converged, stopped)``.
         """
-        k, n, nc = self.k, self.n, self.nc
         q, w, p, P, r, cost = self.evaluate(st)
-        J = self._J
-        g = self._g
-        eye_c = np.eye(nc)
         lam = _LM_LAMBDA0
         it = 0
         converged = stopped = False
         while it < max_iter:
             it += 1
-            R, eta, s = st.R, st.eta, st.s
-            sw = s[:, None] * w
-            c = -(w * eta[:, None])[..., None] * P  # dP_j/dq_z
-            # dP/dq rows g_x = (s w, 0, c_x), g_y = (0, s w, c_y)
-            g[..., 0, 0] = g[..., 1, 1] = sw
-            g[..., 2] = c
-            qx, qy, qz = q[..., 0:1], q[..., 1:2], q[..., 2:3]
-            # d/dv = q × g_j (rotation q → q + v × q)
-            J[..., 0] = qy * c
-            J[..., 0, 1] = qz[..., 0] * sw - qx[..., 0] * c[..., 0]
-            J[..., 1, 1] = -qx[..., 0] * c[..., 1]
-            J[..., 0, 2] = -qy[..., 0] * sw
-            J[..., 1, 2] = qx[..., 0] * sw
-            J[..., 1, 0] -= qz[..., 0] * sw
-            J[..., 0, 3] = J[..., 1, 4] = sw  # d/dt_x, d/dt_y
-            dEta = -(w[..., None] * qz) * P
-            if self.fixed_focal:
-                J[..., 5] = dEta + (self.f_fixed[:, None] * w)[..., None] * p
-            else:
-                J[..., 5] = w[..., None] * p  # d/ds
-                J[..., 6] = dEta
-            J[..., nc : nc + 3] = (g.reshape(k, 2 * n, 3) @ R).reshape(k, n, 2, 3)  # dP/dm = g R
-            J[..., nc + 3] = r
-            Gc = _gram(J.reshape(k, 2 * n, nc + 4))  # U (cameras) and their gradients
-            U, gc = Gc[:, :nc, :nc], Gc[:, :nc, nc + 3]
-            Jp = np.ascontiguousarray(J[..., nc:].transpose(1, 0, 2, 3)).reshape(n, 2 * k, 4)
-            Gp = _gram(Jp)
-            Vp, gp = Gp[:, :3, :3], Gp[:, :3, 3]
-            Jc, Jm = J[..., :nc], J[..., nc : nc + 3]
-            W = Jc[..., 0, :, None] * Jm[..., 0, None, :] + Jc[..., 1, :, None] * Jm[..., 1, None, :]
-            Wt = np.ascontiguousarray(W.transpose(1, 0, 2, 3)).reshape(n, k * nc, 3)  # (n, k nc, 3)
-            W2 = Wt.transpose(1, 0, 2).reshape(k * nc, 3 * n)
-            dU = U.diagonal(0, 1, 2)
-            dV = Vp.diagonal(0, 1, 2)
-            while True:
-                Vd = Vp + (lam * dV + 1e-12)[:, :, None] * np.eye(3)
-                Vinv = np.linalg.inv(Vd)
-                Y2 = (Wt @ Vinv).transpose(1, 0, 2).reshape(k * nc, 3 * n)
-                S = np.ascontiguousarray(Y2 @ W2.T)
-                np.negative(S, out=S)
-                s0, s1 = S.strides
-                blocks = as_strided(S, (k, nc, nc), ((s0 + s1) * nc, s0, s1))  # view of S's camera blocks
-                blocks += U + (lam * dU + 1e-12)[:, :, None] * eye_c
-                rhs = Y2 @ gp.reshape(-1) - gc.reshape(-1)
-                dc = np.linalg.solve(S, rhs).reshape(k, nc)
-                dm = -(Vinv @ (gp + (dc.reshape(-1) @ W2).reshape(n, 3))[..., None])[..., 0]
-                new = _State(rodrigues_batch(dc[:, :3]) @ R, st.t2 + dc[:, 3:5], eta + dc[:, -1], s, st.m + dm)
-                new.s = self.f_fixed * new.eta if self.fixed_focal else s + dc[:, 5]
-                ev = self.evaluate(new)
-                if ev[5] <= cost:
-                    break
-                lam *= 10.0
-                if lam > 1e10:  # no descent direction left: at the minimum to working precision
-                    return st, it - 1, True, False
-            st = new
-            q, w, p, P, r, cost_new = ev
+            normal = self._normal_blocks(st, q, w, p, P, r)
+            step = self._damped_step(st, normal, cost, lam)
+            if step is None:  # no descent direction left: at the minimum to working precision
+                return st, it - 1, True, False
+            st, (q, w, p, P, r, cost_new), lam = step
             lam = max(lam * 0.1, 1e-10)
             rms = float(np.sqrt(cost_new / self.n_obs))
             history.append(rms)
@@ -614,6 +559,77 @@ class PoseProblem:
                 break
         return st, it, converged, stopped
 
+    def _normal_blocks(self, st: _State, q, w, p, P, r):
+        """The polish's normal equations at ``st`` (with :meth:`evaluate`'s ``q, w, p, P, r``) in
+        blocks: the cameras' ``U`` (k, nc, nc) and gradient ``gc``, the points' ``Vp`` (n, 3, 3) and
+        ``gp``, the camera–point coupling ``Wt`` (n, k nc, 3) and ``W2`` (k nc, 3 n), and the
+        diagonals ``dU``, ``dV`` the damping scales."""
+        k, n, nc = self.k, self.n, self.nc
+        J = self._J
+        g = self._g
+        R, eta, s = st.R, st.eta, st.s
+        sw = s[:, None] * w
+        c = -(w * eta[:, None])[..., None] * P  # dP_j/dq_z
+        # dP/dq rows g_x = (s w, 0, c_x), g_y = (0, s w, c_y)
+        g[..., 0, 0] = g[..., 1, 1] = sw
+        g[..., 2] = c
+        qx, qy, qz = q[..., 0:1], q[..., 1:2], q[..., 2:3]
+        # d/dv = q × g_j (rotation q → q + v × q)
+        J[..., 0] = qy * c
+        J[..., 0, 1] = qz[..., 0] * sw - qx[..., 0] * c[..., 0]
+        J[..., 1, 1] = -qx[..., 0] * c[..., 1]
+        J[..., 0, 2] = -qy[..., 0] * sw
+        J[..., 1, 2] = qx[..., 0] * sw
+        J[..., 1, 0] -= qz[..., 0] * sw
+        J[..., 0, 3] = J[..., 1, 4] = sw  # d/dt_x, d/dt_y
+        dEta = -(w[..., None] * qz) * P
+        if self.fixed_focal:
+            J[..., 5] = dEta + (self.f_fixed[:, None] * w)[..., None] * p
+        else:
+            J[..., 5] = w[..., None] * p  # d/ds
+            J[..., 6] = dEta
+        J[..., nc : nc + 3] = (g.reshape(k, 2 * n, 3) @ R).reshape(k, n, 2, 3)  # dP/dm = g R
+        J[..., nc + 3] = r
+        Gc = _gram(J.reshape(k, 2 * n, nc + 4))  # U (cameras) and their gradients
+        U, gc = Gc[:, :nc, :nc], Gc[:, :nc, nc + 3]
+        Jp = np.ascontiguousarray(J[..., nc:].transpose(1, 0, 2, 3)).reshape(n, 2 * k, 4)
+        Gp = _gram(Jp)
+        Vp, gp = Gp[:, :3, :3], Gp[:, :3, 3]
+        Jc, Jm = J[..., :nc], J[..., nc : nc + 3]
+        W = Jc[..., 0, :, None] * Jm[..., 0, None, :] + Jc[..., 1, :, None] * Jm[..., 1, None, :]
+        Wt = np.ascontiguousarray(W.transpose(1, 0, 2, 3)).reshape(n, k * nc, 3)  # (n, k nc, 3)
+        W2 = Wt.transpose(1, 0, 2).reshape(k * nc, 3 * n)
+        return U, gc, Vp, gp, Wt, W2, U.diagonal(0, 1, 2), Vp.diagonal(0, 1, 2)
+
+    def _damped_step(self, st: _State, normal, cost: float, lam: float):
+        """One Levenberg–Marquardt step from ``st``: the point blocks eliminated by a Schur
+        complement, the damping ``lam`` raised tenfold until the cost does not rise. Returns
+        ``(new state, its evaluate(), lam)``, or None when ``lam`` passes 1e10."""
+        k, n, nc = self.k, self.n, self.nc
+        U, gc, Vp, gp, Wt, W2, dU, dV = normal
+        R, eta, s = st.R, st.eta, st.s
+        eye_c = np.eye(nc)
+        while True:
+            Vd = Vp + (lam * dV + 1e-12)[:, :, None] * np.eye(3)
+            Vinv = np.linalg.inv(Vd)
+            Y2 = (Wt @ Vinv).transpose(1, 0, 2).reshape(k * nc, 3 * n)
+            S = np.ascontiguousarray(Y2 @ W2.T)
+            np.negative(S, out=S)
+            s0, s1 = S.strides
+            blocks = as_strided(S, (k, nc, nc), ((s0 + s1) * nc, s0, s1))  # view of S's camera blocks
+            blocks += U + (lam * dU + 1e-12)[:, :, None] * eye_c
+            rhs = Y2 @ gp.reshape(-1) - gc.reshape(-1)
+            dc = np.linalg.solve(S, rhs).reshape(k, nc)
+            dm = -(Vinv @ (gp + (dc.reshape(-1) @ W2).reshape(n, 3))[..., None])[..., 0]
+            new = _State(rodrigues_batch(dc[:, :3]) @ R, st.t2 + dc[:, 3:5], eta + dc[:, -1], s, st.m + dm)
+            new.s = self.f_fixed * new.eta if self.fixed_focal else s + dc[:, 5]
+            ev = self.evaluate(new)
+            if ev[5] <= cost:
+                return new, ev, lam
+            lam *= 10.0
+            if lam > 1e10:
+                return None
+
 
 #: Below this RMS (px) the clicks are reproduced exactly for every practical purpose (exact synthetic clicks).
 _RMS_FLOOR = 1e-6
@@ -625,6 +641,7 @@ _ALS_SWEEPS_BEFORE_POLISH = 3
 _LM_LAMBDA0 = 1e-3
 
 
+# long: a 50-line numpy docstring for 10 parameters; the body is 25 lines of named steps
 def recover_poses(
     observations: np.ndarray,
     cameras: Sequence[Camera],
@@ -689,40 +706,14 @@ def recover_poses(
     st = prob.state_from(cams, pts)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         prob.register(st)
-        rms = float(np.sqrt(prob.evaluate(st)[5] / prob.n_obs))
-        history = [rms]
-        converged = stopped = False
-        sweeps = polish_it = 0
         n_sweeps = min(max_sweeps, _ALS_SWEEPS_BEFORE_POLISH) if accelerate else max_sweeps
-        last_good = st.copy()
-        while sweeps < n_sweeps:
-            prev = rms
-            if accelerate:
-                last_good = st.copy()
-            try:
-                rms = prob.sweep(st)
-            except np.linalg.LinAlgError:
-                rms = np.nan
-            sweeps += 1
-            history.append(rms)
-            if not np.isfinite(rms):
-                if accelerate:  # let the (descent-only) polish start from the last finite estimate
-                    st, rms = last_good, prev
-                break
-            if callback is not None and callback(sweeps, rms):
-                stopped = True
-                break
-            if rms < _RMS_FLOOR:
-                converged = True
-                break
-            if not accelerate and abs(prev - rms) <= tol * prev:
-                converged = True
-                break
+        st, rms, history, sweeps, converged, stopped = _alternate(prob, st, n_sweeps, tol, callback, accelerate)
+        polish_it = 0
         if accelerate and not (stopped or converged) and np.isfinite(rms):
             try:
                 st, polish_it, converged, stopped = prob.polish(st, max_sweeps, tol, history, callback, sweeps)
-            except np.linalg.LinAlgError:
-                rms = np.nan
+            except np.linalg.LinAlgError:  # the last estimate stands; the checks below judge it
+                pass
         q, w, p, P, r, cost = prob.evaluate(st)
     if not (np.isfinite(cost) and np.all(np.isfinite(st.m)) and np.all(st.eta > 0)):
         raise FitError(
@@ -742,3 +733,38 @@ def recover_poses(
         polish_iterations=polish_it,
         rms_history=np.asarray(history),
     )
+
+
+def _alternate(prob: _Problem, st: _State, n_sweeps: int, tol: float, callback, accelerate: bool):
+    """Up to ``n_sweeps`` sweeps of the paper's alternation (§5.1.1) from ``st``. With
+    ``accelerate`` a sweep that goes non-finite hands the last finite estimate on (the polish
+    that follows only descends). Returns ``(state, rms, history, sweeps, converged, stopped)``."""
+    rms = float(np.sqrt(prob.evaluate(st)[5] / prob.n_obs))
+    history = [rms]
+    converged = stopped = False
+    sweeps = 0
+    last_good = st.copy()
+    while sweeps < n_sweeps:
+        prev = rms
+        if accelerate:
+            last_good = st.copy()
+        try:
+            rms = prob.sweep(st)
+        except np.linalg.LinAlgError:
+            rms = np.nan
+        sweeps += 1
+        history.append(rms)
+        if not np.isfinite(rms):
+            if accelerate:  # let the (descent-only) polish start from the last finite estimate
+                st, rms = last_good, prev
+            break
+        if callback is not None and callback(sweeps, rms):
+            stopped = True
+            break
+        if rms < _RMS_FLOOR:
+            converged = True
+            break
+        if not accelerate and abs(prev - rms) <= tol * prev:
+            converged = True
+            break
+    return st, rms, history, sweeps, converged, stopped

@@ -143,57 +143,12 @@ class RBFInterpolant:
             NaN/inf input, fewer than 4 centres, coplanar centres, coincident centres with
             different values.
         """
-        X = _as_points(centres, "centres")
-        U = np.asarray(values, dtype=float)
-        vector = U.ndim == 2
-        if U.ndim == 1:
-            U = U[:, None]
-        if U.ndim != 2 or U.shape[0] != X.shape[0]:
-            raise FitError(
-                f"values must have one row per centre: {X.shape[0]} centres, values shape {np.shape(values)}"
-            )
-        if labels is None:
-            labels = [f"centre {i}" for i in range(X.shape[0])]
-        for arr, what in ((X, "position"), (U, "value")):
-            bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
-            if bad.size:
-                names = ", ".join(labels[i] for i in bad[:10])
-                raise FitError(f"{what} of {names} is not finite (NaN or inf); remove it")
-        if not (np.isfinite(length_in) and length_in > 0):
-            raise FitError(f"length_in must be a positive number of inches, got {length_in}")
-        if not (np.isfinite(smoothing) and smoothing >= 0):
-            raise FitError(f"smoothing must be >= 0, got {smoothing}")
-
+        X, U, vector, labels = _checked_inputs(centres, values, length_in, smoothing, labels)
         X, U, merged = _merge_coincident(X, U, min_separation_mm, labels)
-        n = X.shape[0]
-        if n < 4:
-            raise FitError(f"the affine part of Eq. (3) needs at least 4 non-coplanar centres, got {n}")
-        mu = X.mean(axis=0)
-        Xc = X - mu
-        sv = np.linalg.svd(Xc, compute_uv=False)
-        if sv[0] == 0 or sv[2] / sv[0] < coplanar_tol:
-            raise FitError(
-                f"the {n} centres are (nearly) coplanar (thickness ratio "
-                f"{sv[2] / max(sv[0], 1e-300):.2e} < {coplanar_tol:g}); the affine part of "
-                "Eq. (3) needs points off one plane — add a feature with different depth"
-            )
-        s = float(np.sqrt((Xc**2).sum(axis=1).mean()))
+        mu, s = _frame(X, coplanar_tol)
         L = length_in * MM_PER_INCH
-
-        A = np.zeros((n + 4, n + 4))
-        A[:n, :n] = (L / s) * np.expm1(-cdist(X, X) / L)
-        A[:n, :n][np.diag_indices(n)] += smoothing * L / s
-        P = np.column_stack([Xc / s, np.ones(n)])
-        A[:n, n:] = P
-        A[n:, :n] = P.T
-        B = np.zeros((n + 4, U.shape[1]))
-        B[:n] = U
-        cond = float(np.linalg.cond(A))
-        try:
-            sol = scipy.linalg.solve(A, B, assume_a="sym", check_finite=False)
-        except (np.linalg.LinAlgError, scipy.linalg.LinAlgError) as exc:  # pragma: no cover
-            raise FitError(f"the RBF system is singular ({exc}); check for duplicate centres") from exc
-
+        sol, cond = _solve_block_system(X, U, mu, s, L, smoothing)
+        n = X.shape[0]
         c_scaled, a_scaled = sol[:n], sol[n:]
         linear = a_scaled[:3] / s
         offset = a_scaled[3] - mu @ linear
@@ -236,6 +191,70 @@ class RBFInterpolant:
                 K @ self._coeffs_scaled + ((q - self._mu) / s) @ self._affine_scaled[:3] + self._affine_scaled[3]
             )
         return out if self._vector else out[:, 0]
+
+
+def _checked_inputs(centres, values, length_in, smoothing, labels):
+    """:meth:`RBFInterpolant.fit`'s arguments checked: ``(X (n, 3), U (n, d), vector, labels)``
+    (``vector``: the values came as (n, d)), or a FitError naming the row or argument."""
+    X = _as_points(centres, "centres")
+    U = np.asarray(values, dtype=float)
+    vector = U.ndim == 2
+    if U.ndim == 1:
+        U = U[:, None]
+    if U.ndim != 2 or U.shape[0] != X.shape[0]:
+        raise FitError(f"values must have one row per centre: {X.shape[0]} centres, values shape {np.shape(values)}")
+    if labels is None:
+        labels = [f"centre {i}" for i in range(X.shape[0])]
+    for arr, what in ((X, "position"), (U, "value")):
+        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+        if bad.size:
+            names = ", ".join(labels[i] for i in bad[:10])
+            raise FitError(f"{what} of {names} is not finite (NaN or inf); remove it")
+    if not (np.isfinite(length_in) and length_in > 0):
+        raise FitError(f"length_in must be a positive number of inches, got {length_in}")
+    if not (np.isfinite(smoothing) and smoothing >= 0):
+        raise FitError(f"smoothing must be >= 0, got {smoothing}")
+    return X, U, vector, labels
+
+
+def _frame(X: np.ndarray, coplanar_tol: float) -> tuple[np.ndarray, float]:
+    """The centres' mean ``mu`` (3,) mm and RMS radius ``s`` mm, the frame the system is solved
+    in (module Notes); a FitError when fewer than 4 centres or (nearly) coplanar ones cannot
+    determine the affine part."""
+    n = X.shape[0]
+    if n < 4:
+        raise FitError(f"the affine part of Eq. (3) needs at least 4 non-coplanar centres, got {n}")
+    mu = X.mean(axis=0)
+    Xc = X - mu
+    sv = np.linalg.svd(Xc, compute_uv=False)
+    if sv[0] == 0 or sv[2] / sv[0] < coplanar_tol:
+        raise FitError(
+            f"the {n} centres are (nearly) coplanar (thickness ratio "
+            f"{sv[2] / max(sv[0], 1e-300):.2e} < {coplanar_tol:g}); the affine part of "
+            "Eq. (3) needs points off one plane — add a feature with different depth"
+        )
+    return mu, float(np.sqrt((Xc**2).sum(axis=1).mean()))
+
+
+def _solve_block_system(X, U, mu, s: float, L: float, smoothing: float) -> tuple[np.ndarray, float]:
+    """Solve the rescaled block system of Eq. (3) (module Notes) for the values ``U`` (n, d):
+    ``(n + 4, d)`` radial then affine coefficients in the solve's frame, and the system's
+    2-norm condition number."""
+    n = X.shape[0]
+    A = np.zeros((n + 4, n + 4))
+    A[:n, :n] = (L / s) * np.expm1(-cdist(X, X) / L)
+    A[:n, :n][np.diag_indices(n)] += smoothing * L / s
+    P = np.column_stack([(X - mu) / s, np.ones(n)])
+    A[:n, n:] = P
+    A[n:, :n] = P.T
+    B = np.zeros((n + 4, U.shape[1]))
+    B[:n] = U
+    cond = float(np.linalg.cond(A))
+    try:
+        sol = scipy.linalg.solve(A, B, assume_a="sym", check_finite=False)
+    except (np.linalg.LinAlgError, scipy.linalg.LinAlgError) as exc:  # pragma: no cover
+        raise FitError(f"the RBF system is singular ({exc}); check for duplicate centres") from exc
+    return sol, cond
 
 
 def _merge_coincident(X: np.ndarray, U: np.ndarray, tol: float, labels):

@@ -177,7 +177,6 @@ def triangulate(
         Malformed observations (wrong shape, half-NaN or infinite clicks).
     """
     obs = _validate_observations(cameras, observations)
-    k, n, _ = obs.shape
     R, t, f, pp = _stack_cameras(cameras)
     seen = ~np.isnan(obs[..., 0])  # (k, n)
     n_views = seen.sum(axis=0)
@@ -187,57 +186,14 @@ def triangulate(
     d /= np.linalg.norm(d, axis=2, keepdims=True)
     d = np.where(seen[..., None], d, 0.0)
 
-    # parallax: largest pairwise angle between the rays of each point
-    cos = np.einsum("ani,bni->nab", d, d)
-    pair = seen.T[:, :, None] & seen.T[:, None, :]
-    cos = np.where(pair, cos, 1.0)
-    parallax = np.degrees(np.arccos(np.clip(cos.min(axis=(1, 2)), -1.0, 1.0)))
-    parallax = np.where(n_views >= 2, parallax, np.nan)
+    parallax = _parallax_deg(d, seen, n_views)
     near_parallel = (n_views >= 2) & (parallax < min_parallax_deg)
     solvable = (n_views >= 2) & ~near_parallel
-
-    # linear step: batched 3×3 normal equations
-    Pm = np.eye(3) - d[..., :, None] * d[..., None, :]  # (k, n, 3, 3), zero-ray rows give I
-    Pm = np.where(seen[..., None, None], Pm, 0.0)
-    A = Pm.sum(axis=0)
-    b = np.einsum("knij,kj->ni", Pm, centres)
-    A[~solvable] = np.eye(3)
-    b[~solvable] = 0.0
-    X = np.linalg.solve(A, b[..., None])[..., 0]
-
-    def cost(X):
-        uv, Xc = _project_all(R, t, f, pp, X)
-        r = np.where(seen[..., None], uv - obs, 0.0)
-        return r, Xc, (r**2).sum(axis=(0, 2))
-
-    r, Xc, c0 = cost(X)
+    X = _nearest_to_rays(d, centres, seen, solvable)
+    cameras_arrays = (R, t, f, pp)
+    r, Xc, c0 = _reprojection_cost(cameras_arrays, X, obs, seen)
     if refine:
-        for _ in range(iterations):
-            # Jacobian of u = f Xc_xy / Xc_z + pp w.r.t. the world point: (f/z)[I | −xy/z] R
-            z = np.where(seen, Xc[..., 2], 1.0)
-            Jc = np.zeros((k, n, 2, 3))
-            Jc[..., 0, 0] = Jc[..., 1, 1] = f[:, None] / z
-            Jc[..., :, 2] = -f[:, None, None] * Xc[..., :2] / z[..., None] ** 2
-            J = np.einsum("knij,kjl->knil", Jc, R)
-            J = np.where(seen[..., None, None], J, 0.0)
-            H = np.einsum("knai,knaj->nij", J, J)
-            g = np.einsum("knai,kna->ni", J, r)
-            H[~solvable] = np.eye(3)
-            g[~solvable] = 0.0
-            try:
-                step = np.linalg.solve(H, g[..., None])[..., 0]
-            except np.linalg.LinAlgError:  # pragma: no cover - guarded by the parallax test
-                break
-            X_new = X - step
-            r_new, Xc_new, c_new = cost(X_new)
-            in_front = np.all(~seen | (Xc_new[..., 2] > 0), axis=0)
-            better = solvable & (c_new < c0) & in_front
-            if not better.any():
-                break
-            X = np.where(better[:, None], X_new, X)
-            r = np.where(better[None, :, None], r_new, r)
-            Xc = np.where(better[None, :, None], Xc_new, Xc)
-            c0 = np.where(better, c_new, c0)
+        X, Xc, c0 = _gauss_newton_points(cameras_arrays, obs, seen, solvable, X, r, Xc, c0, iterations)
 
     behind = solvable & np.any(seen & (Xc[..., 2] <= 0), axis=0)
     residual = np.sqrt(c0 / np.maximum(n_views, 1))
@@ -254,6 +210,73 @@ def triangulate(
     )
 
 
+def _parallax_deg(d: np.ndarray, seen: np.ndarray, n_views: np.ndarray) -> np.ndarray:
+    """(n,) the largest angle (degrees) between the unit rays ``d`` (k, n, 3) of each point; NaN
+    for a point seen in fewer than 2 photos."""
+    cos = np.einsum("ani,bni->nab", d, d)
+    pair = seen.T[:, :, None] & seen.T[:, None, :]
+    cos = np.where(pair, cos, 1.0)
+    parallax = np.degrees(np.arccos(np.clip(cos.min(axis=(1, 2)), -1.0, 1.0)))
+    return np.where(n_views >= 2, parallax, np.nan)
+
+
+def _nearest_to_rays(d: np.ndarray, centres: np.ndarray, seen: np.ndarray, solvable: np.ndarray) -> np.ndarray:
+    """(n, 3) the point nearest each point's rays (unit ``d`` (k, n, 3) from ``centres`` (k, 3)):
+    the batched 3×3 normal equations ``Σ_v (I − d_v d_vᵀ) p = Σ_v (I − d_v d_vᵀ) c_v``; 0 where not
+    ``solvable``."""
+    Pm = np.eye(3) - d[..., :, None] * d[..., None, :]  # (k, n, 3, 3), zero-ray rows give I
+    Pm = np.where(seen[..., None, None], Pm, 0.0)
+    A = Pm.sum(axis=0)
+    b = np.einsum("knij,kj->ni", Pm, centres)
+    A[~solvable] = np.eye(3)
+    b[~solvable] = 0.0
+    return np.linalg.solve(A, b[..., None])[..., 0]
+
+
+def _reprojection_cost(cameras_arrays, X, obs, seen):
+    """Residuals ``uv − obs`` (k, n, 2) px (0 where unseen), camera-frame points (k, n, 3) and
+    each point's squared error (n,) of points ``X`` (n, 3) seen by the stacked cameras
+    ``(R, t, f, pp)``."""
+    uv, Xc = _project_all(*cameras_arrays, X)
+    r = np.where(seen[..., None], uv - obs, 0.0)
+    return r, Xc, (r**2).sum(axis=(0, 2))
+
+
+def _gauss_newton_points(cameras_arrays, obs, seen, solvable, X, r, Xc, c0, iterations: int):
+    """Gauss–Newton on each point's reprojection error from ``X`` (n, 3) (its residuals ``r``,
+    camera-frame points ``Xc`` and cost ``c0``), a step accepted only where it lowers a point's
+    error and keeps it in front of its cameras. Returns ``(X, Xc, c0)``."""
+    R, _, f, _ = cameras_arrays
+    k, n = seen.shape
+    for _ in range(iterations):
+        # Jacobian of u = f Xc_xy / Xc_z + pp w.r.t. the world point: (f/z)[I | −xy/z] R
+        z = np.where(seen, Xc[..., 2], 1.0)
+        Jc = np.zeros((k, n, 2, 3))
+        Jc[..., 0, 0] = Jc[..., 1, 1] = f[:, None] / z
+        Jc[..., :, 2] = -f[:, None, None] * Xc[..., :2] / z[..., None] ** 2
+        J = np.einsum("knij,kjl->knil", Jc, R)
+        J = np.where(seen[..., None, None], J, 0.0)
+        H = np.einsum("knai,knaj->nij", J, J)
+        g = np.einsum("knai,kna->ni", J, r)
+        H[~solvable] = np.eye(3)
+        g[~solvable] = 0.0
+        try:
+            step = np.linalg.solve(H, g[..., None])[..., 0]
+        except np.linalg.LinAlgError:  # pragma: no cover - guarded by the parallax test
+            break
+        X_new = X - step
+        r_new, Xc_new, c_new = _reprojection_cost(cameras_arrays, X_new, obs, seen)
+        in_front = np.all(~seen | (Xc_new[..., 2] > 0), axis=0)
+        better = solvable & (c_new < c0) & in_front
+        if not better.any():
+            break
+        X = np.where(better[:, None], X_new, X)
+        r = np.where(better[None, :, None], r_new, r)
+        Xc = np.where(better[None, :, None], Xc_new, Xc)
+        c0 = np.where(better, c_new, c0)
+    return X, Xc, c0
+
+
 # ---------------------------------------------------------------------------------------------
 # curves
 def _arc_length01(P: np.ndarray) -> np.ndarray:
@@ -263,7 +286,7 @@ def _arc_length01(P: np.ndarray) -> np.ndarray:
     return s / s[-1]
 
 
-def curve_observations(  # noqa: C901 - per-view checks of a drawn curve, each dropping it with a reason
+def curve_observations(
     cameras: Sequence[Camera],
     mesh_vertices,
     polyline,
@@ -310,37 +333,18 @@ def curve_observations(  # noqa: C901 - per-view checks of a drawn curve, each d
     """
     if parameterisation not in ("projected", "3d"):
         raise ValueError(f"parameterisation must be 'projected' or '3d', got {parameterisation!r}")
-    V = np.asarray(mesh_vertices, dtype=float)
-    if V.ndim != 2 or V.shape[1] != 3:
-        raise FitError(f"mesh_vertices must be (N, 3) mm, got shape {V.shape}")
-    poly = np.asarray(polyline)
-    if poly.ndim != 1 or poly.size < 2 or not np.issubdtype(poly.dtype, np.integer):
-        raise FitError(f"a curve's polyline must be >= 2 vertex indices, got {poly!r}")
-    if (poly < 0).any() or (poly >= V.shape[0]).any():
-        raise FitError(f"curve polyline indices outside the mesh (0..{V.shape[0] - 1}): {poly.tolist()}")
-    P3 = V[poly]
-    k, p = len(cameras), poly.size
-    out = np.full((k, p, 2), np.nan)
+    P3 = _curve_on_mesh(mesh_vertices, polyline)
+    k = len(cameras)
+    out = np.full((k, len(P3), 2), np.nan)
     s3 = None
     if parameterisation == "3d":
         if np.linalg.norm(np.diff(P3, axis=0), axis=1).sum() == 0:
             raise FitError("the curve's polyline has zero length on the mesh")
         s3 = _arc_length01(P3)
-
     for view, curve in drawn.items():
         if not (isinstance(view, (int, np.integer)) and 0 <= view < k):
             raise FitError(f"curve drawn in photo {view!r}, but there are only {k} photos")
-        D = np.asarray(curve, dtype=float)
-        if D.ndim != 2 or D.shape[1] != 2:
-            raise FitError(f"the curve drawn in photo {view} must be (q, 2) pixels, got {D.shape}")
-        if not np.isfinite(D).all():
-            raise FitError(f"the curve drawn in photo {view} has NaN/inf points")
-        # drop repeated points (zero-length segments) so the arc length increases strictly
-        keep = np.concatenate([[True], np.linalg.norm(np.diff(D, axis=0), axis=1) > 1e-9])
-        D = D[keep]
-        if D.shape[0] < 2:
-            raise FitError(f"the curve drawn in photo {view} needs at least 2 distinct points")
-
+        D = _drawn_line(curve, view)
         cam = cameras[view]
         if np.any(cam.depth(P3) <= 0):
             raise FitError(f"the curve's polyline is behind the camera of photo {view}")
@@ -360,6 +364,34 @@ def curve_observations(  # noqa: C901 - per-view checks of a drawn curve, each d
         out[view, :, 0] = np.interp(s, sd, D[:, 0])
         out[view, :, 1] = np.interp(s, sd, D[:, 1])
     return out
+
+
+def _curve_on_mesh(mesh_vertices, polyline) -> np.ndarray:
+    """(p, 3) the mesh polyline's points, or a FitError naming what is wrong with the mesh or indices."""
+    V = np.asarray(mesh_vertices, dtype=float)
+    if V.ndim != 2 or V.shape[1] != 3:
+        raise FitError(f"mesh_vertices must be (N, 3) mm, got shape {V.shape}")
+    poly = np.asarray(polyline)
+    if poly.ndim != 1 or poly.size < 2 or not np.issubdtype(poly.dtype, np.integer):
+        raise FitError(f"a curve's polyline must be >= 2 vertex indices, got {poly!r}")
+    if (poly < 0).any() or (poly >= V.shape[0]).any():
+        raise FitError(f"curve polyline indices outside the mesh (0..{V.shape[0] - 1}): {poly.tolist()}")
+    return V[poly]
+
+
+def _drawn_line(curve, view) -> np.ndarray:
+    """(q, 2) px the curve drawn in photo ``view`` without repeated points (so its arc length
+    increases strictly), or a FitError naming what is wrong with it."""
+    D = np.asarray(curve, dtype=float)
+    if D.ndim != 2 or D.shape[1] != 2:
+        raise FitError(f"the curve drawn in photo {view} must be (q, 2) pixels, got {D.shape}")
+    if not np.isfinite(D).all():
+        raise FitError(f"the curve drawn in photo {view} has NaN/inf points")
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(D, axis=0), axis=1) > 1e-9])
+    D = D[keep]
+    if D.shape[0] < 2:
+        raise FitError(f"the curve drawn in photo {view} needs at least 2 distinct points")
+    return D
 
 
 # ---------------------------------------------------------------------------------------------

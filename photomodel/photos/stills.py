@@ -389,7 +389,12 @@ def new_project_from_video(
     except BaseException:  # cancelled or failed: the stills written for it go too
         remove_stills(written)
         raise
-    summary = {
+    return project, warnings, _clip_summary(video, looked_at, looks, occluded, chosen, written)
+
+
+def _clip_summary(video, looked_at: int, looks, occluded, chosen, written) -> dict:
+    """What :func:`new_project_from_video` says the clip showed (its ``summary``)."""
+    return {
         "path": str(video.path),
         "frames": video.count or 0,
         "fps": video.fps,
@@ -407,4 +412,3 @@ def new_project_from_video(
             for lk, p in zip(chosen, written, strict=True)
         ],
     }
-    return project, warnings, summary

@@ -632,6 +632,7 @@ def check_photos(cameras: Sequence[Camera], photos: Sequence[np.ndarray]) -> lis
     return out
 
 
+# long: a 55-line numpy docstring for 13 parameters; the body is 30 lines of named steps
 def cylindrical_texture(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -699,6 +700,46 @@ def cylindrical_texture(
         ``cancel()`` returned True.
     """
 
+    V, F, photos, size, single_view = _check_texture_inputs(vertices, faces, cameras, photos, size, depths, single_view)
+    k = len(cameras)
+
+    def step(stage: str, fraction: float) -> None:
+        if cancel is not None and cancel():
+            raise Cancelled(f"texture extraction cancelled ({stage})")
+        if progress is not None:
+            progress(stage, fraction)
+
+    step("cylindrical raster", 0.0)
+    cmap = cylinder or cylinder_map_for(V, F, size)
+    texels = _surface_texels(cmap, V, F, size, single_view)
+    weight_maps = np.zeros((k, size, size), np.float32)
+    g = np.zeros((k, texels.idx.size), np.float32)
+    colors = np.zeros((k, texels.idx.size, 3), np.uint8)
+    for i, (cam, photo) in enumerate(zip(cameras, photos, strict=True)):
+        step(f"photo {i + 1} of {k}", 0.15 + 0.7 * i / k)
+        depth = render_depth(cam, V, F) if depths is None else depths[i]
+        g[i], colors[i] = _photo_weight(texels, cam, photo, depth, size, feather_mm, tol_mm)
+        weight_maps[i].reshape(-1)[texels.idx] = g[i]
+
+    step("blending and hole filling", 0.85)
+    image, coverage = _blend_texels(texels, colors, g, size, fill)
+    vidx, sfaces, seam_uv = seam_render_mesh(cmap, V, F)
+    return CylindricalTexture(
+        image=image,
+        weight_maps=weight_maps,
+        uv=cmap.uv(V),
+        coverage=coverage,
+        surface=texels.raster.surface,
+        cylinder=cmap,
+        seam_vertices=vidx,
+        seam_faces=sfaces,
+        seam_uv=seam_uv,
+    )
+
+
+def _check_texture_inputs(vertices, faces, cameras, photos, size, depths, single_view):
+    """:func:`cylindrical_texture`'s arguments checked: ``(V, F, photos, size, single_view)``, or a
+    ValueError naming the one that does not fit."""
     V, F = check_mesh(vertices, faces)
     size = int(size)
     if not 8 <= size <= 16384:
@@ -710,17 +751,25 @@ def cylindrical_texture(
         single_view = np.asarray(single_view, dtype=np.float32).reshape(-1)
         if single_view.shape != (len(V),):
             raise ValueError(f"single_view must be ({len(V)},), got shape {np.shape(single_view)}")
-    k = len(cameras)
+    return V, F, photos, size, single_view
 
-    def step(stage: str, fraction: float) -> None:
-        if cancel is not None and cancel():
-            raise Cancelled(f"texture extraction cancelled ({stage})")
-        if progress is not None:
-            progress(stage, fraction)
 
-    step("cylindrical raster", 0.0)
-    cmap = cylinder or cylinder_map_for(V, F, size)
+@dataclass
+class _SurfaceTexels:
+    """The texels on the mesh's surface: their indices into the flattened ``size × size`` raster
+    ``idx`` (t,), surface points ``pts`` (t, 3) float32 mm, unit normals ``nrm`` (t, 3) and the texel's
+    size on the surface ``(sy, sx)`` mm (for a feathering width in mm), and the single-view
+    fallback's weight ``single_view`` (t,) float32 (None: blend everywhere)."""
 
+    raster: CylinderRaster
+    idx: np.ndarray
+    pts: np.ndarray
+    nrm: np.ndarray
+    texel_mm: tuple[float, float]
+    single_view: np.ndarray | None
+
+
+def _surface_texels(cmap: CylinderMap, V, F, size: int, single_view) -> _SurfaceTexels:
     normals = vertex_normals(V, F)
     attr = np.column_stack([normals, np.zeros(len(V)) if single_view is None else single_view])
     raster = rasterise_cylinder(cmap, V, F, size, attr)
@@ -729,32 +778,30 @@ def cylindrical_texture(
     pts = raster.points.reshape(-1, 3)[idx]  # float32: see project_points
     nrm = raster.attributes.reshape(-1, 4)[idx, :3]
     nrm /= np.maximum(np.sqrt(np.einsum("ij,ij->i", nrm, nrm)), np.float32(1e-12))[:, None]
-
-    # texel size on the surface, for a feathering width in mm
     r_med = float(np.median(raster.radius[surf])) if idx.size else 1.0
     sx = r_med * (cmap.phi_range[1] - cmap.phi_range[0]) / size
     sy = (cmap.y_range[1] - cmap.y_range[0]) / size
-
-    weight_maps = np.zeros((k, size, size), np.float32)
-    g = np.zeros((k, idx.size), np.float32)
-    colors = np.zeros((k, idx.size, 3), np.uint8)
-    binary = np.ones((size, size), bool)
-    for i, (cam, photo) in enumerate(zip(cameras, photos, strict=True)):
-        step(f"photo {i + 1} of {k}", 0.15 + 0.7 * i / k)
-        depth = render_depth(cam, V, F) if depths is None else depths[i]
-        uv, z = project_points(cam, pts)
-        P = positional_certainty(cam, pts, nrm)  # > 0: front-facing (§5.2.1, consideration 1)
-        vis = depth_visible(cam, pts, depth, tol_mm=tol_mm, uv=uv, z=z) & (P > 0)
-        binary.fill(True)  # texels off the surface are not a visibility boundary
-        binary.reshape(-1)[idx] = vis
-        Fk = feather(binary, feather_mm, pixel_size=(sy, sx)).reshape(-1)[idx]
-        g[i] = Fk * P  # F_k is 0 wherever the texel is not visible
-        colors[i] = sample_image(photo, uv)
-        weight_maps[i].reshape(-1)[idx] = g[i]
-
-    step("blending and hole filling", 0.85)
     s = None if single_view is None else raster.attributes.reshape(-1, 4)[idx, 3]
-    blended, total = blend(colors, apply_single_view(g, s))
+    return _SurfaceTexels(raster, idx, pts, nrm, (sy, sx), s)
+
+
+def _photo_weight(texels: _SurfaceTexels, cam, photo, depth, size: int, feather_mm: float, tol_mm: float):
+    """One photograph's blending weight ``g_k = F_k P_k`` (t,) of each surface texel and its
+    colour there (t, 3) uint8 (§5.2.1)."""
+    idx, pts = texels.idx, texels.pts
+    uv, z = project_points(cam, pts)
+    P = positional_certainty(cam, pts, texels.nrm)  # > 0: front-facing (§5.2.1, consideration 1)
+    vis = depth_visible(cam, pts, depth, tol_mm=tol_mm, uv=uv, z=z) & (P > 0)
+    binary = np.ones((size, size), bool)  # texels off the surface are not a visibility boundary
+    binary.reshape(-1)[idx] = vis
+    Fk = feather(binary, feather_mm, pixel_size=texels.texel_mm).reshape(-1)[idx]
+    return Fk * P, sample_image(photo, uv)  # F_k is 0 wherever the texel is not visible
+
+
+def _blend_texels(texels: _SurfaceTexels, colors, g, size: int, fill: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The blended ``size × size`` texture (uint8 RGB), holes filled when ``fill``, and its coverage."""
+    idx = texels.idx
+    blended, total = blend(colors, apply_single_view(g, texels.single_view))
     image = np.zeros((size * size, 3), np.float32)
     image[idx] = blended
     coverage = np.zeros(size * size, bool)
@@ -763,20 +810,7 @@ def cylindrical_texture(
     coverage = coverage.reshape(size, size)
     if fill:
         image = fill_holes(image, coverage)
-    image = np.clip(np.round(image), 0, 255).astype(np.uint8)
-
-    vidx, sfaces, seam_uv = seam_render_mesh(cmap, V, F)
-    return CylindricalTexture(
-        image=image,
-        weight_maps=weight_maps,
-        uv=cmap.uv(V),
-        coverage=coverage,
-        surface=surf,
-        cylinder=cmap,
-        seam_vertices=vidx,
-        seam_faces=sfaces,
-        seam_uv=seam_uv,
-    )
+    return np.clip(np.round(image), 0, 255).astype(np.uint8), coverage
 
 
 def render_cylindrical(

@@ -373,6 +373,23 @@ def _read_stored_png(project, name: str, rel: str, what: str, shape: tuple) -> n
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB) if img.ndim == 3 else img
 
 
+def _read_stored_weight_maps(project, name: str, result, S: int) -> tuple[list[str], np.ndarray]:
+    """The photo ids of a stored texture's weight maps and the maps (k, S, S) float32 in [0, 1];
+    ProjectError naming a photo without a camera or a file that cannot be read."""
+    ids = list(result.texture.weight_maps)
+    missing = [pid for pid in ids if pid not in result.cameras]
+    if missing:
+        raise ProjectError(
+            f"expression {name!r}: the texture has weight maps of photos without a camera "
+            f"({', '.join(missing)}); extract the texture again"
+        )
+    weights = np.zeros((len(ids), S, S), np.float32)
+    for i, pid in enumerate(ids):
+        png = _read_stored_png(project, name, result.texture.weight_maps[pid], f"weight map of photo {pid!r}", (S, S))
+        weights[i] = png.astype(np.float32) / 255.0
+    return ids, weights
+
+
 def load_stored_texture(
     project, name: str, vertices: np.ndarray, faces: np.ndarray, *, face_mask: np.ndarray | None = None
 ) -> TextureJob:
@@ -424,17 +441,7 @@ def load_stored_texture(
         raise ValueError(f"vertices must be (N, 3) and faces (M, 3), got {V.shape} and {F.shape}")
     S = int(stored.size)
     image = _read_stored_png(project, name, stored.image, "texture", (S, S, 3))
-    ids = list(stored.weight_maps)
-    missing = [pid for pid in ids if pid not in result.cameras]
-    if missing:
-        raise ProjectError(
-            f"expression {name!r}: the texture has weight maps of photos without a camera "
-            f"({', '.join(missing)}); extract the texture again"
-        )
-    weights = np.zeros((len(ids), S, S), np.float32)
-    for i, pid in enumerate(ids):
-        png = _read_stored_png(project, name, stored.weight_maps[pid], f"weight map of photo {pid!r}", (S, S))
-        weights[i] = png.astype(np.float32) / 255.0
+    ids, weights = _read_stored_weight_maps(project, name, result, S)
     cmap = stored_cylinder(stored, V, F)
     coverage = weights.max(axis=0, initial=0.0) > 0.0
     try:

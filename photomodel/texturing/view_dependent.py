@@ -277,7 +277,11 @@ class ViewDependentTexture:
             return self._render_per_vertex(camera, views, V, background)
         if method == "shader":
             return self._render_shader(camera, views, V, background, align)
+        return self._render_numpy(camera, views, V, background, align)
 
+    def _render_numpy(self, camera: Camera, views, V, background, align: bool) -> ViewDependentRender:
+        """:meth:`render`'s ``"numpy"`` method: the shader's per-pixel weights and blend in
+        numpy/OpenCV from a position buffer."""
         sv = np.zeros(len(self.vertices), np.float32) if self.single_view is None else self.single_view
         attr = np.column_stack([self.normals, sv]).astype(np.float32)
         res = get_renderer().render(camera, self.vertices, self.faces, colors=attr)
