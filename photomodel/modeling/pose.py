@@ -735,7 +735,7 @@ def recover_poses(
     )
 
 
-def _alternate(prob: _Problem, st: _State, n_sweeps: int, tol: float, callback, accelerate: bool):
+def _alternate(prob: PoseProblem, st: _State, n_sweeps: int, tol: float, callback, accelerate: bool):
     """Up to ``n_sweeps`` sweeps of the paper's alternation (§5.1.1) from ``st``. With
     ``accelerate`` a sweep that goes non-finite hands the last finite estimate on (the polish
     that follows only descends). Returns ``(state, rms, history, sweeps, converged, stopped)``."""
