@@ -9,7 +9,9 @@ imports Qt.
 
 Every edit goes through one primitive (``set_point``, ``set_hidden``, ``set_curve``,
 ``insert_photo`` …) that validates its input, changes the project, marks it modified and emits
-one event; each returns what it replaced, which is what an undo needs.
+one event; each returns what it replaced, which is what an undo needs. The primitives are the
+model's base class :class:`app.studio.edits.ProjectEdits`; the undo stack that replays them is the
+window's ``QUndoStack`` of :mod:`app.qt.commands` (one command per primitive).
 
 The work is done by Qt-free collaborators in :mod:`app.studio` that the model calls and whose
 results it stores and announces: :mod:`~app.studio.fitting` (fits, overlays, click residuals),
@@ -59,6 +61,11 @@ IMAGE_SUFFIXES = PHOTO_SUFFIXES
 
 class StudioModel(ProjectEdits):
     """The project being edited in the studio, with its fits, as an observable object.
+
+    The model holds the state and announces its changes; its edit primitives are its base
+    :class:`app.studio.edits.ProjectEdits` (what :mod:`app.qt.commands` undoes), and the work —
+    fitting, texturing, the rig, tracking, the project file — is done by the collaborators of
+    :mod:`app.studio`, whose results it stores.
 
     Parameters
     ----------
