@@ -77,8 +77,9 @@ def test_texture_made_in_a_worker_has_the_photographs_colours(opened, mesh):
     job = compute_texture(inputs, 256, progress=lambda *a: steps.append(a))
     assert job.expression == "smile" and job.texture.image.shape == (256, 256, 3) and steps
     err = _texel_error(job, project, fits["smile"], mesh)
-    # a quarter of the stored texture's side: a texel spans more of the skin, so a looser bound
-    assert np.median(err) < 8.0
+    # a quarter of the stored texture's side, a texel spans more of the skin: measured median 3.7,
+    # 90th percentile 13 grey levels
+    assert np.median(err) < 8.0 and np.percentile(err, 90) < 25.0
 
 
 def test_texture_needs_a_fitted_mesh(opened, mesh):
