@@ -9,7 +9,14 @@ imports Qt.
 
 Every edit goes through one primitive (``set_point``, ``set_hidden``, ``set_curve``,
 ``insert_photo`` …) that validates its input, changes the project, marks it modified and emits
-one event; each returns what it replaced, which is what an undo needs.
+one event; each returns what it replaced, which is what an undo needs. The primitives are the
+model's base class :class:`app.studio.edits.ProjectEdits`; the undo stack that replays them is the
+window's ``QUndoStack`` of :mod:`app.qt.commands` (one command per primitive).
+
+The work is done by Qt-free collaborators in :mod:`app.studio` that the model calls and whose
+results it stores and announces: :mod:`~app.studio.fitting` (fits, overlays, click residuals),
+:mod:`~app.studio.texturing`, :mod:`~app.studio.rig`, :mod:`~app.studio.tracking` and
+:mod:`~app.studio.project_file` (open, save, autosave, recovery).
 
 The fitted result of an expression (:class:`FitState`) is kept in memory with the fitted
 vertices; the mesh files (``results/<expr>.obj|.ply``) are written when the project is saved,
@@ -21,183 +28,44 @@ likewise; the texture stored with an opened project is read back from its files
 from __future__ import annotations
 
 import copy
-import math
 import os
-import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from photomodel.camera import PRESET_AZIMUTH_DEG, Camera
-from photomodel.errors import FaceStudioError, FitError, ProjectError
-from photomodel.exchange.mesh import read_mesh
+from app.studio import fitting, project_file, rig, texturing
+from app.studio.edits import ProjectEdits
+from app.studio.events import Signal
+from app.studio.fitting import FitState, Fitting
+from app.studio.project_file import (
+    AUTOSAVE_SUFFIX,
+    DEFAULT_EXPRESSION,
+    MissingPhotos,
+    autosave_path,
+    newer_autosave,
+    remove_autosave,
+)
+from app.studio.rig import RigState
+from app.studio.texturing import TextureState
+from app.studio.tracking import TrackJob
+from photomodel.errors import FaceStudioError, ProjectError
 from photomodel.modeling.checklist import ChecklistItem, click_checklist
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.modeling.refit import Refitter
-from photomodel.modeling.wireframe import mesh_lines, photo_overlay
-from photomodel.photos.exif import focal_mm_guess_from_exif
-from photomodel.photos.reading import PHOTO_SUFFIXES, photo_size
-from photomodel.project import (
-    CurveDef,
-    Expression,
-    Feature,
-    Photo,
-    Project,
-    load_project,
-    load_rig_shapes,
-    new_project,
-    record_fit,
-    save_project,
-    save_results,
-    store_rig,
-)
-from photomodel.rig.build import RigBuilder
-from photomodel.texturing.job import (
-    encode_texture_outputs,
-    load_stored_texture,
-    load_texture_photos,
-    photo_side_for,
-    texture_expression,
-)
-from photomodel.texturing.view_dependent import ViewDependentTexture
-from tracking.face_from_project import register_expression
+from photomodel.photos.reading import PHOTO_SUFFIXES
+from photomodel.project import Expression, Photo, Project, record_fit
 
-#: Suffix of the autosave file written next to the project (``<file>.autosave``).
-AUTOSAVE_SUFFIX = ".autosave"
-#: Name of the first expression of a new project.
-DEFAULT_EXPRESSION = "neutral"
 #: Image files a photo may be: the modeling core's one list (:mod:`photomodel.photos.reading`).
 IMAGE_SUFFIXES = PHOTO_SUFFIXES
 
 
-class Signal:
-    """A minimal observer: ``connect(callback)``, ``disconnect(callback)``, ``emit(*args)``.
-
-    Callbacks run synchronously, in connection order, on the emitting thread (the model is
-    edited on the GUI thread only; workers hand results back through Qt signals).
-    """
-
-    def __init__(self):
-        self._slots: list[Callable] = []
-
-    def connect(self, callback: Callable) -> None:
-        if callback not in self._slots:
-            self._slots.append(callback)
-
-    def disconnect(self, callback: Callable) -> None:
-        if callback in self._slots:
-            self._slots.remove(callback)
-
-    def emit(self, *args) -> None:
-        for slot in list(self._slots):
-            slot(*args)
-
-
-class MissingPhotos(ProjectError):
-    """A project opened fine but some of its photos are missing or unreadable."""
-
-
-@dataclass
-class TextureState:
-    """The texture extracted for one expression's fit (:mod:`photomodel.texturing.job`).
-
-    Attributes
-    ----------
-    job : photomodel.texturing.job.TextureJob, the texture, its weight maps and inputs.
-    vertices : (N, 3) float mm, the fitted mesh it was made for (a new fit drops it).
-    saved : bool, its files (``results/<expr>_texture.png`` …) are written next to the project.
-    photos_from : Project or None, where to read the photographs of a texture read back from its
-        files (``job.inputs.photos`` None: :func:`photomodel.texturing.job.load_stored_texture`).
-    """
-
-    job: object
-    vertices: np.ndarray
-    saved: bool = False
-    photos_from: object = None
-    _view_dependent: object = None
-
-    def view_dependent(self):
-        """The :class:`photomodel.texturing.view_dependent.ViewDependentTexture` of the same photos (built once).
-
-        A stored texture's photographs are read now (:class:`ProjectError` names a missing one).
-        """
-        if self._view_dependent is None:
-            i = self.job.inputs
-            if i.photos is None:
-                if self.photos_from is None:
-                    raise ProjectError(f"the photographs of the texture of {i.expression!r} are not known")
-                load_texture_photos(self.photos_from, i, photo_side_for(self.job.size))
-            self._view_dependent = ViewDependentTexture(
-                i.vertices, i.faces, i.cameras, i.photos, single_view=self.job.single_view
-            )
-        return self._view_dependent
-
-
-@dataclass
-class RigState:
-    """The project's rig as the studio shows it: blend shapes on the fitted neutral, with weights.
-
-    Attributes
-    ----------
-    neutral : str, the expression the rig was made on (``project.rig.neutral``).
-    vertices : (N, 3) float mm, that expression's fitted mesh.
-    names : list of str, the rig's ARKit shapes, then the photographed expressions.
-    deltas : (k, N, 3) float mm, each shape's displacement from ``vertices``; a photographed
-        expression's is its fitted mesh registered onto the neutral
-        (:func:`tracking.face_from_project.register_expression`) minus the neutral.
-    arkit : int, how many of ``names`` are the rig's (ARKit) shapes; the rest are photographed.
-    weights : (k,) float in [0, 1].
-    """
-
-    neutral: str
-    vertices: np.ndarray
-    names: list
-    deltas: np.ndarray
-    arkit: int
-    weights: np.ndarray
-
-    def posed(self) -> np.ndarray:
-        """The neutral plus Σ wᵢ·Δᵢ."""
-        used = np.flatnonzero(self.weights)
-        if not len(used):
-            return self.vertices
-        return self.vertices + np.tensordot(self.weights[used], self.deltas[used], axes=1)
-
-
-@dataclass
-class FitState:
-    """The last fit of one expression as the studio holds it.
-
-    Attributes
-    ----------
-    cameras : dict photo id → Camera
-    points_3d : dict feature → (3,) float mm
-    vertices : (N, 3) float mm or None
-        The fitted mesh (None when a loaded project's mesh file is missing).
-    report : dict, the fit report (:func:`photomodel.modeling.fit.build_report`).
-    result : photomodel.modeling.fit.FitResult or None
-        The in-memory result (warm start of the next refit); None for a loaded result.
-    elapsed_s : float or None, wall time of the fit.
-    saved : bool, the mesh files on disk hold ``vertices``.
-    overlays : dict photo id → photomodel.modeling.wireframe.PhotoOverlay
-        The wireframe overlays of this fit computed so far (by the fit's worker for the photo on
-        screen, by :meth:`StudioModel.overlay` for the others when they are shown).
-    """
-
-    cameras: dict
-    points_3d: dict
-    vertices: np.ndarray | None
-    report: dict
-    result: object = None
-    elapsed_s: float | None = None
-    saved: bool = False
-    overlays: dict = field(default_factory=dict)
-
-
-class StudioModel:
+class StudioModel(ProjectEdits):
     """The project being edited in the studio, with its fits, as an observable object.
+
+    The model holds the state and announces its changes; its edit primitives are its base
+    :class:`app.studio.edits.ProjectEdits` (what :mod:`app.qt.commands` undoes), and the work —
+    fitting, texturing, the rig, tracking, the project file — is done by the collaborators of
+    :mod:`app.studio`, whose results it stores.
 
     Parameters
     ----------
@@ -251,8 +119,7 @@ class StudioModel:
         self.fit_changed.connect(self._drop_rig)  # a new neutral or expression: read the rig again
         self._mesh_loader = mesh_loader
         self._mesh = None
-        self._lines = None
-        self._refitter = None
+        self._fitting: Fitting | None = None
         self._residual_cache = None
         self.generation = 0  # bumped whenever the project object is replaced (stale fits are dropped)
         self.fits: dict[str, FitState] = {}
@@ -265,7 +132,7 @@ class StudioModel:
         self.active_curve: str | None = None
         self.expression_name: str | None = None
         self.project: Project
-        self._set_project(project if project is not None else self._blank_project("untitled"))
+        self._set_project(project if project is not None else project_file.blank_project(self.mesh, "untitled"))
 
     # ------------------------------------------------------------------ generic mesh
     @property
@@ -278,18 +145,21 @@ class StudioModel:
         return self._mesh
 
     @property
+    def fitting(self) -> Fitting:
+        """The :class:`app.studio.fitting.Fitting` of the generic mesh that runs this model's fits."""
+        if self._fitting is None:
+            self._fitting = Fitting(self.mesh)
+        return self._fitting
+
+    @property
     def overlay_lines(self):
         """The wireframe overlay's lines on the generic mesh (:func:`photomodel.modeling.wireframe.mesh_lines`)."""
-        if self._lines is None:
-            self._lines = mesh_lines(self.mesh.vertices, self.mesh.faces, curves=self.mesh.curves)
-        return self._lines
+        return self.fitting.overlay_lines
 
     @property
     def refitter(self):
         """The :class:`photomodel.modeling.refit.Refitter` shared by every fit of this model."""
-        if self._refitter is None:
-            self._refitter = Refitter(self.mesh)
-        return self._refitter
+        return self.fitting.refitter
 
     # ------------------------------------------------------------------ look-ups
     @property
@@ -376,17 +246,8 @@ class StudioModel:
         The fitted mesh's vertex of the feature (the project's, or the generic mesh's named
         feature) projected with the photo's fitted camera — the ghost marker of the photo view.
         """
-        fit = self.fit(expression)
-        if fit is None or photo_id not in fit.cameras:
-            return None
         vertex = self.project.feature(feature).vertex if self.has_feature(feature) else self.mesh.features.get(feature)
-        if fit.vertices is not None and vertex is not None:
-            X = np.asarray(fit.vertices)[int(vertex)]
-        elif feature in fit.points_3d:
-            X = np.asarray(fit.points_3d[feature])
-        else:
-            return None
-        return fit.cameras[photo_id].project(X[None])[0]
+        return fitting.predicted_uv(self.fit(expression), photo_id, feature, vertex)
 
     # ------------------------------------------------------------------ selection
     def set_expression(self, name: str) -> None:
@@ -410,31 +271,7 @@ class StudioModel:
             self.active_curve = name
             self.active_curve_changed.emit(name)
 
-    # ------------------------------------------------------------------ edit primitives
-    def set_point(
-        self, expression: str, photo_id: str, feature: str, uv, *, source: str = "user", confidence: float | None = None
-    ) -> np.ndarray | None:
-        """Place (``uv`` (2,) px), move, or delete (``uv=None``) a click; returns the old one.
-
-        ``source``: ``"user"`` (the artist's edit: an automatic click placed or dragged becomes
-        the artist's) or ``"auto"`` with the landmark detector's ``confidence`` (automatic
-        landmarks, or an undo putting an automatic click back); see :meth:`Photo.set_click`.
-        """
-        photo = self.photo(photo_id, expression)
-        if not self.has_feature(feature):
-            raise ProjectError(f"no feature named {feature!r} is defined in the project")
-        old = photo.points.get(feature)
-        if uv is None:
-            photo.remove_click(feature)
-        else:
-            try:
-                photo.set_click(feature, uv, source=source, confidence=confidence)
-            except ValueError as exc:
-                raise ProjectError(str(exc)) from None
-        self._touch()
-        self.points_changed.emit(expression, photo_id, feature)
-        return None if old is None else old.copy()
-
+    # ------------------------------------------------------------------ where a click or curve came from
     def curve_source(self, expression: str, photo_id: str, curve: str) -> str:
         """``"auto"`` or ``"user"``: who drew a curve in a photo."""
         return self.photo(photo_id, expression).curve_source(curve)
@@ -444,224 +281,23 @@ class StudioModel:
         photo = self.photo(photo_id, expression)
         return photo.click_source(feature), photo.confidence.get(feature)
 
-    def set_hidden(self, expression: str, photo_id: str, feature: str, hidden: bool) -> bool:
-        """Mark a feature (in)visible in one photo; returns the old state."""
-        photo = self.photo(photo_id, expression)
-        if not self.has_feature(feature):
-            raise ProjectError(f"no feature named {feature!r} is defined in the project")
-        old = feature in photo.hidden
-        if hidden:
-            photo.hidden.add(feature)
-        else:
-            photo.hidden.discard(feature)
-        self._touch()
-        self.points_changed.emit(expression, photo_id, feature)
-        return old
-
-    def set_feature_pose(self, name: str, pose: bool) -> bool:
-        """Flag a feature as a pose feature (§5.1.1) or unflag it (then only refinement uses it,
-        e.g. one the views cannot see twice); returns the old flag."""
-        if not self.has_feature(name):
-            raise ProjectError(f"no feature named {name!r} is defined in the project")
-        f = self.project.feature(name)
-        old, f.pose = f.pose, bool(pose)
-        self._touch()
-        self.features_changed.emit()
-        return old
-
-    def set_curve(
-        self, expression: str, photo_id: str, curve: str, polyline, source: str = "user"
-    ) -> np.ndarray | None:
-        """Draw (``polyline`` (m, 2) px, m >= 2) or delete (None) a curve in a photo; returns the old.
-        ``source``: who drew it — the artist (default; redrawing an automatic curve makes it
-        the artist's) or ``"auto"`` (undoing an edit of an automatic curve)."""
-        photo = self.photo(photo_id, expression)
-        if not self.has_curve(curve):
-            raise ProjectError(f"no curve named {curve!r} is defined in the project")
-        old = photo.curves.get(curve)
-        try:
-            photo.set_curve(curve, polyline, source=source)
-        except ValueError as exc:
-            raise ProjectError(str(exc)) from None
-        self._touch()
-        self.curves_changed.emit(expression, photo_id, curve)
-        return None if old is None else old.copy()
-
-    def add_feature(self, feature: Feature, index: int | None = None) -> None:
-        if self.has_feature(feature.name):
-            raise ProjectError(f"feature {feature.name!r} is already defined")
-        if not 0 <= feature.vertex < len(self.mesh.vertices):
-            raise ProjectError(f"feature {feature.name!r}: vertex {feature.vertex} is not a generic-mesh vertex")
-        feats = self.project.features
-        feats.insert(len(feats) if index is None else index, feature)
-        self._touch()
-        self.features_changed.emit()
-
-    def remove_feature(self, name: str) -> tuple[Feature, int]:
-        """Remove an unused feature definition; returns it and its index (for undo)."""
-        for e in self.project.expressions:
-            for p in e.photos:
-                if name in p.points or name in p.hidden:
-                    raise ProjectError(f"feature {name!r} is still clicked in photo {p.id!r} of {e.name!r}")
-        i = self.project.feature_names().index(name)
-        f = self.project.features.pop(i)
-        self._touch()
-        self.features_changed.emit()
-        return f, i
-
-    def add_curve_def(self, curve: CurveDef, index: int | None = None) -> None:
-        if self.has_curve(curve.name):
-            raise ProjectError(f"curve {curve.name!r} is already defined")
-        curves = self.project.curves
-        curves.insert(len(curves) if index is None else index, curve)
-        self._touch()
-        self.features_changed.emit()
-
-    def remove_curve_def(self, name: str) -> tuple[CurveDef, int]:
-        for e in self.project.expressions:
-            for p in e.photos:
-                if name in p.curves:
-                    raise ProjectError(f"curve {name!r} is still drawn in photo {p.id!r} of {e.name!r}")
-        i = [c.name for c in self.project.curves].index(name)
-        c = self.project.curves.pop(i)
-        self._touch()
-        self.features_changed.emit()
-        return c, i
-
-    def insert_photo(self, expression: str, photo: Photo, index: int | None = None) -> None:
-        e = self._expr(expression)
-        if any(p.id == photo.id for p in e.photos):
-            raise ProjectError(f"expression {expression!r} already has a photo {photo.id!r}")
-        if photo.preset not in PRESET_AZIMUTH_DEG:
-            raise ProjectError(
-                f"unknown camera preset {photo.preset!r}; choose one of {', '.join(sorted(PRESET_AZIMUTH_DEG))}"
-            )
-        e.photos.insert(len(e.photos) if index is None else index, photo)
-        self._drop_fit(expression)
-        self._touch()
-        self.photos_changed.emit(expression)
-
-    def remove_photo(self, expression: str, photo_id: str) -> tuple[Photo, int]:
-        e = self._expr(expression)
-        photo = e.photo(photo_id)
-        i = e.photos.index(photo)
-        e.photos.pop(i)
-        self._drop_fit(expression)
-        self._touch()
-        self.photos_changed.emit(expression)
-        return photo, i
-
-    def set_photo_preset(self, expression: str, photo_id: str, preset: str) -> str:
-        if preset not in PRESET_AZIMUTH_DEG:
-            raise ProjectError(
-                f"unknown camera preset {preset!r}; choose one of {', '.join(sorted(PRESET_AZIMUTH_DEG))}"
-            )
-        photo = self.photo(photo_id, expression)
-        old, photo.preset = photo.preset, preset
-        self._touch()
-        self.photo_changed.emit(expression, photo_id)
-        return old
-
-    def set_photo_camera_group(self, expression: str, photo_id: str, group: str | None) -> str | None:
-        """Name the camera (and lens) a photo was taken with: photos of one group share one focal
-        length (``Photo.camera_group``); ``None``: a camera of its own. Returns the old group."""
-        if group is not None and (not isinstance(group, str) or not group):
-            raise ProjectError(f"a camera group is a non-empty name or none, got {group!r}")
-        photo = self.photo(photo_id, expression)
-        old, photo.camera_group = photo.camera_group, group
-        self._touch()
-        self.photo_changed.emit(expression, photo_id)
-        return old
-
-    def add_expression(self, name: str, index: int | None = None, expression: Expression | None = None) -> None:
-        if not isinstance(name, str) or not name.strip():
-            raise ProjectError("an expression needs a non-empty name")
-        if any(e.name == name for e in self.project.expressions):
-            raise ProjectError(f"an expression called {name!r} already exists")
-        expr = expression if expression is not None else Expression(name=name)
-        exprs = self.project.expressions
-        exprs.insert(len(exprs) if index is None else index, expr)
-        self._touch()
-        self.expression_name = name
-        self.expression_changed.emit(name)
-
-    def remove_expression(self, name: str) -> tuple[Expression, int]:
-        e = self.project.expression(name)
-        i = self.project.expressions.index(e)
-        self.project.expressions.pop(i)
-        self.fits.pop(name, None)
-        self._drop_texture(name)
-        self._touch()
-        if self.expression_name == name:
-            exprs = self.project.expressions
-            self.expression_name = exprs[min(i, len(exprs) - 1)].name if exprs else None
-            self.load_stored_texture(self.expression_name)
-            self.expression_changed.emit(self.expression_name)
-        return e, i
-
-    def photo_from_file(
-        self,
-        path: str | os.PathLike,
-        expression: str | None = None,
-        preset: str = "front",
-        focal_mm_guess: float | None = None,
-    ) -> Photo:
-        """A :class:`Photo` for an image file, with an unused id.
-
-        The file is checked and its size read by :func:`photomodel.photos.reading.photo_size`
-        (EXIF orientation applied: the oriented size). ``focal_mm_guess`` (mm on a 36 mm-wide
-        sensor) when given, else the focal length the file's EXIF records
-        (:func:`photomodel.photos.exif.focal_mm_guess_from_exif`), else none. Raises
-        :class:`~photomodel.errors.PhotoError` (a :class:`ProjectError`) naming the file when it
-        is missing, truncated or not an image.
-        """
-
-        path = Path(path).absolute()
-        w, h = photo_size(path)
-        e = self._expr(expression)
-        ids = {p.id for p in e.photos}
-        stem = path.stem.split(".")[0] or "photo"
-        pid, k = stem, 2
-        while pid in ids:
-            pid, k = f"{stem}_{k}", k + 1
-        if focal_mm_guess is None:
-            focal_mm_guess = focal_mm_guess_from_exif(path, w, h)
-        return Photo(id=pid, path=str(path), width=w, height=h, preset=preset, focal_mm_guess=focal_mm_guess)
-
-    # ------------------------------------------------------------------ fits
+    # ------------------------------------------------------------------ fits (app.studio.fitting)
     def click_residuals(self, expression: str | None = None) -> dict[str, dict[str, float]]:
-        """Reprojection error (px) of every click with a fitted 3D point: photo id → feature → px.
-
-        ``|project(camera, X) − click|`` with the fitted camera of the photo and the fitted
-        position of the feature; clicks edited after the fit are measured against that fit.
-        """
+        """Reprojection error (px) of every click with a fitted 3D point: photo id → feature → px
+        (:func:`app.studio.fitting.click_residuals`); clicks edited after the fit are measured
+        against that fit."""
         fit = self.fit(expression)
-        out: dict[str, dict[str, float]] = {}
         if fit is None:
-            return out
+            return {}
         # every view and the panel ask after each edit and fit: computed once per state
         key = (expression or self.expression_name, id(fit), self.revision, self.generation)
-        if self._residual_cache is not None and self._residual_cache[0] == key:
-            return self._residual_cache[1]
-        self._residual_cache = (key, out)
-        for photo in self._expr(expression).photos:
-            cam = fit.cameras.get(photo.id)
-            if cam is None:
-                continue
-            names = [n for n in photo.points if n in fit.points_3d and n not in photo.hidden]
-            if not names:
-                continue
-            X = np.array([fit.points_3d[n] for n in names])
-            uv = np.array([photo.points[n] for n in names])
-            err = np.linalg.norm(cam.project(X) - uv, axis=1)
-            out[photo.id] = {n: float(e) for n, e in zip(names, err, strict=True)}
-        return out
+        if self._residual_cache is None or self._residual_cache[0] != key:
+            self._residual_cache = (key, fitting.click_residuals(fit, self._expr(expression).photos))
+        return self._residual_cache[1]
 
     def worst_clicks(self, count: int = 20, expression: str | None = None) -> list[tuple[float, str, str]]:
         """The ``count`` largest click residuals, ``(px, photo id, feature)``, largest first."""
-        rows = [(px, pid, n) for pid, d in self.click_residuals(expression).items() for n, px in d.items()]
-        rows.sort(key=lambda r: (-r[0], r[1], r[2]))
-        return rows[:count]
+        return fitting.worst_clicks(self.click_residuals(expression), count)
 
     def fit_snapshot(self) -> Project:
         """A deep copy of the project for a worker thread (edits go on while it fits)."""
@@ -670,75 +306,30 @@ class StudioModel:
     def warm_start(self, expression: str):
         """What the next refit of ``expression`` starts from: the last fit's result or vertices (or None)."""
         prev = self.fits.get(expression)
-        if prev is None:
-            return None
-        return prev.result if prev.result is not None else prev.vertices
+        return None if prev is None else prev.warm_start()
 
     def compute_fit(self, snapshot: Project, expression: str, *, previous=None, progress=None, cancel=None):
-        """Fit ``expression`` of a snapshot; safe to call from a worker thread.
-
-        With ``previous`` (:meth:`warm_start`, taken on the GUI thread) the refinement is
-        warm-started from the last fit (:class:`photomodel.modeling.refit.Refitter`); otherwise this is the
-        full pipeline of :func:`photomodel.modeling.fit.fit_expression`. Returns ``(FitResult, elapsed_s,
-        cold)`` where ``cold`` says the fit had to build cached RBF solves (a new set of
-        constrained vertices).
-        """
-        refitter = self.refitter
-        misses = refitter.deformer.misses
-        t0 = time.perf_counter()
-        result = refitter.fit(snapshot, expression, previous=previous, progress=progress, cancel=cancel)
-        return result, time.perf_counter() - t0, refitter.deformer.misses != misses
+        """Fit ``expression`` of a snapshot (worker thread): ``(FitResult, elapsed_s, cold)``,
+        :meth:`app.studio.fitting.Fitting.compute`; ``previous`` is :meth:`warm_start`."""
+        return self.fitting.compute(snapshot, expression, previous=previous, progress=progress, cancel=cancel)
 
     def compute_overlays(self, result, photo_ids, lines) -> dict:
-        """The wireframe overlays of a fit in some of its photos; safe to call from a worker thread.
-
-        Parameters
-        ----------
-        result : photomodel.modeling.fit.FitResult, the fit (cameras and vertices).
-        photo_ids : iterable of str; ids the fit has no camera for are skipped.
-        lines : photomodel.modeling.wireframe.MeshLines, :attr:`overlay_lines` read on the GUI thread.
-
-        Returns
-        -------
-        dict photo id → photomodel.modeling.wireframe.PhotoOverlay, for :meth:`apply_fit` ``overlays``.
-        """
-
-        cams = dict(zip(result.photo_ids, result.cameras, strict=True))
-        faces = self.mesh.faces
-        return {pid: photo_overlay(cams[pid], result.vertices, faces, lines) for pid in photo_ids if pid in cams}
+        """The wireframe overlays of a fit in some of its photos (worker thread), for :meth:`apply_fit`
+        ``overlays``: :meth:`app.studio.fitting.Fitting.overlays`."""
+        return self.fitting.overlays(result, photo_ids, lines)
 
     def overlay(self, photo_id: str, expression: str | None = None):
-        """The wireframe overlay (:class:`photomodel.modeling.wireframe.PhotoOverlay`) of a fit in one photo, or None.
-
-        Taken from the fit's cache (filled by the fit's worker); computed here, on the calling
-        thread, and cached when missing (a photo that was not on screen when the fit ran).
-        """
-        fit = self.fit(expression)
-        if fit is None or fit.vertices is None or photo_id not in fit.cameras:
-            return None
-        found = fit.overlays.get(photo_id)
-        if found is None:
-            found = fit.overlays[photo_id] = photo_overlay(
-                fit.cameras[photo_id], fit.vertices, self.mesh.faces, self.overlay_lines
-            )
-        return found
+        """The wireframe overlay of a fit in one photo, or None: from the fit's cache, else computed
+        on the calling thread and cached (:meth:`app.studio.fitting.Fitting.overlay`)."""
+        return self.fitting.overlay(self.fit(expression), photo_id)
 
     def apply_fit(self, expression: str, result, elapsed_s: float | None = None, overlays: dict | None = None) -> None:
         """Store a :class:`photomodel.modeling.fit.FitResult` as the expression's fit (GUI thread).
 
         ``overlays`` (:meth:`compute_overlays` of this result) fill the fit's overlay cache.
         """
-        e = record_fit(self.project, self._expr(expression).name, result)
-        self.fits[expression] = FitState(
-            e.cameras,
-            e.points_3d,
-            np.asarray(result.vertices),
-            result.report,
-            result,
-            elapsed_s,
-            saved=False,
-            overlays=dict(overlays or {}),
-        )
+        record = record_fit(self.project, self._expr(expression).name, result)
+        self.fits[expression] = FitState.of_result(record, result, elapsed_s, overlays)
         self._drop_texture(expression)  # it was made for the previous mesh
         self._touch()
         self.fit_changed.emit(expression)
@@ -750,30 +341,14 @@ class StudioModel:
             self._drop_texture(expression)
             self.fit_changed.emit(expression)
 
-    # ------------------------------------------------------------------ textures
+    # ------------------------------------------------------------------ textures (app.studio.texturing)
     def texture_inputs(self, expression: str | None = None):
-        """What texturing the expression's fit needs, read on the GUI thread (no pixels yet).
-
-        Returns ``(snapshot Project, expression name, vertices (N, 3), faces, face_mask)``;
-        :class:`ProjectError` / :class:`FitError` when the expression is not fitted with a mesh.
-        """
-
+        """What texturing the expression's fit needs, read on the GUI thread (no pixels yet):
+        :func:`app.studio.texturing.texture_inputs`."""
         name = expression or self.expression_name
-        fit = self.fit(name)
-        if name is None or fit is None:
-            raise FitError(f"expression {name!r} is not fitted yet: fit it first (Fit → Fit)")
-        if fit.vertices is None:
-            raise FitError(f"expression {name!r}: its fitted mesh is missing; fit it again")
-        return self.fit_snapshot(), name, fit.vertices, self.mesh.faces, self.mesh.face_mask
+        return texturing.texture_inputs(self.project, name, self.fit(name), self.mesh)
 
-    @staticmethod
-    def compute_texture(inputs, size: int, *, progress=None, cancel=None):
-        """Extract the texture of :meth:`texture_inputs` (worker thread): a TextureJob."""
-
-        snapshot, name, vertices, faces, face_mask = inputs
-        return texture_expression(
-            snapshot, name, size, face_mask=face_mask, vertices=vertices, faces=faces, progress=progress, cancel=cancel
-        )
+    compute_texture = staticmethod(texturing.compute_texture)
 
     def apply_texture(self, job, vertices: np.ndarray) -> bool:
         """Store a texture (GUI thread) if the expression's fit is still the mesh it was made for.
@@ -808,121 +383,61 @@ class StudioModel:
         name = expression or self.expression_name
         if name is None or name in self.textures:
             return self.textures.get(name) if name is not None else None
-        if name in self._stored_tried or self.project.path is None:
-            return None
-        try:
-            e = self.project.expression(name)
-        except ProjectError:
-            return None
         fit = self.fits.get(name)
-        if e.result is None or e.result.texture is None or fit is None:
+        if name in self._stored_tried or not texturing.stored_texture_wanted(self.project, name, fit):
             return None
         self._stored_tried.add(name)
         try:
-            if fit.vertices is None:
-                raise ProjectError(f"expression {name!r}: its fitted mesh {e.result.mesh_obj} could not be read")
-
-            job = load_stored_texture(self.project, name, fit.vertices, self.mesh.faces, face_mask=self.mesh.face_mask)
+            tex = texturing.read_stored_texture(self.project, name, fit, self.mesh)
         except (FaceStudioError, OSError, ValueError) as exc:
             message = f"the stored texture of {name!r} is not shown: {exc}"
             self.texture_problems[name] = message
             self.texture_load_failed.emit(name, message)
             return None
-        tex = self.textures[name] = TextureState(job, fit.vertices, saved=True, photos_from=self.project)
+        self.textures[name] = tex
         self.texture_changed.emit(name)
         return tex
 
-    # ------------------------------------------------------------------ files
-    # ------------------------------------------------------------------ the rig
+    # ------------------------------------------------------------------ the rig (app.studio.rig)
     def rig(self) -> RigState | None:
         """The project's rig with its weights (read once per project and fit), or None: no rig
         (``facestudio rig``, :meth:`set_rig`), or it cannot be shown (:attr:`rig_problem` says why)."""
-        if self._rig_read:
-            return self._rig
-        self._rig_read, self._rig, self.rig_problem = True, None, None
-        record = self.project.rig
-        if record is None:
-            return None
-        fit = self.fits.get(record.neutral)
-        if fit is None or fit.vertices is None:
-            self.rig_problem = f"the rig's neutral {record.neutral!r} has no fitted mesh"
-            return None
-        try:
-            names, deltas = load_rig_shapes(self.project)
-        except ProjectError as exc:
-            self.rig_problem = str(exc)
-            return None
-        if deltas.shape[1:] != fit.vertices.shape:
-            self.rig_problem = f"the rig has {deltas.shape[1]} vertices, the fitted mesh {len(fit.vertices)}"
-            return None
-        extra_names, extra = self._photographed_deltas(record.neutral, fit.vertices)
-        D = np.concatenate([deltas, np.reshape(extra, (-1, *fit.vertices.shape))])
-        self._rig = RigState(record.neutral, fit.vertices, list(names) + extra_names, D, len(names), np.zeros(len(D)))
+        if not self._rig_read:
+            self._rig, self.rig_problem = rig.read_rig(self.project, self.fits, self.mesh.face_mask)
+            self._rig_read = True
         return self._rig
-
-    def _photographed_deltas(self, neutral: str, N: np.ndarray) -> tuple[list[str], list[np.ndarray]]:
-        """The other fitted expressions as shapes on the neutral: registered onto it as tracking's
-        face model does (rigid when fitted with its cameras, else a similarity), minus it."""
-        names, deltas = [], []
-        weight = self.mesh.face_mask.astype(float)
-        for e in self.project.expressions:
-            fit = self.fits.get(e.name)
-            if e.name == neutral or fit is None or fit.vertices is None or fit.vertices.shape != N.shape:
-                continue
-            try:
-                shared = getattr(e, "cameras_from", None) == neutral
-                moved, _ = register_expression(fit.vertices, N, weight, scale=not shared)
-            except FitError:
-                continue
-            names.append(e.name)
-            deltas.append(moved - N)
-        return names, deltas
 
     def rig_vertices(self) -> np.ndarray | None:
         """The rig's neutral + Σ wᵢ·Δᵢ while any weight is not 0, else None."""
-        rig = self.rig()
-        if rig is None or not np.any(rig.weights):
+        shown = self.rig()
+        if shown is None or not np.any(shown.weights):
             return None
-        return rig.posed()
+        return shown.posed()
 
     def set_rig_weight(self, name: str, weight: float) -> None:
         """Set one shape's weight (clipped to [0, 1]); the project is not changed."""
-        rig = self.rig()
-        if rig is None:
+        shown = self.rig()
+        if shown is None:
             raise ProjectError("the project has no rig to pose")
-        if name not in rig.names:
-            raise ProjectError(f"the rig has no shape {name!r}")
-        w = float(np.clip(weight, 0.0, 1.0))
-        i = rig.names.index(name)
-        if rig.weights[i] != w:
-            rig.weights[i] = w
+        if shown.set_weight(name, weight):
             self.rig_weights_changed.emit()
 
     def reset_rig_weights(self) -> None:
         """Every weight back to 0: the neutral."""
-        rig = self.rig()
-        if rig is not None and np.any(rig.weights):
-            rig.weights[:] = 0.0
+        shown = self.rig()
+        if shown is not None and shown.reset():
             self.rig_weights_changed.emit()
 
     def compute_rig(self, neutral: str | None = None):
-        """``(neutral, RigResult)``: the rig of a fitted expression (default: the rig's, else the
-        first), as ``facestudio rig`` makes it (:class:`photomodel.rig.build.RigBuilder`); a few
-        seconds, for a worker. Reads only the fitted mesh, taken now."""
-        name = neutral or (self.project.rig.neutral if self.project.rig is not None else None)
-        name = name or (self.project.expressions[0].name if self.project.expressions else None)
-        fit = self.fits.get(name) if name is not None else None
-        if fit is None or fit.vertices is None:
-            raise FitError(f"expression {name!r} is not fitted; fit it first")
-        vertices = fit.vertices.copy()
-        return lambda: (name, RigBuilder(self.mesh).rig(vertices))
+        """A job returning ``(neutral, RigResult)``: the rig of a fitted expression (default: the
+        rig's, else the first) as ``facestudio rig`` makes it, for a worker
+        (:func:`app.studio.rig.rig_job`). Reads only the fitted mesh, taken now."""
+        return rig.rig_job(self.project, self.fits, self.mesh, neutral)
 
-    def set_rig(self, neutral: str, rig) -> None:
+    def set_rig(self, neutral: str, made) -> None:
         """Store a rig (:meth:`compute_rig`'s result) in the project (``results/rig.npz`` written
         now next to the project file; the project is then modified) and show it."""
-        if self.project.path is None:
-            raise ProjectError("save the project first: the rig is written next to the project file")
-        store_rig(self.project, neutral=neutral, names=rig.names, deltas=rig.deltas, report=dict(rig.report))
+        rig.store_new_rig(self.project, neutral, made)
         self._touch()
         self._drop_rig()
 
@@ -930,17 +445,18 @@ class StudioModel:
         self._rig, self._rig_read, self.rig_problem = None, False, None
         self.rig_changed.emit()
 
+    # ------------------------------------------------------------------ tracking (app.studio.tracking)
+    def track_job(self, video: str | os.PathLike, out_dir=None, max_frames: int | None = None, **settings) -> TrackJob:
+        """A :class:`app.studio.tracking.TrackJob` tracking ``video`` with the saved project file
+        (results in ``out_dir``, default ``<project folder>/results/track_<video stem>``), to run in
+        a worker; ``settings`` are :func:`tracking.run.track_video`'s (``correct_frame``,
+        ``correct_pose`` …). :class:`ProjectError` when the project has no file yet."""
+        return TrackJob.prepare(self.project.path, video, out_dir, max_frames, **settings)
+
+    # ------------------------------------------------------------------ the file (app.studio.project_file)
     def new(self, name: str = "untitled") -> None:
         """Replace the project by a new one with the default features and curves."""
-        self._set_project(self._blank_project(name))
-
-    def _blank_project(self, name: str) -> Project:
-        m = self.mesh
-        features = [Feature(n, m.features[n], pose=True) for n in m.initial_features]
-        curves = [CurveDef(n, v) for n, v in m.curves.items()]
-        p = new_project(name, features=features, curves=curves)
-        p.expressions.append(Expression(name=DEFAULT_EXPRESSION))
-        return p
+        self._set_project(project_file.blank_project(self.mesh, name))
 
     def open(self, path: str | os.PathLike, *, recover: bool = False, allow_missing_photos: bool = False) -> None:
         """Open a project file; the current project is kept when anything is wrong.
@@ -955,35 +471,10 @@ class StudioModel:
 
         The fitted meshes are read (:class:`FitState`) and the first expression's stored texture
         (:meth:`load_stored_texture`); a texture file that cannot be read does not stop the opening.
-
-        Raises
-        ------
-        ProjectError
-            unreadable or malformed file (the message names the field), features outside the
-            generic mesh, or (:class:`MissingPhotos`) missing photos.
+        Raises :class:`ProjectError` as :func:`app.studio.project_file.open_project` does.
         """
-        path = Path(path).absolute()
-        source = autosave_path(path) if recover else path
-        project = load_project(source)
-        project.path = path
-        # absolute in memory (relative on disk): a photo held by an undo command stays valid
-        # whatever folder the project is saved to next
-        for e in project.expressions:
-            for photo in e.photos:
-                photo.path = project.resolve(photo.path).as_posix()
-        project.check_vertices(len(self.mesh.vertices))
-        if not allow_missing_photos:
-            try:
-                project.check_photos()
-            except ProjectError as exc:
-                missing = MissingPhotos(str(exc))
-                missing.problems = getattr(exc, "problems", [])
-                raise missing from None
-        fits = {}
-        for e in project.expressions:
-            if e.result is not None:
-                fits[e.name] = self._loaded_fit(project, e)
-        self._set_project(project, fits)
+        opened = project_file.open_project(path, self.mesh, recover=recover, allow_missing_photos=allow_missing_photos)
+        self._set_project(*opened)
         if recover:
             self._touch()
 
@@ -993,45 +484,12 @@ class StudioModel:
         The project comes back without a file (save asks where) and marked modified; missing
         photos show as placeholders. Raises :class:`ProjectError` for an unreadable file.
         """
-        path = Path(path).absolute()
-        project = load_project(path)
-        project.path = None
-        for e in project.expressions:
-            for photo in e.photos:
-                photo.path = (path.parent / photo.path).absolute().as_posix()
-        project.check_vertices(len(self.mesh.vertices))
-        fits = {e.name: self._loaded_fit(project, e, path.parent) for e in project.expressions if e.result is not None}
-        self._set_project(project, fits)
+        self._set_project(*project_file.open_recovery(path, self.mesh))
         self._touch()
-
-    def _loaded_fit(self, project: Project, e: Expression, folder: Path | None = None) -> FitState:
-        vertices = None
-        for rel in (e.result.mesh_ply, e.result.mesh_obj):
-            if rel is None:
-                continue
-            f = project.resolve(rel) if folder is None else (folder / rel).absolute()
-            if f.is_file():
-                try:
-                    v, _ = read_mesh(f)
-                except Exception:  # a broken result mesh loses the overlay, not the project
-                    continue
-                if v.shape == self.mesh.vertices.shape:
-                    vertices = v
-                    break
-        return FitState(
-            dict(e.result.cameras),
-            dict(e.result.points_3d),
-            vertices,
-            e.result.report,
-            None,
-            None,
-            saved=vertices is not None,
-        )
 
     def save(self, path: str | os.PathLike | None = None) -> Path:
         """Save (atomically) to ``path`` (default: the project's file), with the fitted meshes and
-        textures not yet saved there written first (:func:`photomodel.project.results.save_results`,
-        as ``facestudio fit`` and ``facestudio texture`` do).
+        textures not yet saved there written first (:func:`app.studio.project_file.save_with_results`).
 
         Relative paths are rewritten for the new folder on "save as"; the autosave file is
         removed afterwards.
@@ -1040,58 +498,13 @@ class StudioModel:
             if self.project.path is None:
                 raise ProjectError("the project has no file yet; choose where to save it")
             path = self.project.path
-        target = Path(path).absolute()
         old_path = self.project.path
-        moved = old_path is None or target.parent != old_path.parent
-        fits, textures = self._results_to_write(target.parent, moved)
-        written = save_results(self.project, target, fits=fits, faces=self.mesh.faces, textures=textures)
-        for fit in self.fits.values():
-            fit.saved = fit.vertices is not None
-        for tex in self.textures.values():
-            tex.saved = True
-        if moved:
-            self._take_written_paths(written)
-        self.project.path = written
-        remove_autosave(written)
+        written = project_file.save_with_results(self.project, path, self.fits, self.textures, self.mesh.faces)
         self._autosaved_revision = self.revision
         self._set_modified(False)
         if written != old_path:
             self.path_changed.emit(written)
         return written
-
-    def _results_to_write(self, folder: Path, moved: bool) -> tuple[dict, list]:
-        """``(fits, textures)`` for :func:`~photomodel.project.results.save_results` into ``folder``:
-        the fitted meshes and textures held in memory and not yet saved there."""
-        fits = {
-            name: fit.vertices
-            for name, fit in self.fits.items()
-            if fit.vertices is not None
-            and self.project.expression(name).result is not None
-            and (moved or not fit.saved or not self._meshes_on_disk(name))
-        }
-        textures = [
-            (tex.job, *encode_texture_outputs(self.project, tex.job, folder))
-            for tex in self.textures.values()
-            if moved or not tex.saved
-        ]
-        return fits, textures
-
-    def _meshes_on_disk(self, name: str) -> bool:
-        """Whether the mesh files the expression's result names are there: a fit put back by an
-        undo names the files of the fit it replaced, which a save since has removed
-        (:func:`photomodel.project.results.save_results`), so it is written again."""
-        r = self.project.expression(name).result
-        return all(p is not None and self.project.resolve(p).is_file() for p in (r.mesh_obj, r.mesh_ply))
-
-    def _take_written_paths(self, written: Path) -> None:
-        """After "save as": result and generic-mesh paths as written, relative to the new folder
-        (photo paths are absolute in memory, see :meth:`open`)."""
-        fresh = load_project(written)
-        for e_old, e_new in zip(self.project.expressions, fresh.expressions, strict=True):
-            if e_old.result is not None and e_new.result is not None:
-                e_old.result.mesh_obj, e_old.result.mesh_ply = e_new.result.mesh_obj, e_new.result.mesh_ply
-                e_old.result.texture = e_new.result.texture
-        self.project.generic_mesh = fresh.generic_mesh
 
     def autosave(self, recovery: str | os.PathLike | None = None) -> Path | None:
         """Write ``<file>.autosave`` if there are changes since the last save or autosave.
@@ -1103,17 +516,10 @@ class StudioModel:
         """
         if not self.modified or self.revision == self._autosaved_revision:
             return None
-        if self.project.path is None:
-            if recovery is None:
-                return None
-            target = Path(recovery).absolute()
-        else:
-            target = autosave_path(self.project.path)
-        snapshot = copy.copy(self.project)  # save_project sets .path on what it saves
-        save_project(snapshot, target)
-        bak = target.with_name(target.name + ".bak")
-        if bak.exists():  # save_project keeps the previous autosave as a backup; one file is enough
-            bak.unlink()
+        target = project_file.autosave_target(self.project, recovery)
+        if target is None:
+            return None
+        project_file.write_autosave(self.project, target)
         self._autosaved_revision = self.revision
         return target
 
@@ -1153,48 +559,17 @@ class StudioModel:
         self.load_stored_texture(self.expression_name)
 
 
-def autosave_path(path: str | os.PathLike) -> Path:
-    """``<path>.autosave``: where the studio autosaves the project stored at ``path``."""
-    path = Path(path)
-    return path.with_name(path.name + AUTOSAVE_SUFFIX)
-
-
-def newer_autosave(path: str | os.PathLike) -> Path | None:
-    """The autosave of ``path`` if it exists and is newer than the project file, else None."""
-    a = autosave_path(path)
-    try:
-        if a.stat().st_mtime > Path(path).stat().st_mtime:
-            return a
-    except OSError:
-        return None
-    return None
-
-
-def remove_autosave(path: str | os.PathLike) -> None:
-    for f in (autosave_path(path), autosave_path(path).with_name(autosave_path(path).name + ".bak")):
-        try:
-            f.unlink()
-        except FileNotFoundError:
-            pass
-
-
-def camera_summary(camera: Camera) -> str:
-    """``"f 85.2 mm, 612 mm away"``: a fitted camera in words for tool tips."""
-    return f"f {camera.focal_mm:.1f} mm, {float(np.linalg.norm(camera.center)):.0f} mm away"
-
-
-def format_px(value: float | None) -> str:
-    return "–" if value is None or not math.isfinite(value) else f"{value:.2f} px"
-
-
 __all__ = [
     "AUTOSAVE_SUFFIX",
+    "DEFAULT_EXPRESSION",
+    "IMAGE_SUFFIXES",
     "FaceStudioError",
     "FitState",
     "MissingPhotos",
     "RigState",
     "Signal",
     "StudioModel",
+    "TextureState",
     "autosave_path",
     "newer_autosave",
     "remove_autosave",

@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
-import app.studio_state  # noqa: E402
+import app.studio.fitting  # noqa: E402
 from app.qt.commands import SetPointCommand  # noqa: E402
 from app.qt.workers import FitController  # noqa: E402
 from app.studio_state import StudioModel  # noqa: E402
@@ -29,7 +29,7 @@ def overlay_threads(monkeypatch):
         calls.append(threading.get_ident())
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(app.studio_state, "photo_overlay", recorded)  # where the studio's model looks it up
+    monkeypatch.setattr(app.studio.fitting, "photo_overlay", recorded)  # where the studio's fitting looks it up
     return calls
 
 
