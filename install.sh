@@ -44,6 +44,9 @@ PY=${PYTHON:-python3}
 # files' structure with pygltflib only) where npm is not installed
 if command -v npm >/dev/null 2>&1; then
   (cd tools/gltf-validator && npm install --no-audit --no-fund --silent)
+elif [ "${FACESTUDIO_REQUIRE_VALIDATOR:-}" = "1" ]; then
+  echo "npm not found, and FACESTUDIO_REQUIRE_VALIDATOR=1 (CI) needs the glTF validator: install Node.js and npm" >&2
+  exit 1
 else
   echo "npm not found: the glTF validator is not installed (tests check exported .glb files with pygltflib only)" >&2
 fi

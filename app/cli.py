@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import json
 import re
 import signal
@@ -893,7 +894,7 @@ def error_json(exc: Exception, message: str | None = None) -> dict:
     return out
 
 
-def permission_message(exc: PermissionError) -> str:
+def permission_message(exc: OSError) -> str:
     """What a user reads when the disk refuses a write: the folder, and what to do."""
     where = Path(exc.filename) if exc.filename else None
     if where is not None and not where.is_dir():
@@ -920,7 +921,10 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except FaceStudioError as e:
         return _report_error(args, e)
-    except PermissionError as e:  # a folder the user cannot write to, wherever a command writes
+    except OSError as e:
+        # a folder the user cannot write to (its permissions, a read-only disk), wherever a command writes
+        if not isinstance(e, PermissionError) and e.errno != errno.EROFS:
+            raise
         return _report_error(args, e, permission_message(e))
     except KeyboardInterrupt:
         print("facestudio: cancelled; nothing was written", file=sys.stderr)

@@ -27,10 +27,13 @@ Methods, same data, same start:
 A method **fails** on a draw when it raises, when its result is implausible
 (:func:`photomodel.modeling.camera_solve.plausibility_problem`: a point behind a camera, a flattened or
 exploded face, an absurd focal length), or when its cameras are more than 5° off the truth
-on average. ``same_minimum``: draws on which our RMS over every click is within 2 % or 0.01 px
-of the peer's, or below it. Errors are measured after a similarity alignment onto the true
-points; per-variant figures are medians over the draws both methods solved. Times: each draw
-is timed once per method; ``time_ms`` is the median over the variant's draws.
+on average. ``both_solved``: draws neither method failed; ``same_minimum``: those of them on
+which our RMS over every click is within 2 % or 0.01 px of the peer's, or below it (a draw the
+peer failed is not counted either way: it has no minimum to compare with). Errors are measured
+after a similarity alignment onto the true points; per-variant figures are medians over the
+draws both methods solved (-1 when there is none); ``worst_rot_err_deg`` is the largest over
+every draw the method solved. Times: each draw is timed once per method; ``time_ms`` is the
+median over the variant's draws.
 
 Outlier draws (5-camera rig, σ = 1 px): 1–3 clicks moved 30–80 px in a random direction; they
 are not in ``variants``. ``culprits_named``: draws in which every moved click is among
@@ -140,11 +143,12 @@ def score(cams, pts, obs, rig, head, generic):
 
 def run_variant(spec, true_pts, generic, draws, rng, log):
     name, k, az, sigma, grouped = spec
-    rows = {"ours": [], "peer": []}
+    rows = {"ours": [], "peer": []}  # every draw the method solved
+    paired = {"ours": [], "peer": []}  # the draws both solved
     times = {"ours": [], "peer": []}
     fails = {"ours": 0, "peer": 0}
     degenerate = {"ours": 0, "peer": 0}
-    same = 0
+    same = both = 0
     suspects_nonempty = 0
     als = None
     for d in range(draws):
@@ -176,10 +180,11 @@ def run_variant(spec, true_pts, generic, draws, rng, log):
         if acc_p is not None:
             rows["peer"].append(acc_p)
         if acc_o is not None and acc_p is not None:
+            both += 1
             ro, rp = acc_o["reproj_rms_px"], acc_p["reproj_rms_px"]
             same += bool(ro <= 1.02 * rp or ro <= rp + 0.01)
-        elif acc_o is not None:
-            same += 1  # the peer did not reach a minimum: ours is at least as low
+            paired["ours"].append(acc_o)
+            paired["peer"].append(acc_p)
         if d == 0:
             als = run_als(obs, init, generic, rig, head)
     out = {
@@ -192,14 +197,15 @@ def run_variant(spec, true_pts, generic, draws, rng, log):
         "ours_failures": fails["ours"],
         "peer_failures": fails["peer"],
         "same_minimum": same,
+        "both_solved": both,
         "degenerate": degenerate["ours"],
         "peer_degenerate": degenerate["peer"],
         "suspects_nonempty": suspects_nonempty,
     }
     for m in ("ours", "peer"):
-        r = rows[m]
+        r = paired[m]
         out[m] = {key: float(np.median([x[key] for x in r])) if r else -1.0 for key in KEYS}
-        out[m]["worst_rot_err_deg"] = float(max((x["rot_err_deg"] for x in r), default=-1.0))
+        out[m]["worst_rot_err_deg"] = float(max((x["rot_err_deg"] for x in rows[m]), default=-1.0))
         out[m]["time_ms"] = float(np.median(times[m]))
     out["ours"]["time_ratio_to_peer"] = out["ours"]["time_ms"] / out["peer"]["time_ms"]
     out["ours_als"] = als
@@ -292,7 +298,7 @@ def run(draws: int, outlier_draws: int, log) -> dict:
         variants.append(v)
         log(
             f"{v['name']:<9} {v['clicks']:<26} fail {v['ours_failures']}/{v['peer_failures']}  same "
-            f"{v['same_minimum']}/{draws}  ms {v['ours']['time_ms']:.1f}/{v['peer']['time_ms']:.1f}  "
+            f"{v['same_minimum']}/{v['both_solved']}  ms {v['ours']['time_ms']:.1f}/{v['peer']['time_ms']:.1f}  "
             f"[{time.perf_counter() - t0:.0f} s]"
         )
     outliers = run_outliers(true_pts, generic, outlier_draws, rng, log)
@@ -306,7 +312,7 @@ def run(draws: int, outlier_draws: int, log) -> dict:
 
 def print_table(out: dict) -> None:
     hdr = (
-        f"{'variant':<10} {'clicks':<26} {'draws':>5} {'fail ours/peer':>14} {'same min':>8} {'degen':>5} "
+        f"{'variant':<10} {'clicks':<26} {'draws':>5} {'fail ours/peer':>14} {'same/both':>9} {'degen':>5} "
         f"{'rot° ours/peer':>15} {'focal % ours/peer':>18} {'3D mm ours/peer':>16} {'ms ours/peer':>14} "
         f"{'speed-up':>8}"
     )
@@ -314,9 +320,10 @@ def print_table(out: dict) -> None:
     print("-" * len(hdr))
     for v in out["variants"]:
         o, p = v["ours"], v["peer"]
+        same = f"{v['same_minimum']}/{v['both_solved']}"
         print(
             f"{v['name']:<10} {v['clicks']:<26} {v['draws']:5d} {v['ours_failures']:>6d}/{v['peer_failures']:<7d} "
-            f"{v['same_minimum']:8d} {v['degenerate']:5d} {o['rot_err_deg']:7.3f}/{p['rot_err_deg']:<7.3f} "
+            f"{same:>9} {v['degenerate']:5d} {o['rot_err_deg']:7.3f}/{p['rot_err_deg']:<7.3f} "
             f"{o['focal_err_pct']:8.2f}/{p['focal_err_pct']:<9.2f} "
             f"{o['point_err_mm']:7.2f}/{p['point_err_mm']:<8.2f} "
             f"{o['time_ms']:6.1f}/{p['time_ms']:<7.1f} {p['time_ms'] / o['time_ms']:8.1f}"

@@ -1,15 +1,27 @@
 """``fit``, ``texture`` and ``track`` in a project folder the user cannot write to: a clear error
 naming the folder (one JSON error object with ``--json``), no traceback, the project untouched.
 
-Root ignores permission bits, so as root the folder is made immutable (``chattr +i``, which
-refuses even root with EPERM, a PermissionError too); the tests skip where neither works."""
+Two ways a folder refuses writes, each a parameter of the tests:
+
+* ``permissions`` — its permission bits (``chmod 555``). Root ignores them, so as root the folder
+  is made immutable (``chattr +i``, which refuses even root with EPERM, a PermissionError too);
+  skipped where root cannot ``chattr`` (a filesystem without the attribute);
+* ``read-only`` — a read-only disk (EROFS): as root the folder is bind-mounted read-only onto itself
+  (``mount --bind D D; mount -o remount,bind,ro D``); where that is refused (not root, or a
+  container without the capability) every write under the folder fails with ``OSError(EROFS)``
+  injected at the writers (``os.open``, ``open``, ``os.mkdir``). This one always runs.
+"""
 
 from __future__ import annotations
 
+import builtins
+import errno
+import io
 import json
 import os
 import shutil
 import subprocess
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -18,7 +30,7 @@ from app.cli import main
 
 
 def _lock(folder: Path) -> bool:
-    """Make ``folder`` unwritable; False if this machine cannot."""
+    """Make ``folder`` unwritable by its permissions; False if this machine cannot."""
     if os.geteuid() != 0:
         folder.chmod(0o555)
         return True
@@ -35,28 +47,104 @@ def _unlock(folder: Path) -> None:
         subprocess.run(["chattr", "-i", str(folder)], capture_output=True)
 
 
-@pytest.fixture
-def locked(fitted_project_copy):
-    """The fitted sample project whose folder and results folder cannot be written to."""
-    folders = [fitted_project_copy.parent / "results", fitted_project_copy.parent]
-    locked = [f for f in folders if _lock(f)]
-    if len(locked) < len(folders):
-        for f in locked:
-            _unlock(f)
-        pytest.skip("cannot make a folder unwritable here (root without chattr)")
-    probe = fitted_project_copy.parent / "probe"
+def _writable(folder: Path) -> bool:
+    probe = folder / "probe"
     try:
         probe.write_text("x")
-    except PermissionError:
-        pass
-    else:
-        probe.unlink()
-        for f in folders:
+    except OSError:
+        return False
+    probe.unlink()
+    return True
+
+
+@contextmanager
+def _permissions_refused(folders: list[Path]):
+    locked = [f for f in folders if _lock(f)]
+    try:
+        if len(locked) < len(folders):
+            pytest.skip("cannot make a folder unwritable by its permissions here (root without chattr)")
+        if _writable(folders[-1]):
+            pytest.skip("the folder stays writable (a filesystem without permissions)")
+        yield
+    finally:
+        for f in locked:
             _unlock(f)
-        pytest.skip("the folder stays writable (a filesystem without permissions)")
-    yield fitted_project_copy
-    for f in folders:
-        _unlock(f)
+
+
+def _mount_read_only(folder: Path) -> bool:
+    """Bind-mount ``folder`` read-only onto itself (root); False, and nothing mounted, if refused."""
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        return False
+    if subprocess.run(["mount", "--bind", str(folder), str(folder)], capture_output=True).returncode != 0:
+        return False
+    if subprocess.run(["mount", "-o", "remount,bind,ro", str(folder)], capture_output=True).returncode != 0:
+        subprocess.run(["umount", str(folder)], capture_output=True)
+        return False
+    return True
+
+
+def _refuse_writes_under(monkeypatch, folder: Path) -> None:
+    """Every write under ``folder`` fails as on a read-only disk: ``OSError(EROFS)`` from the calls
+    the program's writers go through (the atomic writer's ``mkstemp`` uses ``os.open``; folders are
+    made with ``os.mkdir``), reads pass."""
+    root = folder.resolve()
+
+    def inside(path) -> bool:
+        if isinstance(path, int):  # a file descriptor: already open
+            return False
+        p = Path(os.fsdecode(path)).absolute()
+        return p == root or root in p.parents or root in p.resolve().parents
+
+    def refuse(path):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS), os.fsdecode(path))
+
+    real_os_open, real_open, real_mkdir = os.open, builtins.open, os.mkdir
+
+    def os_open(path, flags, *args, **kwargs):
+        if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC) and inside(path):
+            refuse(path)
+        return real_os_open(path, flags, *args, **kwargs)
+
+    def open_(file, mode="r", *args, **kwargs):
+        if any(c in mode for c in "wax+") and inside(file):
+            refuse(file)
+        return real_open(file, mode, *args, **kwargs)
+
+    def mkdir(path, *args, **kwargs):
+        if inside(path) and not os.path.exists(path):  # an existing folder: EEXIST, as on a disk
+            refuse(path)
+        return real_mkdir(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", os_open)
+    monkeypatch.setattr(builtins, "open", open_)
+    monkeypatch.setattr(io, "open", open_)
+    monkeypatch.setattr(os, "mkdir", mkdir)
+
+
+@contextmanager
+def _read_only(folder: Path, monkeypatch):
+    if _mount_read_only(folder):
+        try:
+            assert not _writable(folder)
+            yield
+        finally:
+            subprocess.run(["umount", str(folder)], check=True)
+    else:
+        _refuse_writes_under(monkeypatch, folder)
+        assert not _writable(folder)
+        yield
+
+
+@pytest.fixture(params=["permissions", "read-only"])
+def locked(request, fitted_project_copy, monkeypatch):
+    """The fitted sample project whose folder and results folder cannot be written to."""
+    folder = fitted_project_copy.parent
+    if request.param == "permissions":
+        refused = _permissions_refused([folder / "results", folder])
+    else:
+        refused = _read_only(folder, monkeypatch)
+    with refused:
+        yield fitted_project_copy
 
 
 COMMANDS = {
@@ -77,5 +165,7 @@ def test_unwritable_project_folder_is_a_clear_error(locked, capsys, command, as_
     assert "Traceback" not in err and "could not write" in err and str(locked.parent) in err, err
     if as_json:  # one JSON object on stdout: the error
         error = json.loads(out)["error"]
-        assert error["type"] in ("ProjectError", "PermissionError") and str(locked.parent) in error["message"]
+        assert (
+            error["type"] in ("ProjectError", "PermissionError", "OSError") and str(locked.parent) in error["message"]
+        )
     assert locked.read_bytes() == before

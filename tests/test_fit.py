@@ -15,7 +15,7 @@ import pytest
 
 from photomodel.alignment import align_to_truth, camera_errors, similarity_transform
 from photomodel.camera import rotation_angle_deg
-from photomodel.errors import FitError
+from photomodel.errors import FitError, MissingClicks
 from photomodel.modeling.camera_solve import DETECTOR_SIGMA_MM, PERSON_PRIOR
 from photomodel.modeling.fit import (
     PROFILE_PRESETS,
@@ -25,7 +25,7 @@ from photomodel.modeling.fit import (
     fit_expression,
     weigh_auto_clicks,
 )
-from photomodel.project import load_project
+from photomodel.project import load_project, save_project
 from photomodel.samples.synthetic import surface_distance, true_correspondence
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -126,8 +126,12 @@ def test_too_few_clicks_is_a_fit_error(mesh):
     project = load_project(PROJECT)
     for p in project.expression("neutral").photos:
         p.points = dict(list(p.points.items())[:2])
-    with pytest.raises(FitError):
+    # the checklist error (a FitError): it says how many pose features can be placed and what to click
+    with pytest.raises(
+        MissingClicks, match=r"^expression 'neutral' cannot be fitted yet: 3 of 13 pose feature"
+    ) as info:
         fit_expression(project, "neutral", mesh)
+    assert "photo 'front': 2 shared click(s), needs 4" in str(info.value)
 
 
 def _one_photo(photo_id: str):
@@ -187,10 +191,23 @@ def test_fit_can_be_cancelled(mesh):
         fit_expression(project, "neutral", mesh, cancel=lambda: True)
 
 
-def test_copy_of_sample_is_independent(tmp_path):
-    # guard for the CLI tests: they work on a copy, never on the shipped sample
-    shutil.copytree(SAMPLE, tmp_path / "james")
-    assert (tmp_path / "james" / "james.facestudio.json").exists()
+def test_copy_of_sample_is_independent(project_copy):
+    """Guard for the CLI tests, which work on a copy of the sample (conftest's ``project_copy``),
+    never on the shipped one: every file the copied project names — its photos and the results a
+    fit writes — resolves inside the copy (a path into the shipped folder would let a fit on the
+    copy read or write there), and saving the copy leaves the shipped project file as it was."""
+    shipped = (SAMPLE / "james.facestudio.json").read_bytes()
+    root = project_copy.parent.resolve()
+    project = load_project(project_copy)
+    photos = [project.photo_path(p) for e in project.expressions for p in e.photos]
+    results = [project.resolve(r) for e in project.expressions for r in project.default_result_paths(e.name)]
+    assert photos and all(p.is_file() for p in photos)
+    for path in photos + results:
+        assert path.resolve().is_relative_to(root), path
+    project.expression("neutral").photos[0].points.clear()
+    save_project(project)
+    assert load_project(project_copy).expression("neutral").photos[0].points == {}
+    assert (SAMPLE / "james.facestudio.json").read_bytes() == shipped
 
 
 def test_a_photo_without_any_click_is_left_out(mesh):

@@ -9,7 +9,7 @@ import pytest
 from project_samples import H, W, save_sample
 
 from photomodel.errors import ProjectError
-from photomodel.project import Expression, Photo, Project, load_project
+from photomodel.project import Expression, Photo, Project, datamodel, load_project
 
 
 @pytest.fixture
@@ -60,10 +60,26 @@ def test_check_vertices(saved):
 # ---------------------------------------------------------------------------------------
 # photos on disk
 # ---------------------------------------------------------------------------------------
-def test_check_photos_ok(saved):
+def test_check_photos_ok(saved, monkeypatch):
+    """Every photo present, readable and of its stored size: no problem raised — and ``read=True``
+    does decode each photo (a check that skipped the read would pass a truncated file)."""
     p = load_project(saved[0])
-    p.check_photos()
-    p.check_photos(read=True)
+    assert p.check_photos() is None
+    decoded = []
+    monkeypatch.setattr(
+        datamodel, "photo_size", lambda path, real=datamodel.photo_size: decoded.append(path) or real(path)
+    )
+    assert p.check_photos(read=True) is None
+    assert sorted(decoded) == sorted(p.photo_path(ph) for e in p.expressions for ph in e.photos)
+
+
+def test_check_photos_read_finds_a_truncated_photo(tmp_path, saved):
+    p = load_project(saved[0])
+    photo = tmp_path / "photos" / "smile_front.png"
+    photo.write_bytes(photo.read_bytes()[:60])  # the PNG header and a part of its first chunk
+    p.check_photos()  # header check only: passes
+    with pytest.raises(ProjectError, match=r"photo 'front': photos/smile_front.png could not be decoded"):
+        p.check_photos(read=True)
 
 
 def test_check_photos_names_each_missing_or_unreadable_photo(tmp_path, saved):

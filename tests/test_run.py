@@ -53,7 +53,15 @@ def assert_near_truth(f: dict, truth, gauge) -> None:
     assert rotation_angle_deg(np.array(f["R"]), truth.R[i] @ Rg) < 1.0
     centre = truth.t[i] + truth.R[i] @ (s * Rg @ model.centre + tg)
     assert np.linalg.norm(s * np.array(f["centre_mm"]) - centre) < 8.0
-    assert abs(f["weights"]["mouth"]["smile"] - truth.weights[i, 1, 1]) < 0.1
+    assert abs(f["weights"]["mouth"]["smile"] - truth.weights[i, 1, 1]) < 0.06
+
+
+def assert_smile_follows_truth(frames: list[dict], truth) -> None:
+    """The tracked mouth smile follows the true one frame by frame: over the run it differs from
+    the truth by one offset, to within 0.025 (tolerances: see
+    test_results_are_valid_and_follow_the_true_motion)."""
+    err = np.array([f["weights"]["mouth"]["smile"] - truth.weights[f["frame"], 1, 1] for f in frames])
+    assert np.abs(err - err.mean()).max() < 0.025, err
 
 
 def test_results_are_valid_and_follow_the_true_motion(straight, truth, gauge):
@@ -84,8 +92,15 @@ def test_results_are_valid_and_follow_the_true_motion(straight, truth, gauge):
         # is 1/s the scan's size (the generic mesh fixes its scale; s ≈ 1.13) and so seen 1/s as
         # far: its centre, scaled by s, lands within ~4 mm (0.6 %) of the truth at ~600 mm, mostly
         # in depth, where the gauge's scale is known to ~0.5 %; 1° and 8 mm say the batch feeds
-        # the fitter correctly; the smile rises 0.04 → 0.29 over these frames, 0.1 follows it
+        # the fitter correctly
         assert_near_truth(f, truth, gauge)
+    # the smile rises 0.04 → 0.29 over these frames, 0.023–0.080 a frame. The model from photos
+    # reads it a little high (measured 0.017–0.050 over the truth, mean 0.032: each frame within
+    # 0.06), and beyond that offset the tracked weight follows the true one (measured within 0.018
+    # of truth + mean offset): a tracker a frame behind is off by each frame's rise, which grows
+    # over the run (measured with frame_record writing the previous frame's weights: 0.049 off,
+    # while every frame stayed within the 0.06)
+    assert_smile_follows_truth(doc["frames"], truth)
 
 
 def test_ctrl_c_and_cancel_save_valid_results_and_a_rerun_continues(straight, tmp_path, capsys, fitted_sample):
