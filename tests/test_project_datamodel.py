@@ -9,6 +9,7 @@ import pytest
 from project_samples import H, W, save_sample
 
 from photomodel.errors import ProjectError
+from photomodel.photos.reading import photo_size
 from photomodel.project import Expression, Photo, Project, load_project
 
 
@@ -63,7 +64,7 @@ def test_check_vertices(saved):
 def test_check_photos_ok(saved):
     p = load_project(saved[0])
     p.check_photos()
-    p.check_photos(read=True)
+    p.check_photos(read_size=photo_size)
 
 
 def test_check_photos_names_each_missing_or_unreadable_photo(tmp_path, saved):
@@ -84,7 +85,7 @@ def test_check_photos_read_compares_size(tmp_path, saved):
     cv2.imwrite(str(tmp_path / "photos" / "neutral_left.png"), np.zeros((H, W + 1), np.uint8))
     p.check_photos()  # header check only: passes
     with pytest.raises(ProjectError, match=r"photo 'left'.*65x48 but the project says 64x48"):
-        p.check_photos(read=True)
+        p.check_photos(read_size=photo_size)
 
 
 # ---------------------------------------------------------------------------------------

@@ -39,7 +39,7 @@ from PySide6.QtWidgets import QFileDialog
 from app.qt.commands import AddPhotosCommand, DefineFeaturesCommand
 from app.qt.progress import close_progress, update_progress
 from app.qt.workers import JobController
-from photomodel.modeling.fit import Cancelled
+from photomodel.errors import Cancelled
 from photomodel.photos.intake import add_photos, default_features, new_project_from_photos
 from photomodel.photos.stills import new_project_from_video
 from photomodel.project import FILE_SUFFIX, save_project
