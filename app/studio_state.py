@@ -4,14 +4,16 @@ This is the napari pattern (``napari/components/viewer_model.py``): one model ob
 the :class:`~photomodel.project.Project`, the current expression, the active feature and curve,
 and the fitted results, and announces every change through small :class:`Signal` objects. The
 Qt widgets of :mod:`app` observe it and edit it through undoable commands
-(:mod:`app.qt.commands`); scripts and tests drive the same object without any GUI. Nothing here
+(:mod:`app.studio.commands`); scripts and tests drive the same object without any GUI. Nothing here
 imports Qt.
 
 Every edit goes through one primitive (``set_point``, ``set_hidden``, ``set_curve``,
 ``insert_photo`` …) that validates its input, changes the project, marks it modified and emits
 one event; each returns what it replaced, which is what an undo needs. The primitives are the
-model's base class :class:`app.studio.edits.ProjectEdits`; the undo stack that replays them is the
-window's ``QUndoStack`` of :mod:`app.qt.commands` (one command per primitive).
+model's base class :class:`app.studio.edits.ProjectEdits`; the model keeps the undo stack that
+replays them (:attr:`StudioModel.undo_stack`, an :class:`app.studio.undo.UndoStack` of the
+commands of :mod:`app.studio.commands`, one per primitive), cleared when the project is replaced
+and marked clean when it is saved.
 
 The work is done by Qt-free collaborators in :mod:`app.studio` that the model calls and whose
 results it stores and announces: :mod:`~app.studio.fitting` (fits, overlays, click residuals),
@@ -49,6 +51,7 @@ from app.studio.project_file import (
 from app.studio.rig import RigState
 from app.studio.texturing import TextureState
 from app.studio.tracking import TrackJob
+from app.studio.undo import UndoStack
 from photomodel.errors import FaceStudioError, ProjectError
 from photomodel.modeling.checklist import ChecklistItem, click_checklist
 from photomodel.modeling.generic_mesh import load_generic_mesh
@@ -63,7 +66,8 @@ class StudioModel(ProjectEdits):
     """The project being edited in the studio, with its fits, as an observable object.
 
     The model holds the state and announces its changes; its edit primitives are its base
-    :class:`app.studio.edits.ProjectEdits` (what :mod:`app.qt.commands` undoes), and the work —
+    :class:`app.studio.edits.ProjectEdits` (what the commands of :mod:`app.studio.commands` on
+    :attr:`undo_stack` undo and redo), and the work —
     fitting, texturing, the rig, tracking, the project file — is done by the collaborators of
     :mod:`app.studio`, whose results it stores.
 
@@ -93,6 +97,10 @@ class StudioModel(ProjectEdits):
     rig_changed () — the rig shown (:meth:`rig`) may have changed: another project, a new fit of
         an expression, or a rig built (:meth:`set_rig`); its weights are back to 0.
     rig_weights_changed () — a rig weight moved (:meth:`set_rig_weight`, :meth:`reset_rig_weights`).
+
+    The undo history is :attr:`undo_stack` (:class:`app.studio.undo.UndoStack`, with its own
+    ``index_changed`` and ``changed`` events): emptied when the project is replaced (new, open,
+    recover), clean after :meth:`save`.
     """
 
     def __init__(self, project: Project | None = None, mesh_loader: Callable | None = None):
@@ -112,6 +120,7 @@ class StudioModel(ProjectEdits):
         self.path_changed = Signal()
         self.rig_changed = Signal()
         self.rig_weights_changed = Signal()
+        self.undo_stack = UndoStack()  # the edits of the project, as commands (app.studio.commands)
 
         self._rig: RigState | None = None
         self._rig_read = False
@@ -502,6 +511,7 @@ class StudioModel(ProjectEdits):
         written = project_file.save_with_results(self.project, path, self.fits, self.textures, self.mesh.faces)
         self._autosaved_revision = self.revision
         self._set_modified(False)
+        self.undo_stack.set_clean()
         if written != old_path:
             self.path_changed.emit(written)
         return written
@@ -552,6 +562,7 @@ class StudioModel(ProjectEdits):
         self.active_curve = project.curves[0].name if project.curves else None
         self.revision = self._autosaved_revision = 0
         self.modified = False
+        self.undo_stack.clear()  # the history was the previous project's
         self.project_replaced.emit()
         self.modified_changed.emit(False)
         self.path_changed.emit(project.path)

@@ -61,8 +61,8 @@ def main(argv=None) -> int:
     from PySide6.QtCore import QEventLoop, QSettings, QTimer
     from PySide6.QtWidgets import QApplication
 
-    from app.qt.commands import SetPointCommand
     from app.qt.main_window import MainWindow
+    from app.studio.commands import SetPointCommand
 
     app = QApplication.instance() or QApplication([])
     tmp = Path(tempfile.mkdtemp(prefix="bench_gui_"))

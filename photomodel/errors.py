@@ -5,6 +5,11 @@ class FaceStudioError(Exception):
     """Base class of every error Face Studio reports to a user."""
 
 
+class Cancelled(Exception):
+    """Raised inside a long job (a fit, a texture, a photo intake, a tracked clip) when the caller's
+    ``cancel()`` returns True; not a :class:`FaceStudioError`: nothing went wrong."""
+
+
 class ProjectError(FaceStudioError):
     """A project file is missing, malformed or refers to something that is not there."""
 

@@ -368,14 +368,14 @@ def test_camera_group_field_is_an_undoable_photo_edit(qtbot, studio_window, proj
     qtbot.keyClicks(edit, "  video ")
     qtbot.keyClick(edit, Qt.Key.Key_Return)
     assert model.photo("front").camera_group == "video" and edit.text() == "video"
-    assert undo.undoText() == "Set camera group of front to video"
+    assert undo.undo_text == "Set camera group of front to video"
     # typed for 'left', then the tab changes before Enter: it still goes to 'left'
     studio_window.show_photo("left")
     assert edit.text() == ""
     qtbot.keyClicks(edit, "video")
     studio_window.show_photo("front")
     qtbot.waitUntil(lambda: model.photo("left").camera_group == "video")  # once the tab change is done
-    assert edit.text() == "video" and undo.undoText() == "Set camera group of left to video"
+    assert edit.text() == "video" and undo.undo_text == "Set camera group of left to video"
     assert model.project.camera_groups("neutral") == [0, 1, 2, 3, 2]  # right, ¾ right, front, ¾ left, left
     # emptying the field clears the group
     studio_window.show_photo("left")

@@ -65,7 +65,7 @@ def test_checklist_unflag_leave_out_undo(qtbot, studio_window, project_copy):
     assert panel.feature_menu("nose_tip") is not None
     stack.undo()
     assert "nose_tip" not in model.photo("front").hidden
-    assert stack.undoText() == ""  # nothing else was pushed
+    assert stack.undo_text == ""  # nothing else was pushed
 
 
 def test_predicted_marker_after_a_fit(qtbot, studio_window, project_copy, messages):

@@ -16,8 +16,8 @@ pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
 
-from app.qt.commands import SetCurveCommand  # noqa: E402
 from app.qt.photo_items import AUTO_COLOR  # noqa: E402
+from app.studio.commands import SetCurveCommand  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PHOTOS = ROOT / "sample_projects" / "james" / "photos"

@@ -7,6 +7,9 @@
     the circle it was.
 (c) Imports run one way, ``app`` → ``tracking`` → ``photomodel``, and nothing below ``app/``
     imports Qt.
+(d) Inside ``photomodel/`` the subpackages (and top-level modules) stand in the order
+    :data:`PHOTOMODEL_ORDER`: each imports only those on lower levels — no import circle between
+    two subpackages even when their modules form none.
 """
 
 from __future__ import annotations
@@ -19,6 +22,22 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 #: The packages, lowest first: each may import only those before it and itself.
 LAYERS = ("photomodel", "tracking", "app")
+#: ``photomodel``'s subpackages and top-level modules in levels, lowest first: each may import only
+#: those on lower levels (and itself), not those on its own level. Written out in
+#: ``docs/architecture.md``.
+PHOTOMODEL_ORDER = (
+    ("camera", "errors"),  # conventions and exceptions
+    ("alignment", "rendering"),  # similarity transforms; the one renderer
+    ("exchange",),  # file formats (a format per module, one atomic writer)
+    ("project", "modeling"),  # the project's data model and file; cameras, RBF, refinement
+    ("rig", "landmarks"),  # the ARKit rig from ICT-FaceKit; automatic landmarks
+    ("photos",),  # the photo reader, video stills, photos into a project with landmarks
+    ("texturing",),  # the texture of a fitted expression, stored with the project
+)
+#: Left out of the order: ``samples`` (tests, benchmarks and the sample project); the data floor
+#: takes the links from runtime code into it away — after that merge only tests and benchmarks
+#: import it, and it may be added on top.
+UNORDERED = ("samples",)
 QT_PACKAGES = ("PySide6", "PySide2", "PyQt5", "PyQt6", "shiboken6", "qtpy")
 
 #: Private imports that the data floor removes (the npz helpers move out of
@@ -215,3 +234,27 @@ def test_imports_run_app_tracking_photomodel_and_no_qt_below_app():
             )
             qt += [f"{path.relative_to(REPO)}:{node.lineno}: {n}" for n in names if n.split(".")[0] in QT_PACKAGES]
     assert qt == [], "Qt imported below app/:\n" + "\n".join(qt)
+
+
+def _photomodel_part(module: str) -> str | None:
+    """The subpackage or top-level module of ``photomodel`` that ``module`` is in (None: the root)."""
+    parts = module.split(".")
+    return parts[1] if parts[0] == "photomodel" and len(parts) > 1 else None
+
+
+def test_photomodel_subpackages_stand_in_their_order():
+    level = {part: k for k, parts in enumerate(PHOTOMODEL_ORDER) for part in parts}
+    found = {_photomodel_part(m) for m in modules()} - {None, *UNORDERED}
+    assert found == set(level), f"photomodel's parts not in PHOTOMODEL_ORDER: {sorted(found ^ set(level))}"
+    back = []
+    for m in modules():
+        a = _photomodel_part(m)
+        if a is None or a in UNORDERED:
+            continue
+        for i in imports(m):
+            b = _photomodel_part(i.target)
+            if b is None or b == a or b in UNORDERED:
+                continue
+            if level[b] >= level[a]:
+                back.append(f"{_where(i)}: {i.module} ({a}, level {level[a]}) imports {i.target} (level {level[b]})")
+    assert back == [], "imports against photomodel's order (PHOTOMODEL_ORDER):\n" + "\n".join(sorted(set(back)))

@@ -118,11 +118,11 @@ def test_check_photos_compares_the_oriented_size_and_finds_a_truncated_photo(tmp
     exif[TAG_ORIENTATION] = 6  # stored 48 x 64, shown 64 x 48: the project's size
     write(tmp_path / "rotated.jpg", np.zeros((front.width, front.height, 3), np.uint8), exif=exif)
     front.path = "rotated.jpg"
-    p.check_photos(read=True)
+    p.check_photos(read_size=photo_size)
     data = (tmp_path / "rotated.jpg").read_bytes()
     (tmp_path / "rotated.jpg").write_bytes(data[:-10])
     with pytest.raises(ProjectError, match=r"photo 'front': rotated\.jpg could not be decoded: .*truncated JPEG"):
-        p.check_photos(read=True)
+        p.check_photos(read_size=photo_size)
 
 
 # ------------------------------------------------------------------------- large photos

@@ -9,7 +9,8 @@ import pytest
 from project_samples import H, W, save_sample
 
 from photomodel.errors import ProjectError
-from photomodel.project import Expression, Photo, Project, datamodel, load_project
+from photomodel.photos.reading import photo_size
+from photomodel.project import Expression, Photo, Project, load_project
 
 
 @pytest.fixture
@@ -60,16 +61,13 @@ def test_check_vertices(saved):
 # ---------------------------------------------------------------------------------------
 # photos on disk
 # ---------------------------------------------------------------------------------------
-def test_check_photos_ok(saved, monkeypatch):
-    """Every photo present, readable and of its stored size: no problem raised — and ``read=True``
+def test_check_photos_ok(saved):
+    """Every photo present, readable and of its stored size: no problem raised — and ``read_size``
     does decode each photo (a check that skipped the read would pass a truncated file)."""
     p = load_project(saved[0])
     assert p.check_photos() is None
     decoded = []
-    monkeypatch.setattr(
-        datamodel, "photo_size", lambda path, real=datamodel.photo_size: decoded.append(path) or real(path)
-    )
-    assert p.check_photos(read=True) is None
+    assert p.check_photos(read_size=lambda path: decoded.append(path) or photo_size(path)) is None
     assert sorted(decoded) == sorted(p.photo_path(ph) for e in p.expressions for ph in e.photos)
 
 
@@ -79,7 +77,7 @@ def test_check_photos_read_finds_a_truncated_photo(tmp_path, saved):
     photo.write_bytes(photo.read_bytes()[:60])  # the PNG header and a part of its first chunk
     p.check_photos()  # header check only: passes
     with pytest.raises(ProjectError, match=r"photo 'front': photos/smile_front.png could not be decoded"):
-        p.check_photos(read=True)
+        p.check_photos(read_size=photo_size)
 
 
 def test_check_photos_names_each_missing_or_unreadable_photo(tmp_path, saved):
@@ -100,7 +98,7 @@ def test_check_photos_read_compares_size(tmp_path, saved):
     cv2.imwrite(str(tmp_path / "photos" / "neutral_left.png"), np.zeros((H, W + 1), np.uint8))
     p.check_photos()  # header check only: passes
     with pytest.raises(ProjectError, match=r"photo 'left'.*65x48 but the project says 64x48"):
-        p.check_photos(read=True)
+        p.check_photos(read_size=photo_size)
 
 
 # ---------------------------------------------------------------------------------------

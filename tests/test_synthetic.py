@@ -10,6 +10,7 @@ import pytest
 from trimesh.proximity import closest_point_naive
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, orbit_camera
+from photomodel.photos.reading import photo_size
 from photomodel.project import load_project
 from photomodel.samples import synthetic
 from tracking.synthetic_sequences.expressions import (
@@ -250,7 +251,7 @@ def sample():
 def test_sample_project_loads(sample, mesh):
     project, gt = sample
     project.check_vertices(len(mesh.vertices))
-    project.check_photos(read=True)
+    project.check_photos(read_size=photo_size)
     assert len(project.feature_names(pose_only=True)) == 13
     assert len(project.features) == 13 + 55 + 100
     expr = project.expression("neutral")

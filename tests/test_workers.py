@@ -13,8 +13,8 @@ pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
 import app.studio.fitting  # noqa: E402
-from app.qt.commands import SetPointCommand  # noqa: E402
 from app.qt.workers import FitController  # noqa: E402
+from app.studio.commands import SetPointCommand  # noqa: E402
 from app.studio_state import StudioModel  # noqa: E402
 from photomodel.modeling import wireframe as overlay_module  # noqa: E402
 
@@ -73,9 +73,7 @@ def test_an_edit_during_a_refit_ends_with_the_newest_overlay(qtbot, project_copy
     fits.overlay_photos = lambda expression: ["front"]
     with qtbot.waitSignal(fits.finished, timeout=60_000):
         fits.start("neutral")
-    from PySide6.QtGui import QUndoStack
-
-    stack = QUndoStack()
+    stack = model.undo_stack
     applied = []
     fits.finished.connect(lambda expression, seconds: applied.append(model.fit()))
     uv = model.photo("front").points["jaw_05"]

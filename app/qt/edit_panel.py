@@ -45,8 +45,7 @@ from PySide6.QtWidgets import (
 from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.texture_views import to_qimage
 from app.qt.workers import JobController
-from photomodel.errors import FaceStudioError
-from photomodel.modeling.fit import Cancelled
+from photomodel.errors import Cancelled, FaceStudioError
 from tracking.edit import DEFAULT_RAMP, edits_document, save_edits
 from tracking.edit_session import EditSession
 from tracking.edit_video import edit_frames, write_frames, write_video
@@ -62,7 +61,7 @@ SPAN_COLOR = QColor(80, 140, 255, 50)
 def export_session(session: EditSession, track_dir, out, progress=None, cancel=None) -> Path:
     """:meth:`EditSession.export` with progress and cancel (the worker's function): every frame
     edited (``progress(stage, fraction)`` per frame; ``cancel()`` polled, raising
-    :class:`~photomodel.modeling.fit.Cancelled`), written to ``out`` (PNG folder, or ``.mp4`` with
+    :class:`~photomodel.errors.Cancelled`), written to ``out`` (PNG folder, or ``.mp4`` with
     ``<stem>_frames/`` beside it), then ``track_dir/edits.json``. Returns ``out``."""
     n = session.frame_count
 

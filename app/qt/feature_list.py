@@ -11,8 +11,8 @@
   once; selecting a feature's line makes it active, a photo's line shows that photo
   (``photo_requested``).
 * Right-click a feature: unflag (or flag) it as a pose feature, or leave it out of (hide it in)
-  a photo — undoable commands (:class:`~app.qt.commands.SetPoseCommand`,
-  :class:`~app.qt.commands.SetHiddenCommand`).
+  a photo — undoable commands (:class:`~app.studio.commands.SetPoseCommand`,
+  :class:`~app.studio.commands.SetHiddenCommand`).
 * **Worst clicks** — after a fit, the clicks farthest from the fitted model, largest first;
   activating one jumps to it (``jump_requested(photo_id, feature)``).
 * **Fit report** — per-photo reprojection RMS, number of points and recovered focal length.
@@ -36,8 +36,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.qt.commands import SetHiddenCommand, SetPoseCommand
 from app.qt.photo_items import residual_color
+from app.studio.commands import SetHiddenCommand, SetPoseCommand
 from app.studio_state import StudioModel
 from photomodel.modeling.fit import uses_person_prior
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QComboBox, QLabel, QLineEdit, QToolBar
 
-from app.qt.commands import SetCameraGroupCommand, SetPresetCommand
 from app.qt.photo_tabs import PhotoTabs
+from app.studio.commands import SetCameraGroupCommand, SetPresetCommand
 from app.studio_state import StudioModel
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import FaceStudioError

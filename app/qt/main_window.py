@@ -17,7 +17,7 @@ status and progress API (:meth:`MainWindow.show_status`, :meth:`MainWindow.open_
 :meth:`MainWindow.show_error`).
 
 Everything the window shows observes one :class:`~app.studio_state.StudioModel`; edits are
-:mod:`app.qt.commands` pushed on a :class:`QUndoStack`; fits run in a worker
+:mod:`app.studio.commands` pushed on the model's undo stack (:class:`~app.studio.undo.UndoStack`); fits run in a worker
 (:class:`~app.qt.workers.FitController`), textures, rigs and photo imports in
 :class:`~app.qt.workers.JobController` workers behind cancellable progress dialogs. Every failure
 is shown in a dialog whose text is the cause.
@@ -30,7 +30,7 @@ import traceback
 from dataclasses import fields
 
 from PySide6.QtCore import QSettings, Qt, QTimer, Signal
-from PySide6.QtGui import QGuiApplication, QUndoStack
+from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QApplication, QMainWindow, QMessageBox, QProgressDialog
 
 from app.qt import progress
@@ -92,7 +92,7 @@ class MainWindow(QMainWindow):
         super().__init__()
         self.model = model if model is not None else StudioModel()
         self.settings = settings if settings is not None else QSettings("FaceStudio", "studio")
-        self.undo_stack = QUndoStack(self)
+        self.undo_stack = self.model.undo_stack  # the model's: cleared on new/open, clean when saved
         self.fits = FitController(self.model, self)
         self.jobs = JobController(self.model, self)  # Texture → Extract texture
         self.rig_jobs = JobController(self.model, self)  # Rig → Build rig
@@ -180,7 +180,7 @@ class MainWindow(QMainWindow):
         m.expression_changed.connect(lambda *_: self.texture_menu.on_texture_changed(self.model.expression_name))
         m.modified_changed.connect(lambda value: self.setWindowModified(bool(value)))
         m.path_changed.connect(lambda *_: self._update_title())
-        self.undo_stack.indexChanged.connect(self._on_edit)
+        self.undo_stack.index_changed.connect(self._on_edit)
         self.fits.overlay_photos = self.tabs.overlay_photo_ids  # computed in the fit's worker
         self.fit_menu.connect_worker()
         self.texture_menu.connect_worker()

@@ -260,7 +260,7 @@ class Monkey:
         """The window's invariants after an action; :class:`InvariantError` names the broken one."""
         w, m = self.window, self.window.model
         if m.project is not self._base_project:  # replaced: new, open, recover
-            if w.undo_stack.count() != 0:
+            if len(w.undo_stack) != 0:
                 raise InvariantError("a new project came with the previous project's undo history")
             self._rebase()
         ids = [p.id for p in m.photos]
@@ -303,7 +303,7 @@ class Monkey:
         """Undo every edit: the project equals the one opened (results excepted); redo them all."""
         w = self.window
         now = comparable(w.model.project, self._compare_to)
-        n = w.undo_stack.index()
+        n = w.undo_stack.index
         for _ in range(n):
             w.act_undo.trigger()
         if comparable(w.model.project, self._compare_to) != self._base:

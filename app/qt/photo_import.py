@@ -36,10 +36,10 @@ from pathlib import Path
 from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog
 
-from app.qt.commands import AddPhotosCommand, DefineFeaturesCommand
 from app.qt.progress import close_progress, update_progress
 from app.qt.workers import JobController
-from photomodel.modeling.fit import Cancelled
+from app.studio.commands import AddPhotosCommand, DefineFeaturesCommand
+from photomodel.errors import Cancelled
 from photomodel.photos.intake import add_photos, default_features, new_project_from_photos
 from photomodel.photos.stills import new_project_from_video
 from photomodel.project import FILE_SUFFIX, save_project
@@ -190,11 +190,11 @@ class PhotoImporter(QObject):
             return
         missing = [f for f in snapshot.features if not model.has_feature(f.name)]
         stack = self.window.undo_stack
-        stack.beginMacro(f"Add {len(photos)} photo(s) with automatic landmarks")
+        stack.begin_macro(f"Add {len(photos)} photo(s) with automatic landmarks")
         if missing:
             stack.push(DefineFeaturesCommand(model, missing))
         stack.push(AddPhotosCommand(model, expression, photos))
-        stack.endMacro()
+        stack.end_macro()
         self.window.show_photo(photos[0].id)
         self.window.show_status(_summary(warnings, f"{len(photos)} photo(s) added"), 15000)
 

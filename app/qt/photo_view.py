@@ -32,9 +32,9 @@ from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QColor, QPainter, QPixmap, QTransform
 from PySide6.QtWidgets import QGraphicsPixmapItem, QGraphicsScene, QGraphicsView, QMenu
 
-from app.qt.commands import SetCurveCommand, SetHiddenCommand, SetPointCommand
 from app.qt.photo_curves import PhotoCurves
 from app.qt.photo_items import LinesItem, PointItem, PredictedItem, load_photo_image
+from app.studio.commands import SetCurveCommand, SetHiddenCommand, SetPointCommand
 from app.studio_state import StudioModel
 from photomodel.errors import FaceStudioError
 
@@ -54,7 +54,7 @@ class PhotoView(QGraphicsView):
     Parameters
     ----------
     model : StudioModel
-    undo_stack : QUndoStack, where edits are pushed.
+    undo_stack : app.studio.undo.UndoStack, where edits are pushed (the model's).
     expression, photo_id : which photo.
     """
 

@@ -1,7 +1,9 @@
 """The studio's tracking view: track a video in a worker, then scrub through the result (§6.2).
 
 :class:`TrackingView` (docked by the main window, *Tracking → Track video…* / *Open results…*)
-runs :func:`tracking.run.track_video` in its own :class:`~app.qt.workers.JobController` behind a
+runs the model's :class:`~app.studio.tracking.TrackJob` (:meth:`StudioModel.track_job
+<app.studio_state.StudioModel.track_job>`: prepared here on the GUI thread, :meth:`TrackJob.run
+<app.studio.tracking.TrackJob.run>` in its own :class:`~app.qt.workers.JobController`) behind a
 cancellable progress dialog; the results land in :func:`tracking.track_result.default_out_dir`
 (``<project folder>/results/track_<video stem>``), cancel-safe and resumable, exactly as
 ``facestudio track`` writes them. It then shows
@@ -18,7 +20,7 @@ cancellable progress dialog; the results land in :func:`tracking.track_result.de
 A frame that diverged or drifted is corrected where it is shown: *Correct pose here…* opens the
 click dialog of the first pose (:class:`FirstPoseDialog`) on that frame, its pose features placed
 where the tracked model puts them, so the user only drags the wrong ones; accepting re-tracks from
-that frame in the worker (:func:`tracking.run.track_video`'s ``correct_frame``/``correct_pose``),
+that frame in the worker (a :class:`~app.studio.tracking.TrackJob` with ``correct_frame``/``correct_pose``),
 behind the same cancellable progress dialog as *Track video…*.
 
 Nothing here computes tracking itself: the state of the shown results — ``track.json``, the frame
@@ -59,12 +61,11 @@ from app.qt.first_pose_dialog import ClickCanvas, FirstPoseDialog
 from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.texture_views import to_qimage
 from app.qt.workers import JobController
+from app.studio.tracking import TrackJob
 from app.studio_state import StudioModel
-from photomodel.errors import FaceStudioError
+from photomodel.errors import FaceStudioError, ProjectError
 from tracking.plots import MARGINS
 from tracking.review import TrackReview
-from tracking.run import track_video
-from tracking.track_result import default_out_dir
 
 if TYPE_CHECKING:
     from tracking.review import TrackReview
@@ -287,19 +288,18 @@ class TrackingView(QWidget):
         if self.jobs.busy:
             self.last_message = "a video is already being tracked"
             return False
-        project_path = self.model.path
-        if project_path is None:
-            self._error("Cannot track", "save the project first: tracking reads the project file")
+        try:
+            job = self.model.track_job(video, max_frames=self._frames_to_track(max_frames))
+        except ProjectError as exc:  # the project has no file yet
+            self._error("Cannot track", str(exc))
             return False
-
-        video = Path(video).absolute()
-        self._run(project_path, video, default_out_dir(project_path, video), max_frames, f"Tracking {video.name}…")
+        self._run(job, f"Tracking {job.video.name}…")
         return True
 
     def start_correction(self, frame: int, pose: dict, max_frames: int | None = None) -> bool:
         """Re-track the shown results from ``frame`` on, frame ``frame`` fitted from ``pose`` (the
         first-pose JSON object: clicks of that frame, or R/t), in the worker behind the progress
-        dialog (:func:`tracking.run.track_video` with ``correct_frame``/``correct_pose``).
+        dialog (the model's :class:`~app.studio.tracking.TrackJob` with ``correct_frame``/``correct_pose``).
 
         The run's settings come from the shown ``track.json`` (video, expressions, first pose, focal
         length) and its results folder; ``max_frames`` None uses the "frames to track" box (0: the
@@ -312,44 +312,34 @@ class TrackingView(QWidget):
         if self.doc is None or self.out_dir is None:
             self._error("Cannot correct", "no tracking results are shown: track a video or open results first")
             return False
-        project_path = self.model.path
-        if project_path is None:
-            self._error("Cannot correct", "save the project first: tracking reads the project file")
-            return False
         settings = self.review.correction_settings()
         video = settings.pop("video")
+        try:
+            job = self.model.track_job(
+                video,
+                self.out_dir,
+                self._frames_to_track(max_frames),
+                correct_frame=int(frame),
+                correct_pose=pose,
+                **settings,
+            )
+        except ProjectError as exc:  # the project has no file yet
+            self._error("Cannot correct", str(exc))
+            return False
         self._pending_frame = int(frame)
-        self._run(
-            project_path,
-            video,
-            self.out_dir,
-            max_frames,
-            f"Re-tracking {video.name} from frame {frame}…",
-            correct_frame=int(frame),
-            correct_pose=pose,
-            **settings,
-        )
+        self._run(job, f"Re-tracking {job.video.name} from frame {frame}…")
         return True
 
-    def _run(self, project_path, video: Path, out: Path, max_frames: int | None, label: str, **kwargs) -> None:
-        """:func:`tracking.run.track_video` into ``out`` in the worker, behind the progress dialog."""
-        if max_frames is None:
-            max_frames = self.limit_box.value() or None
-        self._pending_out = out
+    def _frames_to_track(self, max_frames: int | None) -> int | None:
+        """``max_frames``, or the "frames to track" box's when None (0 there: the whole video, None)."""
+        return max_frames if max_frames is not None else (self.limit_box.value() or None)
 
-        def work(progress, cancel):
-
-            def report(done, total):
-                frac = done / total if total else 0.0
-                progress(f"tracked frame {done} of {total if total else '?'}", frac)
-
-            return track_video(
-                project_path, video, out, max_frames=max_frames, progress=report, cancel=cancel, **kwargs
-            )
-
-        self.jobs.start(work)
+    def _run(self, job: TrackJob, label: str) -> None:
+        """``job`` (prepared by the model) run in the worker, behind the progress dialog."""
+        self._pending_out = job.out_dir
+        self.jobs.start(job.run)
         self._progress = open_progress(self, "Tracking", label, self.jobs.cancel)
-        self.last_message = f"{label[0].lower()}{label[1:-1]} into {out}…"
+        self.last_message = f"{label[0].lower()}{label[1:-1]} into {job.out_dir}…"
 
     def tracked_feature_positions(self, index: int) -> dict[str, tuple[float, float]]:
         """{feature: (u, v)} image px: the project's pose features where the tracked model puts them

@@ -26,8 +26,7 @@ import traceback
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
 from app.studio_state import StudioModel
-from photomodel.errors import FaceStudioError
-from photomodel.modeling.fit import Cancelled
+from photomodel.errors import Cancelled, FaceStudioError
 
 #: Refit automatically after an edit only when the last warm refit was at least this fast (s).
 AUTO_REFIT_MAX_S = 0.3
@@ -286,7 +285,7 @@ class JobTask(_CancellableTask):
     """Any slow computation ``function(progress=, cancel=)`` run by a :class:`QThreadPool`.
 
     ``function`` must only read what it was given (snapshots taken on the GUI thread); it polls
-    ``cancel()`` and may raise :class:`photomodel.modeling.fit.Cancelled`.
+    ``cancel()`` and may raise :class:`photomodel.errors.Cancelled`.
     """
 
     def __init__(self, function, generation: int):

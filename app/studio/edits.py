@@ -4,7 +4,7 @@
 that the model's file keeps its state and events. Each primitive (``set_point``, ``set_hidden``,
 ``set_curve``, ``insert_photo`` …) validates its input (a :class:`ProjectError` naming the
 feature, photo or curve), changes the project, marks it modified, emits one event and returns what
-it replaced — what an undo needs: :mod:`app.qt.commands` makes one ``QUndoCommand`` of each.
+it replaced — what an undo needs: :mod:`app.studio.commands` makes one undoable command of each.
 No Qt.
 
 The primitives use the model's ``project``, ``mesh``, ``photo``/``has_feature``/``has_curve``

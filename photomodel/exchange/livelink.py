@@ -2,7 +2,7 @@
 
 One row per frame: ``Timecode`` (``HH:MM:SS:FF.fff``, frames ``FF`` at the take's rate),
 ``BlendShapeCount`` (61), the 52 ARKit weights in [0, 1] with capitalised names
-(``EyeBlinkLeft`` … ``TongueOut``, :data:`photomodel.rig.ict.ARKIT_SHAPES` order; ``Left`` is the
+(``EyeBlinkLeft`` … ``TongueOut``, :data:`ARKIT_SHAPES` order; ``Left`` is the
 subject's left), then ``HeadYaw, HeadPitch, HeadRoll`` and each eye's ``Yaw, Pitch, Roll``
 (:data:`ROTATION_COLUMNS`). Rotations are written and read in radians. The reader finds columns
 by name (any order, case-insensitive), so files from the app and from other tools read alike;
@@ -20,9 +20,9 @@ import numpy as np
 
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import atomic_write_bytes
-from photomodel.rig.ict import ARKIT_SHAPES
 
 __all__ = [
+    "ARKIT_SHAPES",
     "BLENDSHAPE_COLUMNS",
     "ROTATION_COLUMNS",
     "livelink_csv_bytes",
@@ -31,6 +31,61 @@ __all__ = [
     "timecode",
 ]
 
+#: ARKit's 52 blend shapes in the order of ARFaceAnchor's documentation and Live Link Face's CSV.
+ARKIT_SHAPES = (
+    "eyeBlinkLeft",
+    "eyeLookDownLeft",
+    "eyeLookInLeft",
+    "eyeLookOutLeft",
+    "eyeLookUpLeft",
+    "eyeSquintLeft",
+    "eyeWideLeft",
+    "eyeBlinkRight",
+    "eyeLookDownRight",
+    "eyeLookInRight",
+    "eyeLookOutRight",
+    "eyeLookUpRight",
+    "eyeSquintRight",
+    "eyeWideRight",
+    "jawForward",
+    "jawLeft",
+    "jawRight",
+    "jawOpen",
+    "mouthClose",
+    "mouthFunnel",
+    "mouthPucker",
+    "mouthLeft",
+    "mouthRight",
+    "mouthSmileLeft",
+    "mouthSmileRight",
+    "mouthFrownLeft",
+    "mouthFrownRight",
+    "mouthDimpleLeft",
+    "mouthDimpleRight",
+    "mouthStretchLeft",
+    "mouthStretchRight",
+    "mouthRollLower",
+    "mouthRollUpper",
+    "mouthShrugLower",
+    "mouthShrugUpper",
+    "mouthPressLeft",
+    "mouthPressRight",
+    "mouthLowerDownLeft",
+    "mouthLowerDownRight",
+    "mouthUpperUpLeft",
+    "mouthUpperUpRight",
+    "browDownLeft",
+    "browDownRight",
+    "browInnerUp",
+    "browOuterUpLeft",
+    "browOuterUpRight",
+    "cheekPuff",
+    "cheekSquintLeft",
+    "cheekSquintRight",
+    "noseSneerLeft",
+    "noseSneerRight",
+    "tongueOut",
+)
 #: The 52 weight columns, in ARKit's order, capitalised as Live Link Face writes them.
 BLENDSHAPE_COLUMNS = tuple(s[0].upper() + s[1:] for s in ARKIT_SHAPES)
 #: Head and eye rotations (radians) after the weights.

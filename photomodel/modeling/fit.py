@@ -53,7 +53,7 @@ import numpy as np
 
 from photomodel.alignment import similarity_transform, transform_cameras
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, preset_camera
-from photomodel.errors import FitError, ProjectError
+from photomodel.errors import Cancelled, FitError, ProjectError
 from photomodel.modeling.camera_solve import (
     DEPTH_HELD,
     DETECTOR_SIGMA_MM,
@@ -70,10 +70,6 @@ from photomodel.modeling.refine import refine_points, triangulate
 PRESET_DISTANCE_MM = 600.0
 #: Default lens of a preset camera (mm, 36 mm-wide sensor) when the photo gives no guess.
 PRESET_FOCAL_MM = 50.0
-
-
-class Cancelled(Exception):
-    """Raised inside :func:`fit_expression` when the caller's ``cancel()`` returns True."""
 
 
 @dataclass

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,7 +27,6 @@ import numpy as np
 
 from photomodel.camera import Camera
 from photomodel.errors import PhotoError, ProjectError
-from photomodel.photos.reading import photo_size
 from photomodel.project.format import BUILTIN_MESH, CLICK_SOURCES
 from photomodel.project.problems import did_you_mean, listing, problems_error
 
@@ -562,17 +561,18 @@ class Project:
         if problems:
             raise problems_error(self._source(), problems)
 
-    def check_photos(self, read: bool = False) -> None:
+    def check_photos(self, read_size: Callable[[Path], tuple[int, int]] | None = None) -> None:
         """Raise :class:`ProjectError` naming every photo that is missing or unreadable.
 
         Parameters
         ----------
-        read : bool
-            If False (default, cheap) a photo must exist and OpenCV must recognise its format
-            from the file header (``cv2.haveImageReader``). If True each image is checked and
-            decoded by :func:`photomodel.photos.reading.read_photo` (a truncated JPEG or PNG is
-            a problem) and its oriented size (EXIF orientation applied) compared with the
-            ``width``/``height`` stored in the project.
+        read_size : callable, optional
+            If None (default, cheap) a photo must exist and OpenCV must recognise its format
+            from the file header (``cv2.haveImageReader``). If given — the photo reader's
+            :func:`photomodel.photos.reading.photo_size`, passed in because the project's data
+            model sits below :mod:`photomodel.photos` — each image is checked and decoded by it
+            (a truncated JPEG or PNG is a problem: :class:`PhotoError`) and its oriented size
+            (EXIF orientation applied) compared with the ``width``/``height`` stored in the project.
         """
 
         problems = []
@@ -585,9 +585,9 @@ class Project:
                     problems.append((where, f"{who}: {photo.path} does not exist (looked for {p})"))
                 elif not cv2.haveImageReader(str(p)):
                     problems.append((where, f"{who}: {photo.path} is not an image OpenCV can read"))
-                elif read:
+                elif read_size is not None:
                     try:
-                        w, h = photo_size(p)
+                        w, h = read_size(p)
                     except PhotoError as exc:
                         problems.append((where, f"{who}: {photo.path} could not be decoded: {exc}"))
                         continue

@@ -1,4 +1,4 @@
-"""ICT-FaceKit's face model as Face Studio ships it, and ARKit's 52 blend-shape names.
+"""ICT-FaceKit's face model as Face Studio ships it, named by ARKit's 52 blend shapes.
 
 The data (``ict_facekit.npz``, converted once by :mod:`photomodel.rig.make_ict_data` from the
 public ICT-FaceKit repository, MIT licence, © 2020 USC Institute for Creative Technologies) is
@@ -13,9 +13,10 @@ the expression displacements (the same for every identity).
 
 ARKit names
 -----------
-ICT names the sides ``_L``/``_R``; ARKit ``…Left``/``…Right``. Both mean the **subject's** left
-and right (ICT's ``eyeBlink_L`` closes the eye at ``+x``, the subject's left in our head frame
-too, :mod:`photomodel.camera`), so ``eyeBlink_L`` → ``eyeBlinkLeft``. ICT splits
+ARKit's 52 names in order are :data:`photomodel.exchange.livelink.ARKIT_SHAPES` (the Live Link CSV's
+columns; a file format below the rig). ICT names the sides ``_L``/``_R``; ARKit ``…Left``/``…Right``.
+Both mean the **subject's** left and right (ICT's ``eyeBlink_L`` closes the eye at ``+x``, the
+subject's left in our head frame too, :mod:`photomodel.camera`), so ``eyeBlink_L`` → ``eyeBlinkLeft``. ICT splits
 ``browInnerUp`` and ``cheekPuff`` into halves: ARKit's shape is the sum of the two. ARKit's
 ``tongueOut`` has no ICT counterpart (and Face Studio's mesh has no tongue), so a rig has the
 other 51 (:data:`RIG_SHAPES`); the Live Link CSV still carries its column.
@@ -29,63 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
+from photomodel.exchange.livelink import ARKIT_SHAPES
+
 __all__ = ["ARKIT_SHAPES", "RIG_SHAPES", "ICT_DATA_PATH", "IctModel", "load_ict", "arkit_source", "arkit_deltas"]
 
-#: ARKit's 52 blend shapes in the order of ARFaceAnchor's documentation and Live Link Face's CSV.
-ARKIT_SHAPES = (
-    "eyeBlinkLeft",
-    "eyeLookDownLeft",
-    "eyeLookInLeft",
-    "eyeLookOutLeft",
-    "eyeLookUpLeft",
-    "eyeSquintLeft",
-    "eyeWideLeft",
-    "eyeBlinkRight",
-    "eyeLookDownRight",
-    "eyeLookInRight",
-    "eyeLookOutRight",
-    "eyeLookUpRight",
-    "eyeSquintRight",
-    "eyeWideRight",
-    "jawForward",
-    "jawLeft",
-    "jawRight",
-    "jawOpen",
-    "mouthClose",
-    "mouthFunnel",
-    "mouthPucker",
-    "mouthLeft",
-    "mouthRight",
-    "mouthSmileLeft",
-    "mouthSmileRight",
-    "mouthFrownLeft",
-    "mouthFrownRight",
-    "mouthDimpleLeft",
-    "mouthDimpleRight",
-    "mouthStretchLeft",
-    "mouthStretchRight",
-    "mouthRollLower",
-    "mouthRollUpper",
-    "mouthShrugLower",
-    "mouthShrugUpper",
-    "mouthPressLeft",
-    "mouthPressRight",
-    "mouthLowerDownLeft",
-    "mouthLowerDownRight",
-    "mouthUpperUpLeft",
-    "mouthUpperUpRight",
-    "browDownLeft",
-    "browDownRight",
-    "browInnerUp",
-    "browOuterUpLeft",
-    "browOuterUpRight",
-    "cheekPuff",
-    "cheekSquintLeft",
-    "cheekSquintRight",
-    "noseSneerLeft",
-    "noseSneerRight",
-    "tongueOut",
-)
 #: The shapes a rig made from ICT-FaceKit has: ARKit's without ``tongueOut``.
 RIG_SHAPES = tuple(s for s in ARKIT_SHAPES if s != "tongueOut")
 

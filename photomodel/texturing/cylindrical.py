@@ -75,8 +75,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from photomodel.camera import Camera
+from photomodel.errors import Cancelled
 from photomodel.exchange.uv import check_mesh
-from photomodel.modeling.fit import Cancelled
 from photomodel.rendering.depth import DEPTH_TOL_MM, depth_visible, project_points
 from photomodel.rendering.renderer import get_renderer, vertex_normals
 from photomodel.rendering.sampling import sample_image
@@ -687,7 +687,7 @@ def cylindrical_texture(
     progress : callable ``(stage: str, fraction: float)``, optional
         called before the raster, each photograph and the hole filling (fraction in [0, 1]).
     cancel : callable returning bool, optional
-        polled at the same points; when it returns True, :class:`photomodel.modeling.fit.Cancelled` is
+        polled at the same points; when it returns True, :class:`photomodel.errors.Cancelled` is
         raised (the studio's Cancel button).
 
     Returns
@@ -696,7 +696,7 @@ def cylindrical_texture(
 
     Raises
     ------
-    photomodel.modeling.fit.Cancelled
+    photomodel.errors.Cancelled
         ``cancel()`` returned True.
     """
 

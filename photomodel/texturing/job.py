@@ -32,14 +32,13 @@ import cv2
 import numpy as np
 
 from photomodel.camera import Camera
-from photomodel.errors import FitError, PhotoError, ProjectError
+from photomodel.errors import Cancelled, FitError, PhotoError, ProjectError
 from photomodel.exchange.files import encode_png
 from photomodel.exchange.gltf import encode_glb
 from photomodel.exchange.mesh import read_mesh
 from photomodel.exchange.obj import encode_textured_obj
 from photomodel.exchange.ply import encode_colored_ply
 from photomodel.exchange.uv import merge_uv_seams
-from photomodel.modeling.fit import Cancelled
 from photomodel.photos.reading import MAX_WORKING_SIDE, read_photo
 from photomodel.project.io import default_filename
 from photomodel.texturing.cylindrical import (
@@ -252,7 +251,7 @@ def extract_texture(
         the generic mesh's face (:attr:`GenericMesh.face_mask`); when given and the fitted mesh
         has as many vertices, vertices away from it are textured from the single best photo.
     progress, cancel : see :func:`photomodel.texturing.cylindrical.cylindrical_texture` (``cancel`` raises
-        :class:`photomodel.modeling.fit.Cancelled`).
+        :class:`photomodel.errors.Cancelled`).
 
     Raises
     ------

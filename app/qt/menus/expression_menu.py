@@ -8,8 +8,8 @@ from functools import partial
 from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QInputDialog, QMenu, QMenuBar
 
-from app.qt.commands import AddExpressionCommand
 from app.qt.menus import make_action
+from app.studio.commands import AddExpressionCommand
 from photomodel.errors import FaceStudioError
 
 

@@ -19,10 +19,10 @@ from PySide6.QtCore import QDateTime, QLockFile, QObject
 from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import QFileDialog, QMenu, QMenuBar, QMessageBox
 
-from app.qt.commands import AddExpressionCommand, AddPhotosCommand, RemovePhotoCommand
 from app.qt.menus import make_action
 from app.qt.menus.texture_menu import REEXTRACT_HINT
 from app.qt.recovery import default_recovery_file, default_recovery_folder, lock_recovery_file, recovery_files
+from app.studio.commands import AddExpressionCommand, AddPhotosCommand, RemovePhotoCommand
 from app.studio_state import IMAGE_SUFFIXES, MissingPhotos, newer_autosave, remove_autosave
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import FaceStudioError, ProjectError
@@ -154,7 +154,6 @@ class FileMenu(QObject):
         except Exception as exc:  # whatever went wrong, the window stays usable and says why
             self.window.show_error("Cannot start a new project", error_cause(exc))
             return False
-        self.window.undo_stack.clear()
         return True
 
     def replace_project(self, change) -> None:
@@ -171,8 +170,6 @@ class FileMenu(QObject):
         try:
             change()
         except BaseException:
-            if self.model.project is not before:  # replaced, then something failed: its edits start now
-                self.window.undo_stack.clear()
             self.window.on_project_replaced()
             if self.model.project is before and shown is not None:
                 tabs.show_photo(shown)  # as it was
@@ -239,7 +236,6 @@ class FileMenu(QObject):
             kept = "the previous project is still open" if self.model.project is before else "it is open as read"
             self.window.show_error("Cannot open the project", f"{path.name}: {error_cause(exc)} ({kept})")
             return False
-        self.window.undo_stack.clear()
         self.add_recent(path)
         text = f"opened {path}" + (" (recovered from the autosave)" if recover else "")
         problem = self.model.texture_problems.get(self.model.expression_name)
@@ -277,7 +273,6 @@ class FileMenu(QObject):
         except OSError as exc:
             self.window.show_error("Cannot save the project", f"{path}: {exc.strerror or exc}")
             return False
-        self.window.undo_stack.setClean()
         if untitled:  # it has a file now: its recovery file is obsolete
             self.drop_recovery()
         self.add_recent(written)
@@ -341,7 +336,6 @@ class FileMenu(QObject):
         if lock is not None:  # the recovered project autosaves where it came from, still locked by us
             self.drop_recovery()
             self.recovery_file, self._recovery_lock = f, lock
-        self.window.undo_stack.clear()
         self.window.show_status(f"recovered the unsaved project from {f}")
         return True
 

@@ -1,7 +1,8 @@
-"""Undoable edits of a :class:`~app.studio_state.StudioModel`: one :class:`QUndoCommand` per artist action.
+"""Undoable edits of a :class:`~app.studio_state.StudioModel`: one :class:`~app.studio.undo.UndoCommand` per action.
 
 Each command calls the model's edit primitives in ``redo`` and restores what they returned in
-``undo``, so the undo stack (``QUndoStack``, shown in the Edit menu) covers every change of the
+``undo``, so the model's undo stack (:class:`~app.studio.undo.UndoStack`, ``model.undo_stack``,
+undone and redone by the Edit menu) covers every change of the
 clicks, curves, photos, features and expressions. A click on a generic-mesh feature that the
 project does not define yet adds the definition in the same command (and undo removes it).
 Commands name their photo and feature, never hold widgets, and are pushed by the views.
@@ -10,8 +11,8 @@ Commands name their photo and feature, never hold widgets, and are pushed by the
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtGui import QUndoCommand
 
+from app.studio.undo import UndoCommand
 from app.studio_state import StudioModel
 from photomodel.project import CurveDef, Expression, Feature, Photo
 
@@ -20,7 +21,7 @@ def _fmt_uv(uv) -> str:
     return "–" if uv is None else f"({uv[0]:.1f}, {uv[1]:.1f})"
 
 
-class SetPointCommand(QUndoCommand):
+class SetPointCommand(UndoCommand):
     """Place, move or delete (``uv=None``) the click of a feature in one photo.
 
     Placing a click also shows the feature again in that photo if it was hidden there. The click
@@ -74,7 +75,7 @@ class SetPointCommand(QUndoCommand):
             self.model.remove_feature(self.define.name)
 
 
-class DefineFeaturesCommand(QUndoCommand):
+class DefineFeaturesCommand(UndoCommand):
     """Add feature definitions the project lacks (e.g. those automatic landmarks of new photos
     use); pushed with the photos in one macro, so one undo takes both back."""
 
@@ -93,7 +94,7 @@ class DefineFeaturesCommand(QUndoCommand):
             self.model.remove_feature(f.name)
 
 
-class SetHiddenCommand(QUndoCommand):
+class SetHiddenCommand(UndoCommand):
     """Mark a feature as not visible (or visible again) in one photo."""
 
     def __init__(self, model: StudioModel, expression: str, photo_id: str, feature: str, hidden: bool):
@@ -109,7 +110,7 @@ class SetHiddenCommand(QUndoCommand):
         self.model.set_hidden(self.expression, self.photo_id, self.feature, self.old)
 
 
-class SetPoseCommand(QUndoCommand):
+class SetPoseCommand(UndoCommand):
     """Flag a feature as a pose feature or unflag it: one the views cannot see twice is left out
     of the camera solve (and so of the fit's checklist) but still refines the mesh."""
 
@@ -125,7 +126,7 @@ class SetPoseCommand(QUndoCommand):
         self.model.set_feature_pose(self.feature, self.old)
 
 
-class SetCurveCommand(QUndoCommand):
+class SetCurveCommand(UndoCommand):
     """Draw, replace or delete (``polyline=None``) a curve in one photo (§5.1.3)."""
 
     def __init__(self, model: StudioModel, expression: str, photo_id: str, curve: str, polyline):
@@ -151,7 +152,7 @@ class SetCurveCommand(QUndoCommand):
             self.model.remove_curve_def(self.define.name)
 
 
-class AddPhotosCommand(QUndoCommand):
+class AddPhotosCommand(UndoCommand):
     """Add photos to an expression."""
 
     def __init__(self, model: StudioModel, expression: str, photos: list[Photo]):
@@ -171,7 +172,7 @@ class AddPhotosCommand(QUndoCommand):
         _restore_fit(self.model, self.expression, self.saved_fit)
 
 
-class RemovePhotoCommand(QUndoCommand):
+class RemovePhotoCommand(UndoCommand):
     """Remove one photo (with its clicks and curves) from an expression."""
 
     def __init__(self, model: StudioModel, expression: str, photo_id: str):
@@ -197,7 +198,7 @@ def _restore_fit(model: StudioModel, expression: str, saved) -> None:
     model.fit_changed.emit(expression)
 
 
-class SetPresetCommand(QUndoCommand):
+class SetPresetCommand(UndoCommand):
     """Change a photo's rough starting view (front, three-quarter, profile)."""
 
     def __init__(self, model: StudioModel, expression: str, photo_id: str, preset: str):
@@ -212,7 +213,7 @@ class SetPresetCommand(QUndoCommand):
         self.model.set_photo_preset(self.expression, self.photo_id, self.old)
 
 
-class SetCameraGroupCommand(QUndoCommand):
+class SetCameraGroupCommand(UndoCommand):
     """Name the camera a photo was taken with (photos of one group share one focal length);
     ``None`` clears it."""
 
@@ -230,7 +231,7 @@ class SetCameraGroupCommand(QUndoCommand):
         self.model.set_photo_camera_group(self.expression, self.photo_id, self.old)
 
 
-class AddExpressionCommand(QUndoCommand):
+class AddExpressionCommand(UndoCommand):
     """Add an (empty) expression and make it current; ``cameras_from``: the expression whose
     fitted cameras it reuses (photographed by the same rig), or None."""
 
