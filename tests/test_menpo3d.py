@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import shutil
 import subprocess
 import tarfile
 from pathlib import Path
@@ -158,7 +159,10 @@ def test_the_cached_template_is_the_parsed_file(template, tmp_path, monkeypatch)
     np.testing.assert_array_equal(fresh["landmarks"], template.landmarks)
     folder = tmp_path / "menpo3d-0.8.6"
     folder.mkdir()
+    for name in ("template.ply", "template.ljson"):
+        shutil.copy2(menpo3d_dir() / name, folder / name)
     (folder / "template.npz").write_bytes(b"the earlier scheme's file")
     monkeypatch.setattr(menpo3d, "menpo3d_dir", lambda: folder)
     np.testing.assert_array_equal(menpo3d.load_template().vertices, template.vertices)
-    assert sorted(p.name for p in folder.iterdir()) == [f"template-{menpo3d.code_key(menpo3d.template_arrays)}.npz"]
+    made = f"template-{menpo3d.code_key(menpo3d.template_arrays)}.npz"
+    assert sorted(p.name for p in folder.iterdir()) == [made, "template.ljson", "template.ply"]
