@@ -3,7 +3,10 @@ its inputs, and nothing else."""
 
 from __future__ import annotations
 
+import importlib.machinery
 import os
+import sys
+import types
 from pathlib import Path
 
 import numpy as np
@@ -88,3 +91,16 @@ def test_functions_stand_for_their_modules():
     assert "photomodel.modeling.fit" not in modules and not any(m.startswith("tracking") for m in modules)
     assert code_key(build_generic_mesh_arrays) == code_key("photomodel.modeling.generic_mesh")
     assert len(code_key(build_generic_mesh_arrays)) == 16
+
+
+def test_a_builder_run_as_a_script_keys_as_its_module(package, monkeypatch):
+    """``python -m fakepkg.a`` runs the module as ``__main__``; its functions key as ``fakepkg.a``."""
+    main = types.ModuleType("__main__")
+    main.__spec__ = importlib.machinery.ModuleSpec("fakepkg.a", None)
+    monkeypatch.setitem(sys.modules, "__main__", main)
+
+    def build():
+        pass
+
+    build.__module__ = "__main__"
+    assert code_key(build) == code_key("fakepkg.a")

@@ -23,6 +23,7 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.metadata
+import sys
 import types
 from collections.abc import Iterable, Mapping
 from functools import cache
@@ -89,12 +90,16 @@ def code_modules(*code) -> list[str]:
 
 def _module_name(code) -> str:
     if isinstance(code, str):
-        return code
-    if isinstance(code, types.ModuleType):
-        return code.__name__
-    name = getattr(code, "__module__", None)
-    if not isinstance(name, str):
-        raise TypeError(f"code_key takes functions, classes, modules or module names, got {code!r}")
+        name = code
+    elif isinstance(code, types.ModuleType):
+        name = code.__name__
+    else:
+        name = getattr(code, "__module__", None)
+        if not isinstance(name, str):
+            raise TypeError(f"code_key takes functions, classes, modules or module names, got {code!r}")
+    if name == "__main__":  # a module run with ``python -m``: its importable name
+        spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+        name = spec.name if spec is not None else name
     return name
 
 
