@@ -7,6 +7,7 @@ function), not from what a test run happened to import."""
 from __future__ import annotations
 
 import ast
+from functools import cache
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -44,7 +45,9 @@ def _imports(path: Path) -> set[str]:
     return found
 
 
+@cache
 def _graph() -> dict[str, set[str]]:
+    """Module → the first-party modules it imports, for the whole tree (read once per run; do not change it)."""
     files = [p for pkg in PACKAGES for p in sorted((REPO / pkg).rglob("*.py"))]
     return {_module_name(p): _imports(p) for p in files}
 
