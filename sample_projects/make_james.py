@@ -278,7 +278,7 @@ def build(out: Path, overlays: Path | None = None, expressions=EXPRESSIONS) -> d
             "rotation": np.asarray(R).tolist(),
             "translation_mm": np.asarray(t).tolist(),
         },
-        "correspondence_version": synthetic.CORRESPONDENCE_VERSION,
+        "correspondence_key": synthetic.correspondence_key(mesh, scan),
         "features_3d": gt_expressions[NEUTRAL]["features_3d"],
         "expressions": gt_expressions,
     }

@@ -9,11 +9,12 @@ from pathlib import Path
 import exchange_data
 import pytest
 
+from photomodel.data.menpo3d import load_template
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.samples.sample_data import load_james_scan, load_template
+from photomodel.samples.fitted_sample import fitted_sample_project
+from photomodel.samples.sample_data import load_james_scan
 from photomodel.samples.synthetic import load_ground_truth
 from tracking.run import track_video
-from tracking.synthetic_sequences.ground_truth import fitted_sample_project
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
@@ -31,8 +32,10 @@ def project_copy(tmp_path):
 
 @pytest.fixture(scope="session")
 def fitted_sample():
-    """The sample project with every expression fitted and textured (made once, cached:
-    :func:`tracking.synthetic_sequences.ground_truth.fitted_sample_project`); read it, do not change it."""
+    """The sample project with every expression fitted and textured (made once, cached under a key of
+    the code that makes it: :func:`photomodel.samples.fitted_sample.fitted_sample_project`; a change of
+    the fit or texturing code makes it again, and tests/test_fitted_sample.py compares a fresh fit
+    with it); read it, do not change it."""
 
     return fitted_sample_project()
 
@@ -65,7 +68,7 @@ def straight(tmp_path_factory, fitted_sample):
 
 @pytest.fixture(scope="session")
 def template():
-    """The menpo3d template (:func:`photomodel.samples.sample_data.load_template`); read it, do not change it."""
+    """The menpo3d template (:func:`photomodel.data.menpo3d.load_template`); read it, do not change it."""
 
     return load_template()
 

@@ -27,30 +27,17 @@ LAYERS = ("photomodel", "tracking", "app")
 #: ``docs/architecture.md``.
 PHOTOMODEL_ORDER = (
     ("camera", "errors"),  # conventions and exceptions
-    ("alignment", "rendering"),  # similarity transforms; the one renderer
-    ("exchange",),  # file formats (a format per module, one atomic writer)
+    ("data", "alignment", "rendering"),  # cache, fetch, array files; similarity transforms; the one renderer
+    ("exchange", "closest_points"),  # file formats (a format per module, one atomic writer); closest points
     ("project", "modeling"),  # the project's data model and file; cameras, RBF, refinement
     ("rig", "landmarks"),  # the ARKit rig from ICT-FaceKit; automatic landmarks
     ("photos",),  # the photo reader, video stills, photos into a project with landmarks
     ("texturing",),  # the texture of a fitted expression, stored with the project
 )
-#: Left out of the order: ``samples`` (tests, benchmarks and the sample project); the data floor
-#: takes the links from runtime code into it away — after that merge only tests and benchmarks
-#: import it, and it may be added on top.
+#: Left out of the order: ``samples`` (tests, benchmarks, the sample project and the ``sample-data``
+#: command only: tests/test_samples_boundary.py keeps runtime code from importing it).
 UNORDERED = ("samples",)
 QT_PACKAGES = ("PySide6", "PySide2", "PyQt5", "PyQt6", "shiboken6", "qtpy")
-
-#: Private imports that the data floor removes (the npz helpers move out of
-#: ``photomodel/samples/`` into ``photomodel/data/``) — removed by the data floor; drop this list
-#: after merging it. Entries: (importing module, imported module, name).
-KNOWN_PRIVATE_IMPORTS = {
-    ("photomodel.modeling.generic_mesh", "photomodel.samples.sample_data", "_load_npz"),
-    ("photomodel.modeling.generic_mesh", "photomodel.samples.sample_data", "_save_npz"),
-    ("photomodel.rig.build", "photomodel.samples.sample_data", "_load_npz"),
-    ("photomodel.rig.build", "photomodel.samples.sample_data", "_save_npz"),
-    ("photomodel.samples.synthetic", "photomodel.samples.sample_data", "_load_npz"),
-    ("photomodel.samples.synthetic", "photomodel.samples.sample_data", "_save_npz"),
-}
 
 
 @dataclass(frozen=True)
@@ -149,7 +136,7 @@ def test_no_module_imports_another_modules_private_name():
         f"{_where(i)}: {i.module} takes {i.name} from {i.target}"
         for m in modules()
         for i in imports(m)
-        if _private(i.name) and i.target != m and (i.module, i.target, i.name) not in KNOWN_PRIVATE_IMPORTS
+        if _private(i.name) and i.target != m
     ]
     assert bad == [], "private names imported across modules (give them a public name):\n" + "\n".join(bad)
 

@@ -2,9 +2,9 @@
 
 import pytest
 
+from photomodel.data.fetch import package_files, sha256_of
 from photomodel.errors import SampleDataError
 from photomodel.landmarks.models import DETECTION_MODEL, LANDMARK_MODEL, MEDIAPIPE, model_dir
-from photomodel.samples.fetch import package_files, sha256_of
 
 
 def test_models_in_the_cache_match_their_checksums():

@@ -1,166 +1,21 @@
-"""Tests of photomodel.samples.sample_data: checksums, the offline failure paths, units, frames and the
-james → iBUG-68 landmark order (checked against the template's geometry, not against itself)."""
+"""Tests of photomodel.samples.sample_data: the james scan's units, frame and james → iBUG-68 landmark
+order (checked against the template's geometry, not against itself), and its folder."""
 
 from __future__ import annotations
 
-import hashlib
-import io
-import subprocess
-import tarfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.optimize import linear_sum_assignment
 
-from photomodel.errors import SampleDataError
-from photomodel.samples import fetch, sample_data
-from photomodel.samples.sample_data import (
-    FILE_SHA256,
-    JAMES_TO_IBUG68,
-    rigid_transform,
-    sample_data_dir,
-)
+from photomodel.data.menpo3d import menpo3d_dir
+from photomodel.samples import sample_data
+from photomodel.samples.sample_data import JAMES_TO_IBUG68, rigid_transform, sample_data_dir
 
 # iBUG-68 indices on the subject's right side and their mirror images on the left
 RIGHT = np.r_[0:8, 17:22, 36:42, 31, 48, 49, 59, 60, 67]
 LEFT = np.r_[16:8:-1, 26:21:-1, 45, 44, 43, 42, 47, 46, 35, 54, 53, 55, 64, 65]
-
-
-# ----------------------------------------------------------------------------- fetching
-
-
-def test_cached_files_match_their_checksums():
-    folder = sample_data_dir()
-    for name, digest in FILE_SHA256.items():
-        assert hashlib.sha256((folder / name).read_bytes()).hexdigest() == digest
-
-
-def test_cache_folder_follows_environment(monkeypatch, tmp_path):
-    monkeypatch.delenv("FACESTUDIO_CACHE", raising=False)
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    assert fetch.cache_dir() == tmp_path / "xdg" / "facestudio"
-    monkeypatch.setenv("FACESTUDIO_CACHE", str(tmp_path / "mine"))
-    assert fetch.cache_dir() == tmp_path / "mine"
-
-
-@pytest.fixture
-def no_network(monkeypatch):
-    """Fail the test if anything tries to run pip."""
-
-    def refuse(*args, **kwargs):
-        raise AssertionError(f"unexpected subprocess call {args}")
-
-    monkeypatch.setattr(subprocess, "run", refuse)
-
-
-def test_corrupt_cache_and_corrupt_sdist_raise(monkeypatch, tmp_path, no_network):
-    data = tmp_path / "menpo3d-0.8.6"
-    data.mkdir()
-    for name in FILE_SHA256:
-        (data / name).write_bytes(b"corrupt")
-    bad_sdist = tmp_path / "menpo3d-0.8.6.tar.gz"
-    bad_sdist.write_bytes(b"not the archive")
-    monkeypatch.setenv("FACESTUDIO_CACHE", str(tmp_path))
-    monkeypatch.setenv("FACESTUDIO_MENPO3D_SDIST", str(bad_sdist))
-    with pytest.raises(SampleDataError, match="SHA-256") as err:
-        sample_data_dir()
-    assert "FACESTUDIO_MENPO3D_SDIST" in str(err.value)  # the message says what to do
-    assert (data / "james.obj").read_bytes() == b"corrupt"  # nothing half-installed
-
-
-def test_missing_local_sdist_raises(monkeypatch, tmp_path, no_network):
-    monkeypatch.setenv("FACESTUDIO_CACHE", str(tmp_path))
-    monkeypatch.setenv("FACESTUDIO_MENPO3D_SDIST", str(tmp_path / "nowhere.tar.gz"))
-    with pytest.raises(SampleDataError, match="not a file"):
-        sample_data_dir()
-
-
-def test_pip_failure_raises_with_instructions(monkeypatch, tmp_path):
-    calls = []
-
-    def failing_pip(cmd, **kwargs):
-        calls.append(cmd)
-        return subprocess.CompletedProcess(cmd, 1, stdout="", stderr="ERROR: no network")
-
-    monkeypatch.setattr(subprocess, "run", failing_pip)
-    monkeypatch.setenv("FACESTUDIO_CACHE", str(tmp_path))
-    monkeypatch.delenv("FACESTUDIO_MENPO3D_SDIST", raising=False)
-    with pytest.raises(SampleDataError, match="setuptools wheel") as err:
-        sample_data_dir()
-    assert "no network" in str(err.value)
-    assert calls and calls[0][1:4] == ["-m", "pip", "download"] and "menpo3d==0.8.6" in calls[0]
-
-
-def _fake_sdist(path: Path, contents: dict[str, bytes]) -> None:
-    with tarfile.open(path, "w:gz") as tar:
-        for name, data in contents.items():
-            info = tarfile.TarInfo("menpo3d-0.8.6/menpo3d/data/" + name)
-            info.size = len(data)
-            tar.addfile(info, io.BytesIO(data))
-
-
-def test_install_from_local_sdist_replaces_corrupt_cache(monkeypatch, tmp_path, no_network):
-    # a stand-in archive whose checksums we declare, to run the whole install offline
-    contents = {name: f"payload of {name}".encode() for name in FILE_SHA256}
-    sdist = tmp_path / "fake.tar.gz"
-    _fake_sdist(sdist, {**contents, "bunny.obj": b"not extracted"})
-    monkeypatch.setattr(sample_data, "SDIST_SHA256", hashlib.sha256(sdist.read_bytes()).hexdigest())
-    monkeypatch.setattr(sample_data, "FILE_SHA256", {n: hashlib.sha256(d).hexdigest() for n, d in contents.items()})
-    cache = tmp_path / "cache"
-    (cache / "menpo3d-0.8.6").mkdir(parents=True)
-    (cache / "menpo3d-0.8.6" / "james.obj").write_bytes(b"corrupt")
-    monkeypatch.setenv("FACESTUDIO_CACHE", str(cache))
-    monkeypatch.setenv("FACESTUDIO_MENPO3D_SDIST", str(sdist))
-
-    folder = sample_data_dir()
-
-    assert folder == cache / "menpo3d-0.8.6"
-    assert sorted(p.name for p in folder.iterdir()) == sorted(contents)  # only the six files
-    for name, data in contents.items():
-        assert (folder / name).read_bytes() == data
-    assert [p.name for p in cache.iterdir()] == ["menpo3d-0.8.6"]  # no temporary left over
-
-
-def test_archive_member_with_wrong_checksum_raises(monkeypatch, tmp_path, no_network):
-    contents = {name: b"x" for name in FILE_SHA256}
-    sdist = tmp_path / "fake.tar.gz"
-    _fake_sdist(sdist, contents)
-    monkeypatch.setattr(sample_data, "SDIST_SHA256", hashlib.sha256(sdist.read_bytes()).hexdigest())
-    monkeypatch.setenv("FACESTUDIO_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setenv("FACESTUDIO_MENPO3D_SDIST", str(sdist))
-    with pytest.raises(SampleDataError, match="fails its SHA-256 check"):
-        sample_data_dir()
-    assert not (tmp_path / "cache" / "menpo3d-0.8.6").exists()
-
-
-def test_cli_prints_the_folder(capsys):
-    assert sample_data.main([]) == 0
-    assert Path(capsys.readouterr().out.strip()) == sample_data_dir()
-
-
-# ----------------------------------------------------------------------------- template
-
-
-def test_template_is_in_millimetres_in_the_head_frame(template):
-    assert template.vertices.shape == (53349, 3) and template.faces.shape[1] == 3
-    width = np.ptp(template.vertices[:, 0])
-    assert 150 < width < 250  # a head is ~15–20 cm wide: micrometres were converted
-    # landmarks lie on the surface: the mesh is ~1.2 mm between vertices
-    d = np.linalg.norm(template.vertices[None] - template.landmarks[:, None], axis=2).min(axis=1)
-    assert d.max() < 1.5
-    L = template.landmarks
-    assert L[30, 2] > L[[36, 45, 48, 54], 2].max()  # the nose points along +z
-    assert L[19, 1] > L[37, 1] > L[30, 1] > L[51, 1] > L[8, 1]  # +y is up: brow, eye, nose, lip, chin
-
-
-def test_template_landmarks_are_in_ibug_order(template):
-    L = template.landmarks
-    assert np.all(L[RIGHT, 0] < 0) and np.all(L[LEFT, 0] > 0)  # subject's right is -x
-    assert np.all(np.diff(L[0:17, 0]) > 0)  # jaw runs from the right ear to the left
-    assert L[36, 0] < L[39, 0] and L[42, 0] < L[45, 0]  # eye corners
-    assert L[37:39, 1].min() > L[[40, 41], 1].max()  # 37, 38 on the upper lid
-    assert L[49:54, 1].min() > L[55:60, 1].max()  # outer lip: the top first
 
 
 # ----------------------------------------------------------------------------- james
@@ -251,3 +106,20 @@ def test_uv_v_is_measured_up_and_texture_is_rgb(scan):
     skin = rgb[cheeks].mean(0)
     assert skin.sum() > hair.sum() + 150  # with v measured down, the two swap places
     assert skin[0] > skin[2] + 20  # skin is red-ish: the channels are RGB, not BGR
+
+
+def test_cli_prints_the_folder(capsys):
+    """``python -m photomodel.samples.sample_data`` fetches the archive the scan comes in."""
+    assert sample_data.main([]) == 0
+    assert Path(capsys.readouterr().out.strip()) == sample_data_dir() == menpo3d_dir()
+
+
+def test_the_cached_scan_is_the_parsed_file(scan):
+    """load_james_scan serves ``james_scan-<key>.npz``; it holds what parsing the files gives now."""
+    fresh = sample_data.james_arrays(sample_data_dir())
+    np.testing.assert_array_equal(fresh["faces"], scan.faces)
+    np.testing.assert_array_equal(fresh["uv"], scan.uv)
+    np.testing.assert_array_equal(fresh["obj_vertex"], scan.obj_vertex)
+    R, t = scan.rigid
+    np.testing.assert_allclose(fresh["obj_positions"][fresh["obj_vertex"]] @ R.T + t, scan.vertices, atol=1e-12)
+    np.testing.assert_allclose(fresh["obj_landmarks"] @ R.T + t, scan.landmarks, atol=1e-12)

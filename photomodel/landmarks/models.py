@@ -11,11 +11,11 @@ MediaPipe runtime:
 ``mediapipe==0.10.21`` is the last wheel that carries ``face_landmark.tflite``; its wheels
 exist for CPython 3.9–3.12 only, so pip is asked for one fixed wheel (CPython 3.11,
 ``manylinux_2_28_x86_64``, binary only) whatever Python runs Face Studio, and the two files are
-read out of it (:mod:`photomodel.samples.fetch`: archive and file checksums, cache, atomic
+read out of it (:mod:`photomodel.data.fetch`: archive and file checksums, cache, atomic
 install). The full-range detector of the same wheel is not used: it is stored sparse and
 OpenCV 5 cannot import its ``DENSIFY`` operator.
 
-Cache: ``<cache>/mediapipe-0.10.21/`` (see :func:`photomodel.samples.fetch.cache_dir`).
+Cache: ``<cache>/mediapipe-0.10.21/`` (see :func:`photomodel.data.cache.cache_dir`).
 Offline, set ``FACESTUDIO_MEDIAPIPE_WHEEL`` to a local copy of the wheel.
 
 ``python -m photomodel.landmarks.models`` fetches the models ahead of time (install.sh runs it)
@@ -27,7 +27,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from photomodel.samples.fetch import PackageFiles, package_files, print_folder
+from photomodel.data.fetch import PackageFiles, package_files, print_folder
 
 LANDMARK_MODEL = "face_landmark.tflite"
 DETECTION_MODEL = "face_detection_short_range.tflite"

@@ -1,9 +1,10 @@
 """The generic face mesh: the shape Pighin et al. (2002), §5.1, deform into each person.
 
-Built once from menpo3d's ``template.ply`` (see :mod:`photomodel.samples.sample_data`), a
+Built once from menpo3d's ``template.ply`` (see :mod:`photomodel.data.menpo3d`), a
 53k-vertex generic head surface (face, ears, neck; open at the back and at the mouth) with the
-68 iBUG landmarks, and cached as an ``.npz`` in the cache
-folder under a version key (:data:`GENERIC_MESH_VERSION`):
+68 iBUG landmarks, and cached as ``generic_mesh-<key>.npz`` in the cache folder, the key a hash
+of this module's code and what it imports (:func:`generic_mesh_key`), so any change of the recipe
+below builds it again:
 
 1. **Simplify** to ~8k vertices, an interactive size, with quadric-error decimation
    (``trimesh.Trimesh.simplify_quadric_decimation``, backed by the kept
@@ -39,12 +40,11 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
+from photomodel.data.cache import cached_arrays
+from photomodel.data.keys import code_key
+from photomodel.data.menpo3d import Template, load_template
 from photomodel.rendering.renderer import vertex_normals
-from photomodel.samples.fetch import cache_dir
-from photomodel.samples.sample_data import Template, _load_npz, _save_npz, load_template
 
-#: Cache key of the built mesh; change it whenever the recipe below changes its output.
-GENERIC_MESH_VERSION = "2-faces16000"
 #: Target triangle count of the decimation; gives ~8.1k vertices for the open face mask.
 TARGET_FACES = 16000
 
@@ -205,8 +205,19 @@ class GenericMesh:
         return vertex_normals(self.vertices, self.faces)
 
 
+def generic_mesh_key() -> str:
+    """The cache key of the generic mesh: :func:`build_generic_mesh_arrays`' code (this module and
+    what it imports, the template's loader and checksums among them).
+
+    No library versions: the mesh fixes every project's vertex order, so an upgrade of trimesh or
+    numpy does not replace it by itself; ``tests/test_generic_mesh.py`` builds it afresh and
+    compares, which is where such a drift shows."""
+    return code_key(build_generic_mesh_arrays, inputs=(TARGET_FACES,))
+
+
 def load_generic_mesh() -> GenericMesh:
-    """The generic face mesh, built from the template on first use and cached.
+    """The generic face mesh, built from the template on first use and cached
+    (``<cache>/generic_mesh-<key>.npz``, :func:`generic_mesh_key`).
 
     Returns
     -------
@@ -215,15 +226,9 @@ def load_generic_mesh() -> GenericMesh:
     Raises
     ------
     SampleDataError
-        when the template cannot be obtained (see :func:`photomodel.samples.sample_data.sample_data_dir`).
+        when the template cannot be obtained (see :func:`photomodel.data.menpo3d.menpo3d_dir`).
     """
-    folder = cache_dir()
-    path = folder / f"generic_mesh-{GENERIC_MESH_VERSION}.npz"
-    arrays = _load_npz(path)
-    if arrays is None:
-        arrays = build_generic_mesh_arrays(load_template())
-        folder.mkdir(parents=True, exist_ok=True)
-        _save_npz(path, arrays)
+    arrays = cached_arrays("generic_mesh", generic_mesh_key(), lambda: build_generic_mesh_arrays(load_template()))
     landmarks = arrays["landmarks"]
     features = {name: int(landmarks[i]) for i, name in enumerate(IBUG68_NAMES)}
     features.update({name: int(landmarks[i]) for name, i in FEATURE_ALIASES.items()})

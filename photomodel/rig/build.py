@@ -35,21 +35,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from photomodel.alignment import similarity_transform
-from photomodel.modeling.generic_mesh import GENERIC_MESH_VERSION, GenericMesh
+from photomodel.data.cache import cached_arrays
+from photomodel.data.keys import code_key
+from photomodel.modeling.generic_mesh import GenericMesh
 from photomodel.rig.ict import RIG_SHAPES, IctModel, arkit_deltas, load_ict
 from photomodel.rig.registration import Registration, register_ict
 from photomodel.rig.transfer import DeformationTransfer, soft_triangles
-from photomodel.samples.fetch import cache_dir
-from photomodel.samples.sample_data import _load_npz, _save_npz
 
 __all__ = [
     "Rig",
     "RigBuilder",
     "load_registration",
+    "registration_key",
     "IDENTITY_MODES",
     "IDENTITY_RIDGE",
     "SUPPORT_MM",
-    "REGISTRATION_VERSION",
 ]
 
 #: ICT identity modes fitted to the person before the transfer (of the 100 shipped).
@@ -60,20 +60,27 @@ ALIGN_ROUNDS = 2
 IDENTITY_RIDGE = 1.0
 #: A shape fades in between these source displacements (mm).
 SUPPORT_MM = (0.05, 0.5)
-#: Cache key of the registration; change it when register_ict's recipe changes its output.
-REGISTRATION_VERSION = "1"
+#: Third-party packages whose numerics move the registration; their versions are part of its key.
+REGISTRATION_PACKAGES = ("numpy", "scipy", "trimesh")
+
+
+def registration_key(mesh: GenericMesh, ict: IctModel) -> str:
+    """The cache key of ICT's registration onto ``mesh``: :func:`register_ict`'s code (its module and
+    what it imports), the arrays it reads and :data:`REGISTRATION_PACKAGES`' versions."""
+    inputs = (mesh.vertices, mesh.faces, mesh.landmarks, ict.neutral, ict.faces, ict.landmarks)
+    return code_key(register_ict, inputs=inputs, packages=REGISTRATION_PACKAGES)
 
 
 def load_registration(mesh: GenericMesh, ict: IctModel | None = None) -> Registration:
-    """ICT registered onto the built-in generic mesh, from the cache or computed (~30 s) and cached."""
-    path = cache_dir() / f"ict_registration-{GENERIC_MESH_VERSION}-{REGISTRATION_VERSION}.npz"
-    arrays = _load_npz(path)
-    if arrays is not None and len(arrays["triangles"]) == len(mesh.vertices):
-        return Registration.from_arrays(arrays)
-    reg = register_ict(ict or load_ict(), mesh.vertices, mesh.faces, mesh.landmarks)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    _save_npz(path, reg.to_arrays())
-    return reg
+    """ICT registered onto ``mesh``, from the cache (``<cache>/ict_registration-<key>.npz``,
+    :func:`registration_key`) or computed (~15 s) and cached."""
+    ict = ict or load_ict()
+    arrays = cached_arrays(
+        "ict_registration",
+        registration_key(mesh, ict),
+        lambda: register_ict(ict, mesh.vertices, mesh.faces, mesh.landmarks).to_arrays(),
+    )
+    return Registration.from_arrays(arrays)
 
 
 @dataclass

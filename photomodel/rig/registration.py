@@ -37,10 +37,10 @@ import numpy as np
 import scipy.sparse as sparse
 
 from photomodel.alignment import similarity_transform
+from photomodel.closest_points import TriangleSurface, barycentric_coordinates
 from photomodel.modeling.rbf import RBFInterpolant
 from photomodel.rendering.renderer import vertex_normals
 from photomodel.rig.ict import IctModel
-from photomodel.samples.synthetic import ScanSurface, barycentric_coordinates
 
 __all__ = ["Registration", "register_ict", "ICP_ROUNDS", "PAIR_MM", "COVER_MM", "RIDGE"]
 
@@ -152,7 +152,7 @@ def register_ict(
     s, R, t = similarity_transform(ict.neutral[ict.landmarks], target_lm)
     X = s * ict.neutral @ R.T + t
     rigid_rms = float(np.sqrt(np.mean(np.sum((X[ict.landmarks] - target_lm) ** 2, axis=1))))
-    generic = ScanSurface(vertices, faces)
+    generic = TriangleSurface(vertices, faces)
     sample = np.setdiff1d(np.arange(0, len(X), CENTRE_STRIDE), ict.landmarks)
     W = X
     for _ in range(rounds):
@@ -162,7 +162,7 @@ def register_ict(
         centres = np.concatenate([X[ict.landmarks], X[sample[keep]]])
         W = _warp(centres, np.concatenate([target_lm, closest[keep]]), X)
     lm_rms = float(np.sqrt(np.mean(np.sum((W[ict.landmarks] - target_lm) ** 2, axis=1))))
-    closest, distance, tri = ScanSurface(W, ict.faces).closest(vertices)
+    closest, distance, tri = TriangleSurface(W, ict.faces).closest(vertices)
     bary = barycentric_coordinates(closest, W[ict.faces[tri]])
     bary /= bary.sum(axis=1, keepdims=True)
     return Registration(

