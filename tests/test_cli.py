@@ -142,7 +142,7 @@ def test_fit_json_error_lists_every_missing_click(project_copy, capsys):
 
 
 def test_the_fit_summary_says_one_reason_for_many_features_once():
-    from app.cli import _grouped_reasons
+    from app.cli.fit import grouped_reasons as _grouped_reasons
 
     why = "automatic click(s) unsure (confidence < 0.5) and 0 sure; the generic mesh places it"
     reasons = ["photo 'right': no click (no face found?), left out of the fit"]

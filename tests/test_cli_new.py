@@ -1,9 +1,9 @@
-"""Tests of ``facestudio new`` (app/cli.py) and of photomodel/photos/intake.py behind it: photos
+"""Tests of ``facestudio new`` (app/cli/new.py) and of photomodel/photos/intake.py behind it: photos
 checked, automatic clicks stored as such, warnings for what the artist fixes by hand.
 
-The landmark detector is replaced by a fake placer (``app.cli.place_landmarks`` patched where the
-command looks it up, or ``placer=`` passed to the core functions): these tests are about what
-happens to a placement, not about finding faces, and stay fast."""
+The landmark detector is replaced by a fake placer (``place_landmarks`` patched in ``app.cli.new``
+and ``app.cli.add_photos``, where the commands look it up, or ``placer=`` passed to the core
+functions): these tests are about what happens to a placement, not about finding faces, and stay fast."""
 
 from __future__ import annotations
 
@@ -17,6 +17,8 @@ import pytest
 from PIL import Image
 
 import app.cli as cli
+import app.cli.add_photos
+import app.cli.new
 from photomodel.errors import NoFaceFound, PhotoError
 from photomodel.photos.exif import EXIF_IFD, TAG_FOCAL_LENGTH, TAG_FOCAL_LENGTH_35MM
 from photomodel.photos.intake import add_photos, new_project_from_photos
@@ -79,7 +81,8 @@ def folder(tmp_path):
 
 
 def run_new(monkeypatch, capsys, *argv):
-    monkeypatch.setattr(cli, "place_landmarks", fake_placer)
+    monkeypatch.setattr(app.cli.new, "place_landmarks", fake_placer)
+    monkeypatch.setattr(app.cli.add_photos, "place_landmarks", fake_placer)
     code = cli.main(["new", *map(str, argv)])
     out = capsys.readouterr()
     return code, out.out, out.err
@@ -202,7 +205,8 @@ def test_add_photos_to_a_project_and_a_large_photo(tmp_path, folder):
 
 
 def run_command(command, monkeypatch, capsys, *argv):
-    monkeypatch.setattr(cli, "place_landmarks", fake_placer)
+    monkeypatch.setattr(app.cli.new, "place_landmarks", fake_placer)
+    monkeypatch.setattr(app.cli.add_photos, "place_landmarks", fake_placer)
     code = cli.main([command, *map(str, argv)])
     out = capsys.readouterr()
     return code, out.out, out.err

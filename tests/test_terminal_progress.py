@@ -1,4 +1,4 @@
-"""The command line's progress (app/terminal_progress.py): a bar on a terminal, plain lines in a log, one style.
+"""The command line's progress (app/cli/progress.py): a bar on a terminal, plain lines in a log, one style.
 
 A log (stderr not a terminal) must not fill with carriage-return redraws: a line per stage and
 per 10 % step instead. Fit, texture and track say the command and what they are on.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import io
 
 from app.cli import main
-from app.terminal_progress import PERCENT_STEP, StageProgress
+from app.cli.progress import PERCENT_STEP, StageProgress
 
 
 class Terminal(io.StringIO):
