@@ -8,6 +8,7 @@ functions): these tests are about what happens to a placement, not about finding
 from __future__ import annotations
 
 import json
+import shlex
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -275,3 +276,18 @@ def test_add_photos_drops_the_fit_it_outdates_and_names_bad_paths(one_photo_proj
         code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", bad, "--json")
         assert code == 2 and json.loads(out)["error"]["type"] == "PhotoError" and bad.name in err
     assert target.read_bytes() == before  # nothing written
+
+
+def test_next_command_is_quoted_and_a_photo_without_a_face_has_no_view(tmp_path, folder, monkeypatch, capsys):
+    """Issue 35: the "next:" line pastes into a shell with spaces and non-Latin letters in the path;
+    a photo where no face was found is not listed as the "front" view."""
+    target = tmp_path / "my projects" / "Zoë Ünal.facestudio.json"
+    target.parent.mkdir()
+    code, out, err = run_new(monkeypatch, capsys, target, "--photos", folder)
+    assert code == 0, err
+    nxt = [line for line in out.splitlines() if line.startswith("next: ")]
+    assert shlex.split(nxt[0].removeprefix("next: ")) == ["facestudio", "fit", str(target)]
+    row = next(line for line in out.splitlines() if line.strip().startswith("IMG_0003"))
+    assert "front" not in row and "no face" in row
+    rows = [line for line in out.splitlines() if line.strip().startswith("IMG_")]
+    assert len({r.index(" of ") for r in rows}) == 1  # the columns line up

@@ -242,6 +242,9 @@ class MainWindow(QMainWindow):
         expressions side by side, tracking."""
         self.tabs = QTabWidget()
         self.tabs.setDocumentMode(True)
+        # room under the text: some fonts draw "_" below the compact tab's text box, and photo ids
+        # such as three_quarter_right then read "three quarter right" (issue 35)
+        self.tabs.tabBar().setStyleSheet("QTabBar::tab { padding-bottom: 3px; }")
         self.tabs.currentChanged.connect(self._on_tab_changed)
         self.empty_label = QLabel("<h3>No photos yet</h3><p>Drop photos here, or use File → Add photos…</p>")
         self.empty_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
