@@ -16,6 +16,8 @@ Every command reports through :class:`StageProgress` (made by :func:`command_pro
 
 from __future__ import annotations
 
+import io
+import os
 import sys
 import time
 from typing import TextIO
@@ -47,7 +49,7 @@ class StageProgress:
         self.task = task
         self.enabled = enabled
         self.stream = stream if stream is not None else sys.stderr
-        self.tty = bool(tty if tty is not None else getattr(self.stream, "isatty", lambda: False)())
+        self.tty = bool(tty if tty is not None else _is_terminal(self.stream))
         self.bar = None
         self._stage: str | None = None
         self._next_percent = 0
@@ -63,8 +65,10 @@ class StageProgress:
             self.stage_started = time.monotonic()
         if self.tty:
             if self.bar is None:
-                self.bar = tqdm(total=100, file=self.stream, bar_format=BAR_FORMAT, leave=False)
-            if new_stage:  # the elapsed time is the phase's
+                self.bar = tqdm(
+                    total=100, file=self.stream, bar_format=BAR_FORMAT, leave=False, desc=text, initial=percent
+                )
+            elif new_stage:  # the elapsed time is the phase's
                 self.bar.start_t = self.bar._time()
             self._stage = stage
             self.bar.set_description_str(text, refresh=False)
@@ -103,10 +107,21 @@ class StageProgress:
         self.close()
 
 
+def _is_terminal(stream) -> bool:
+    """Whether ``stream`` is a terminal a bar can be drawn on: a TTY that reports a width (a
+    pseudo-terminal of width 0, as some CI runners open, would show an empty bar: lines there)."""
+    if not getattr(stream, "isatty", lambda: False)():
+        return False
+    try:
+        return os.get_terminal_size(stream.fileno()).columns > 0
+    except (AttributeError, OSError, ValueError, io.UnsupportedOperation):
+        return True  # a terminal-like stream without a descriptor (tests): a bar
+
+
 def command_progress(args, task: str, stream: TextIO | None = None) -> StageProgress:
     """The progress of command ``task``: on stderr, silent with ``--json`` unless stderr is a terminal."""
     stream = stream if stream is not None else sys.stderr
-    tty = bool(getattr(stream, "isatty", lambda: False)())
+    tty = _is_terminal(stream)
     return StageProgress(task, enabled=not getattr(args, "json", False) or tty, stream=stream, tty=tty)
 
 
