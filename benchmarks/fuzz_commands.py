@@ -104,11 +104,13 @@ def _cache_with_sample(folder: Path) -> None:
 
 
 def _listing(folder: Path) -> dict:
+    """Every file (size, modification time) and folder under ``folder``: what a partial output changes
+    (a folder's own time is left out: a write check's probe file, made and removed, touches it)."""
     out = {}
     for p in sorted(folder.rglob("*")):
         with contextlib.suppress(OSError):
             st = p.lstat()
-            out[str(p.relative_to(folder))] = (st.st_size, st.st_mtime_ns)
+            out[str(p.relative_to(folder))] = None if p.is_dir() else (st.st_size, st.st_mtime_ns)
     return out
 
 

@@ -21,6 +21,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from photomodel.errors import ProjectError
+from photomodel.project import load_project
 
 #: The errors of a write the disk refuses: read-only, full, over quota, too big, not allowed.
 WRITE_ERRNOS = frozenset({errno.EROFS, errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EACCES, errno.EPERM})
@@ -126,6 +127,15 @@ def expression_names(text: str | None) -> list[str] | None:
     return None if text is None else [n.strip() for n in text.split(",") if n.strip()]
 
 
+def check_expression_names(project_path: str | os.PathLike, names: list[str] | None) -> None:
+    """Each of ``names`` an expression of the project (which must load); a ProjectError naming the
+    first unknown one otherwise, before any work."""
+    if names:
+        project = load_project(project_path)
+        for name in names:
+            project.expression(name)
+
+
 def column_width(values: Iterable[str], header: str, at_most: int = 60) -> int:
     """The width of a table column: its longest value or header (a name longer than
     ``at_most`` widens only its own row)."""
@@ -145,6 +155,7 @@ __all__ = [
     "MIN_FREE_BYTES",
     "WRITE_ERRNOS",
     "add_json_flag",
+    "check_expression_names",
     "check_file_writable",
     "check_writable",
     "column_width",

@@ -14,7 +14,7 @@ import signal
 import sys
 from pathlib import Path
 
-from app.cli.common import add_json_flag, check_writable, column_width, expression_names
+from app.cli.common import add_json_flag, check_expression_names, check_writable, column_width, expression_names
 from app.cli.progress import command_progress
 from photomodel.errors import FaceStudioError
 from tracking.run import track_video
@@ -36,6 +36,7 @@ def check_args(args) -> None:
         )
     if not Path(args.video).exists():
         raise FaceStudioError(f"{args.video} does not exist (give a video file or a folder of frames)")
+    check_expression_names(args.project, expression_names(args.expressions))
 
 
 def run(args) -> int:

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.cli.common import check_writable, column_width, expression_names
+from app.cli.common import check_expression_names, check_writable, column_width, expression_names
 from app.cli.progress import StageProgress, command_progress
 from photomodel.errors import FaceStudioError
 
@@ -38,6 +38,7 @@ def check_args(args) -> None:
     for video in args.videos:
         if not Path(video).exists():
             raise FaceStudioError(f"{video} does not exist (give a video file or a folder of frames)")
+    check_expression_names(args.project, expression_names(args.expressions))
 
 
 def run(args) -> int:
