@@ -227,6 +227,9 @@ def main(argv=None) -> int:
     ap.add_argument("--benign", type=int, default=1000, help="benign mutants")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes checking mutants")
     ap.add_argument("--seed", type=int, default=0, help="first hypothesis seed")
+    ap.add_argument("--monkey-seeds", type=int, help="the monkey section: seeds (default: fuzz_monkey.SEEDS)")
+    ap.add_argument("--monkey-actions", type=int, help="the monkey section: actions per seed")
+    ap.add_argument("--monkey-jobs", type=int, help="the monkey section: children at once")
     ap.add_argument(
         "--commands",
         metavar="A,B",

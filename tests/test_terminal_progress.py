@@ -135,9 +135,10 @@ def test_edit_export_and_track_many_write_lines_into_a_log(fitted_sample, track_
         assert "\r" not in err and lines and lines[-1].endswith("100%"), (word, err)
 
 
-def test_on_a_terminal_each_command_draws_one_bar(fitted_sample, track_copy, tmp_path):
+@pytest.mark.parametrize("word", ["edit", "export", "track-many"])
+def test_on_a_terminal_each_command_draws_one_bar(word, fitted_sample, track_copy, tmp_path):
     """stderr a pty: the bar, redrawn in place, with the command's word and the phase's time."""
-    argv = _commands(fitted_sample, track_copy, tmp_path)["edit"]
+    argv = _commands(fitted_sample, track_copy, tmp_path)[word]
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # a terminal 120 columns wide
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
@@ -156,4 +157,4 @@ def test_on_a_terminal_each_command_draws_one_bar(fitted_sample, track_copy, tmp
     os.close(master)
     assert proc.wait(timeout=300) == 0
     text = b"".join(chunks).decode("utf-8", "replace")
-    assert "\r" in text and "edit editing: frame" in text and "00:0" in text, text[-500:]
+    assert "\r" in text and f"\r{word} " in text and "00:0" in text, text[-500:]
