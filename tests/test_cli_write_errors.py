@@ -215,3 +215,25 @@ def test_live_link_weights_of_a_neutral_only_model_are_zero():
     n, r = 5, 3
     shapes = BlendShapes(np.zeros((n, 3)), np.zeros((1, 3), int), np.ones((r, n, 3)), ["a", "b", "c"], None, None, r, 0)
     assert np.array_equal(arkit_weights(shapes, np.zeros((4, r)), None), np.zeros((4, r)))
+
+
+def test_texture_files_written_before_a_refused_one_are_removed(fitted_project_copy, monkeypatch, capsys):
+    """The disk fills while the texture's files are written: the new ones written before are
+    removed, the project file is untouched, and the message names the file's folder."""
+    results = fitted_project_copy.parent / "results"
+    for f in results.glob("neutral*"):  # as if never textured: every texture file would be new
+        if f.name not in ("neutral.obj", "neutral.ply"):  # the fitted mesh stays
+            f.unlink()
+    before, project = _listing(results), fitted_project_copy.read_bytes()
+    real = files.atomic_write_bytes
+
+    def full(path, data, **kw):
+        if Path(path).suffix == ".ply":
+            raise files._named(OSError(errno.ENOSPC, "No space left on device"), Path(path))
+        return real(path, data, **kw)
+
+    monkeypatch.setattr(files, "atomic_write_bytes", full)
+    assert main(["texture", str(fitted_project_copy), "--expression", "neutral", "--size", "64"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "No space left on device" in err and str(results) in err, err
+    assert _listing(results) == before and fitted_project_copy.read_bytes() == project

@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from app.cli.common import add_json_flag, check_writable, sigint_deferred
+from app.cli.common import add_json_flag, check_writable, new_outputs, sigint_deferred
 from app.cli.progress import command_progress
 from photomodel.errors import FaceStudioError
 from photomodel.modeling.generic_mesh import load_generic_mesh
@@ -32,7 +32,8 @@ def run(args) -> int:
     check_writable(folder, folder / "results")
     prepared = _prepare(args, project, names)
     # commit: every file atomically, then the project; Ctrl-C waits until this is done
-    with sigint_deferred() as interrupted:
+    written = [path for _name, _job, files, _rel, _report in prepared for path in files]
+    with sigint_deferred() as interrupted, new_outputs(written):  # a refused write leaves no new file behind
         save_results(project, textures=[(job, files, rel) for _name, job, files, rel, _report in prepared])
     if interrupted:
         print("facestudio: interrupted while saving; the results were saved completely", file=sys.stderr)
