@@ -27,6 +27,7 @@ import app.cli.export
 from app.cli import main
 from photomodel.exchange import files
 from photomodel.exchange.files import atomic_write_bytes
+from photomodel.project import io as project_io
 from tracking.performance import BlendShapes, arkit_weights
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
@@ -237,3 +238,22 @@ def test_texture_files_written_before_a_refused_one_are_removed(fitted_project_c
     err = capsys.readouterr().err
     assert "Traceback" not in err and "No space left on device" in err and str(results) in err, err
     assert _listing(results) == before and fitted_project_copy.read_bytes() == project
+
+
+def test_fit_meshes_written_before_a_refused_project_file_are_removed(project_copy, monkeypatch, capsys):
+    """The project file's write fails after the meshes were written: no new mesh is left in results/."""
+    results = project_copy.parent / "results"
+    real = files.atomic_write_bytes
+
+    def full(path, data, **kw):
+        if Path(path).name.endswith(".facestudio.json"):
+            raise files._named(OSError(errno.ENOSPC, "No space left on device"), Path(path))
+        return real(path, data, **kw)
+
+    monkeypatch.setattr(project_io, "atomic_write_bytes", full)  # the project file's writer
+    before = project_copy.read_bytes()
+    assert main(["fit", str(project_copy), "--expression", "neutral", "--no-refine"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and str(project_copy.parent) in err, err
+    assert not results.exists() or not any(results.iterdir())
+    assert project_copy.read_bytes() == before

@@ -101,6 +101,22 @@ def new_outputs(paths: Iterable[str | os.PathLike]) -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def new_files_in(folder: str | os.PathLike) -> Iterator[None]:
+    """Remove the files that appear in ``folder`` during the block, if it fails (a fit's meshes,
+    whose names are made as they are written): :func:`new_outputs` for outputs not named ahead."""
+    folder = Path(folder)
+    before = set(folder.iterdir()) if folder.is_dir() else set()
+    with new_outputs([folder] if not folder.exists() else []):
+        try:
+            yield
+        except BaseException:
+            for p in set(folder.iterdir()) - before if folder.is_dir() else ():
+                with contextlib.suppress(OSError):
+                    p.unlink()
+            raise
+
+
+@contextlib.contextmanager
 def sigint_deferred():
     """Hold Ctrl-C while the outputs are being committed; yields a list that records it."""
     caught = []
@@ -160,6 +176,7 @@ __all__ = [
     "check_writable",
     "column_width",
     "expression_names",
+    "new_files_in",
     "new_outputs",
     "positive_int",
     "quoted",

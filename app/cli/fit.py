@@ -14,7 +14,7 @@ import re
 import sys
 from pathlib import Path
 
-from app.cli.common import add_json_flag, check_writable, column_width, sigint_deferred
+from app.cli.common import add_json_flag, check_writable, column_width, new_files_in, sigint_deferred
 from app.cli.progress import command_progress
 from photomodel.errors import PhotoError, ProjectError
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, uses_person_prior
@@ -57,7 +57,8 @@ def run(args) -> int:
             print(format_report(name, result.report, result.report.get("dropped", [])))
     if not args.dry_run:
         # the meshes, then the project file; Ctrl-C waits until this is done
-        with sigint_deferred() as interrupted:
+        results_dir = Path(args.project).absolute().parent / "results"
+        with sigint_deferred() as interrupted, new_files_in(results_dir):  # a refused write leaves no new mesh
             save_results(project, fits={name: result.vertices for name, result in results}, faces=mesh.faces)
         if interrupted:
             print("facestudio: interrupted while saving; the results were saved completely", file=sys.stderr)
