@@ -1,7 +1,8 @@
 """Nothing a user does crashes a command or the studio: the fuzzed project loader and the monkey.
 
     .venv/bin/python benchmarks/bench_fuzz.py [--json] [--mutants 10000] [--benign 1000] [--workers N]
-                                              [--seed 0] [--only fuzz|benign|monkey]
+                                              [--seed 0] [--only fuzz|benign|monkey|commands]
+                                              [--commands fit,texture]
 
 Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON object):
 
@@ -17,6 +18,11 @@ Sections (each a function of :data:`SECTIONS`, adding its keys to one JSON objec
   original (the bar: all of them).
 * ``monkey`` — seeded random artist actions on the studio, each seed in its own process
   (``benchmarks/fuzz_monkey.py``, ``monkey_section``; included when that file is there).
+* ``commands`` — every ``facestudio`` command × {read-only output folder, missing input, a photo
+  of the wrong size, an unknown name in an argument, a path with spaces and non-Latin letters},
+  each in its own process (``benchmarks/fuzz_commands.py``, ``commands_section``). Keys:
+  ``cases``, ``tracebacks``, ``partial_outputs``, ``unnamed``, ``exit_codes``, ``failures``; the
+  bars: 0 tracebacks, 0 partial outputs, every failure exit 2 naming the path or name at fault.
 
 Mutants are checked in ``--workers`` processes (default: every core), each running hypothesis
 on its own seed; the figures do not depend on the number of workers' timing, only on the seeds.
@@ -35,6 +41,7 @@ from functools import cache
 from multiprocessing import Pool
 from pathlib import Path
 
+from fuzz_commands import COMMANDS, commands_section  # benchmarks/fuzz_commands.py
 from hypothesis import HealthCheck, Phase, given, seed, settings
 from sections import run_sections, section_parser  # benchmarks/sections.py
 
@@ -207,10 +214,11 @@ def benign_section(args, log) -> dict:
 
 #: Benchmark sections in order; each takes ``(args, log)`` and returns the keys it adds.
 SECTIONS = {"fuzz": fuzz_section, "benign": benign_section}
-if (Path(__file__).with_name("monkey.py")).exists():  # the studio's monkey section (benchmarks/fuzz_monkey.py)
-    from monkey import monkey_section  # noqa: E402
+if (Path(__file__).with_name("fuzz_monkey.py")).exists():  # the studio's monkey section
+    from fuzz_monkey import monkey_section  # noqa: E402
 
     SECTIONS["monkey"] = monkey_section
+SECTIONS["commands"] = commands_section
 
 
 def main(argv=None) -> int:
@@ -219,6 +227,14 @@ def main(argv=None) -> int:
     ap.add_argument("--benign", type=int, default=1000, help="benign mutants")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes checking mutants")
     ap.add_argument("--seed", type=int, default=0, help="first hypothesis seed")
+    ap.add_argument("--monkey-seeds", type=int, help="the monkey section: seeds (default: fuzz_monkey.SEEDS)")
+    ap.add_argument("--monkey-actions", type=int, help="the monkey section: actions per seed")
+    ap.add_argument("--monkey-jobs", type=int, help="the monkey section: children at once")
+    ap.add_argument(
+        "--commands",
+        metavar="A,B",
+        help=f"the commands section: only these commands (default: all of {', '.join(COMMANDS)})",
+    )
     return run_sections(ap, SECTIONS, argv)
 
 

@@ -5,11 +5,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import cv2
 import numpy as np
+import pytest
 
 from app.cli import main
+from photomodel.errors import FaceStudioError
 from photomodel.exchange.mesh import read_mesh
-from photomodel.project import load_project
+from photomodel.project import load_project, save_project
+from tracking.first_pose import read_pose_spec
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
@@ -142,7 +146,7 @@ def test_fit_json_error_lists_every_missing_click(project_copy, capsys):
 
 
 def test_the_fit_summary_says_one_reason_for_many_features_once():
-    from app.cli import _grouped_reasons
+    from app.cli.fit import grouped_reasons as _grouped_reasons
 
     why = "automatic click(s) unsure (confidence < 0.5) and 0 sure; the generic mesh places it"
     reasons = ["photo 'right': no click (no face found?), left out of the fit"]
@@ -152,3 +156,46 @@ def test_the_fit_summary_says_one_reason_for_many_features_once():
     assert out[0] == reasons[0]
     assert out[1] == f"5 features for one reason (jaw_00, jaw_01, jaw_02, jaw_03, jaw_04), e.g. jaw_00: 3 {why}"
     assert out[2:] == ["nose_tip: clicked in 1 photo(s)", "chin: clicked in 1 photo(s)"]  # two: as they are
+
+
+def test_fit_checks_photo_sizes_at_load_and_names_what_changed(project_copy, capsys):
+    """Issue 35: a photo replaced by one of another size (its clicks are in the old one's pixels)
+    is an error naming it and both sizes before any work, not a fit and a false "the photo
+    changed since the fit" from texture later."""
+    photo = project_copy.parent / "photos" / "neutral_front.png"
+    cv2.imwrite(str(photo), np.zeros((1, 1, 3), np.uint8))
+    before = project_copy.read_bytes()
+    assert main(["fit", str(project_copy), "--expression", "neutral", "--no-refine"]) == 2
+    err = capsys.readouterr().err
+    assert "neutral_front.png is now 1x1 pixels" in err and "'front'" in err and "Traceback" not in err, err
+    assert project_copy.read_bytes() == before
+
+
+def test_fit_table_columns_hold_a_long_photo_name(project_copy, capsys):
+    project = load_project(project_copy)
+    long_id = "front_taken_on_holiday_in_the_mountains_2024"
+    project.expression("neutral").photo("front").id = long_id
+    save_project(project, project_copy)
+    assert main(["fit", str(project_copy), "--expression", "neutral", "--no-refine", "--dry-run"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    header = next(i for i, line in enumerate(out) if "RMS px" in line and "focal mm" in line)
+    rows = out[header : header + 6]
+    assert any(long_id in r for r in rows)
+    ends = {len(r.rstrip()) for r in rows}  # the last column (focal mm) ends at one place on every row
+    assert len(ends) == 1, rows
+
+
+def test_version_and_sample_data_help(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0 and capsys.readouterr().out.startswith("facestudio ")
+    with pytest.raises(SystemExit):
+        main(["sample-data", "--help"])
+    assert "SHA-256" in capsys.readouterr().out
+
+
+def test_first_pose_hint_suits_track_many():
+    """track-many has no --first-pose: the hint names the file beside the video, and the flag as `track`'s."""
+    with pytest.raises(FaceStudioError) as err:
+        read_pose_spec(Path("/nonexistent/clip.first_pose.json"))
+    assert "`facestudio track` also takes one as --first-pose" in str(err.value)

@@ -1,4 +1,4 @@
-"""``facestudio edit`` (app/edit_command.py, tracking/edit_video.py) on a tracked run of the sample video."""
+"""``facestudio edit`` (app/cli/edit.py, tracking/edit_video.py) on a tracked run of the sample video."""
 
 import json
 import shutil
@@ -111,3 +111,20 @@ def test_video_keeps_the_footages_audio(tmp_path):
         assert got == want  # copied packet for packet, not re-encoded
     with av.open(str(out)) as c:
         assert sum(1 for _ in c.decode(video=0)) == 10
+
+
+def test_an_unknown_expression_is_named_before_the_smoothing(track_copy, fitted_sample, tmp_path, monkeypatch, capsys):
+    """Issue 35: ``--scale nosuch=2`` is an error before any work (the whole-clip smoothing ran first)."""
+    import tracking.edit_video  # noqa: PLC0415 - the module whose smoothing must not run
+
+    def smoothing(*args, **kwargs):
+        raise AssertionError("the smoothing ran before the arguments were checked")
+
+    monkeypatch.setattr(tracking.edit_video, "smooth_clip", smoothing)
+    out = tmp_path / "e.mp4"
+    args = ["edit", str(fitted_sample), "--track", str(track_copy), "--scale", "nosuch=2", "--out", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "'nosuch' is not one of the model's" in err and not out.exists()
+    assert main([*args[:5], "smile=2", "--replace", "0:999@1", "--out", str(out)]) == 2
+    assert "outside the clip's frames" in capsys.readouterr().err

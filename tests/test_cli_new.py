@@ -1,13 +1,14 @@
-"""Tests of ``facestudio new`` (app/cli.py) and of photomodel/photos/intake.py behind it: photos
+"""Tests of ``facestudio new`` (app/cli/new.py) and of photomodel/photos/intake.py behind it: photos
 checked, automatic clicks stored as such, warnings for what the artist fixes by hand.
 
-The landmark detector is replaced by a fake placer (``app.cli.place_landmarks`` patched where the
-command looks it up, or ``placer=`` passed to the core functions): these tests are about what
-happens to a placement, not about finding faces, and stay fast."""
+The landmark detector is replaced by a fake placer (``place_landmarks`` patched in ``app.cli.new``
+and ``app.cli.add_photos``, where the commands look it up, or ``placer=`` passed to the core
+functions): these tests are about what happens to a placement, not about finding faces, and stay fast."""
 
 from __future__ import annotations
 
 import json
+import shlex
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -17,6 +18,8 @@ import pytest
 from PIL import Image
 
 import app.cli as cli
+import app.cli.add_photos
+import app.cli.new
 from photomodel.errors import NoFaceFound, PhotoError
 from photomodel.photos.exif import EXIF_IFD, TAG_FOCAL_LENGTH, TAG_FOCAL_LENGTH_35MM
 from photomodel.photos.intake import add_photos, new_project_from_photos
@@ -79,7 +82,8 @@ def folder(tmp_path):
 
 
 def run_new(monkeypatch, capsys, *argv):
-    monkeypatch.setattr(cli, "place_landmarks", fake_placer)
+    monkeypatch.setattr(app.cli.new, "place_landmarks", fake_placer)
+    monkeypatch.setattr(app.cli.add_photos, "place_landmarks", fake_placer)
     code = cli.main(["new", *map(str, argv)])
     out = capsys.readouterr()
     return code, out.out, out.err
@@ -202,7 +206,8 @@ def test_add_photos_to_a_project_and_a_large_photo(tmp_path, folder):
 
 
 def run_command(command, monkeypatch, capsys, *argv):
-    monkeypatch.setattr(cli, "place_landmarks", fake_placer)
+    monkeypatch.setattr(app.cli.new, "place_landmarks", fake_placer)
+    monkeypatch.setattr(app.cli.add_photos, "place_landmarks", fake_placer)
     code = cli.main([command, *map(str, argv)])
     out = capsys.readouterr()
     return code, out.out, out.err
@@ -271,3 +276,18 @@ def test_add_photos_drops_the_fit_it_outdates_and_names_bad_paths(one_photo_proj
         code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", bad, "--json")
         assert code == 2 and json.loads(out)["error"]["type"] == "PhotoError" and bad.name in err
     assert target.read_bytes() == before  # nothing written
+
+
+def test_next_command_is_quoted_and_a_photo_without_a_face_has_no_view(tmp_path, folder, monkeypatch, capsys):
+    """Issue 35: the "next:" line pastes into a shell with spaces and non-Latin letters in the path;
+    a photo where no face was found is not listed as the "front" view."""
+    target = tmp_path / "my projects" / "Zoë Ünal.facestudio.json"
+    target.parent.mkdir()
+    code, out, err = run_new(monkeypatch, capsys, target, "--photos", folder)
+    assert code == 0, err
+    nxt = [line for line in out.splitlines() if line.startswith("next: ")]
+    assert shlex.split(nxt[0].removeprefix("next: ")) == ["facestudio", "fit", str(target)]
+    row = next(line for line in out.splitlines() if line.strip().startswith("IMG_0003"))
+    assert "front" not in row and "no face" in row
+    rows = [line for line in out.splitlines() if line.strip().startswith("IMG_")]
+    assert len({r.index(" of ") for r in rows}) == 1  # the columns line up

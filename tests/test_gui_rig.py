@@ -12,7 +12,7 @@ pytest.importorskip("PySide6")
 
 from PySide6.QtCore import Qt  # noqa: E402
 
-from app.rig_command import cmd_rig  # noqa: E402
+from app.cli.rig import run as cmd_rig  # noqa: E402
 from photomodel.project import load_project, load_rig_shapes, save_project  # noqa: E402
 
 REPO_IMG = Path(__file__).resolve().parents[1] / "docs" / "img"

@@ -77,7 +77,7 @@ def read_pose_spec(spec: dict | str | os.PathLike, frame: int = 0) -> tuple[dict
         if frame == 0:
             raise FitError(
                 f"the first-pose file {path} does not exist: write the first frame's pose or clicks "
-                f"there (see docs/tracking.md) or pass --first-pose"
+                f"there (see docs/tracking.md; `facestudio track` also takes one as --first-pose FILE)"
             )
         raise FitError(
             f"the pose file {path} does not exist: write frame {frame}'s pose or clicks there "

@@ -316,7 +316,8 @@ def _detected_first_pose(project, model: FaceModel, video: VideoFrames, focal_px
         raise FitError(
             f"no face found in frame 0 of {video.path} by the landmark detector (or fewer than six of the "
             f"pose features): write the first frame's clicks into "
-            f"{default_first_pose_path(video.path)} or pass --first-pose (see docs/tracking.md)"
+            f"{default_first_pose_path(video.path)} (see docs/tracking.md; `facestudio track` also takes them as "
+            f"--first-pose FILE)"
         )
     fp = pose_from_spec(spec, "first pose", project, model, video.width, video.height, None, 0)
     fp.source = (

@@ -31,6 +31,9 @@ class PhotoTabs(QTabWidget):
         super().__init__(parent)
         self.model, self.undo_stack = model, undo_stack
         self.setDocumentMode(True)
+        # room under the text: some fonts draw "_" below the compact tab's text box, and photo ids
+        # such as three_quarter_right then read "three quarter right" (issue 35)
+        self.tabBar().setStyleSheet("QTabBar::tab { padding-bottom: 3px; }")
         self.currentChanged.connect(self._on_tab_changed)
         self.empty_label = QLabel("<h3>No photos yet</h3><p>Drop photos here, or use File → Add photos…</p>")
         self.empty_label.setAlignment(Qt.AlignmentFlag.AlignCenter)

@@ -35,7 +35,8 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, backup: bool = F
     """Write ``data`` to ``path`` atomically (temporary file + fsync + :func:`os.replace`).
 
     Missing parent folders are created; on any error (or interruption) the destination is
-    left as it was and the temporary file is removed. Returns the path written.
+    left as it was and the temporary file is removed; an :class:`OSError` (a read-only file
+    system, a full disk) names ``path``. Returns the path written.
 
     Parameters
     ----------
@@ -47,8 +48,11 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, backup: bool = F
         :data:`NEW_FILE_MODE` for a new file.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise _named(exc, path) from exc
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -58,11 +62,21 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, backup: bool = F
         if backup and path.exists():
             _backup(path)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise _named(exc, path) from exc
         raise
     _fsync_dir(path.parent)
     return path
+
+
+def _named(exc: OSError, path: Path) -> OSError:
+    """``exc`` naming the file that was being written (a full disk's write names no file)."""
+    if exc.filename is not None and Path(exc.filename).parent == path.parent:
+        return exc
+    named = type(exc)(exc.errno, exc.strerror or str(exc), str(path))
+    return named
 
 
 def remove_stale_temp_files(folder: str | os.PathLike, max_age_s: float = STALE_TEMP_S) -> list[Path]:

@@ -3,26 +3,26 @@
     facestudio edit PROJECT --track results/track_clip/ --scale smile=0.5 [--span 10:40]
                     [--replace 60:90@75] [--no-smooth] --out edited.mp4 [--json]
 
-Its arguments are parsed into the edit list of ``edits.json`` (:mod:`tracking.edit`); without
-``--scale`` or ``--replace`` the edits already stored beside the track are written again.
+Its arguments are parsed into the edit list of ``edits.json`` (:mod:`tracking.edit`) and checked
+against the track (expression names, frames) before the smoothing starts; without ``--scale`` or
+``--replace`` the edits already stored beside the track are written again.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 from pathlib import Path
 
-from tqdm import tqdm
-
+from app.cli.common import add_json_flag, check_writable, new_outputs
+from app.cli.progress import command_progress
 from photomodel.errors import FaceStudioError
-from tracking.edit import load_edits
+from tracking.edit import check_edit, load_edits
 from tracking.edit_video import edit_track
 from tracking.smooth import SmoothOptions
+from tracking.track_result import load_track_results
 
-__all__ = ["add_edit_parser", "cmd_edit", "edits_from_args"]
-
+NAME = "edit"
 VIDEO_SUFFIXES = (".mp4", ".mov", ".mkv", ".avi")
 
 
@@ -55,7 +55,13 @@ def edits_from_args(args) -> list[dict]:
     return edits
 
 
-def cmd_edit(args) -> int:
+def checked_edits(args) -> list[dict]:
+    """The edits of the arguments (or those stored beside the track), each checked against the
+    track's expressions and frames: an unknown name or a frame outside the clip is an error
+    before any work."""
+    doc = load_track_results(args.track)
+    if doc is None:
+        raise FaceStudioError(f"{args.track} holds no track.json (run facestudio track first)")
     edits = edits_from_args(args)
     if not edits:
         stored = load_edits(args.track)
@@ -65,29 +71,30 @@ def cmd_edit(args) -> int:
                 f"(or store edits in {Path(args.track) / 'edits.json'})"
             )
         edits = stored["edits"]
+    names = doc["model"]["expressions"]
+    for e in edits:
+        check_edit(e, names, len(doc["frames"]))
+    return edits
+
+
+def run(args) -> int:
+    edits = checked_edits(args)
     out = Path(args.out)
     video = out if out.suffix.lower() in VIDEO_SUFFIXES else None
+    frames_dir = None if video else out
+    outputs = [out] if video is None else [out, out.with_name(out.stem + "_frames")]
+    check_writable(out.absolute().parent if video else out, args.track)
     smooth = None if args.no_smooth else SmoothOptions(second_difference=args.smoothness)
-    bar = tqdm(total=None, disable=args.json, unit="frame", leave=False)
-
-    def progress(stage, done, total):
-        bar.set_description(stage)
-        bar.total = total
-        bar.n = done
-        bar.refresh()
-
-    try:
+    with command_progress(args, NAME) as progress, new_outputs([*outputs, Path(args.track) / "edits.json"]):
         report = edit_track(
             args.track,
             edits,
             smooth=smooth,
             out_video=video,
-            frames_dir=None if video else out,
+            frames_dir=frames_dir,
             project=args.project,
-            progress=progress,
+            progress=progress.counter,
         )
-    finally:
-        bar.close()
     if args.json:
         print(json.dumps(report.to_json()))
         return 0
@@ -103,10 +110,9 @@ def cmd_edit(args) -> int:
     return 0
 
 
-def add_edit_parser(sub) -> argparse.ArgumentParser:
-    """The ``edit`` subcommand on ``sub`` (the CLI's subparsers)."""
+def add_parser(sub) -> None:
     e = sub.add_parser(
-        "edit",
+        NAME,
         help="edit the expressions of a tracked video (magnify, suppress, replace) and "
         "write the edited frames and video",
     )
@@ -147,6 +153,4 @@ def add_edit_parser(sub) -> argparse.ArgumentParser:
         required=True,
         help="a video file (.mp4: H.264, the footage's audio copied; PNG frames beside it) or a folder of PNGs",
     )
-    e.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
-    e.set_defaults(func=cmd_edit)
-    return e
+    add_json_flag(e)
