@@ -10,9 +10,9 @@ a figure an item cannot give is null):
   ``facestudio new --photos`` (automatic landmarks), fit, texture (512²).
 
   - ``outside_texels_pct``: of the face's texels (the generic mesh's face region, covered by the
-    photo), the share of weight taken from pixels outside the annotated face — below the
-    annotated jaw line (points 0–16) or beside it — i.e. clothes, neck or background painted
-    onto the face; ``outside_texels_pct_unmasked``: the same with ``mask_photos=False``.
+    photo), the share of them whose colour is taken from pixels below the annotated face — under the annotated
+    jaw line (points 0–16) or the shoulders beside it — i.e. clothes, neck or background painted
+    onto the face (:func:`_annotated_outside`); ``outside_texels_pct_unmasked``: the same with ``mask_photos=False``.
   - ``chin_err_pct``: the fitted mesh's ``chin`` vertex projected, its vertical distance to the
     annotated chin (point 8), % of the face's height (eye line to annotated chin).
   - ``rms_all_px``: RMS over every automatic click of its feature's vertex projected (kept or not).
@@ -96,22 +96,29 @@ def _fit_summary(project, mesh, expr_name: str) -> tuple[object, dict]:
 
 
 def _annotated_outside(shape, pts: np.ndarray) -> np.ndarray:
-    """(H, W) bool: outside the annotated face — under the jaw line 0–16 (lowered by 1 % of the
-    face's height: the hand's line is not pixel exact), or beside the outline's ends below them."""
+    """(H, W) bool: outside the annotated face, below it — in each column the annotated jaw line
+    (points 0–16, lowered by 2 % of the face's height: the hand's line is not pixel exact) spans,
+    the pixels under its lowest point there (the neck, a collar, the clothes, the background under
+    a turned face's jaw); beside the line, those half a face height under its end (the shoulders;
+    not the ears). A turned face's nose may stand out past its far cheek's outline: it is not
+    counted."""
     h, w = shape
     height = pts[8, 1] - pts[36:48, 1].mean()
-    jaw = pts[:17] + [0.0, 0.01 * height]
-    far = 4 * (h + w)
-    poly = np.vstack(
-        [[jaw[0, 0] - far, jaw[0, 1]], jaw, [jaw[-1, 0] + far, jaw[-1, 1]], [w + far, h + far], [-far, h + far]]
-    )
-    out = np.zeros((h, w), np.uint8)
-    cv2.fillPoly(out, [np.round(poly).astype(np.int32)], 1)
-    return out > 0
+    jaw = np.round(pts[:17] + [0.0, 0.02 * height]).astype(np.int32)
+    line = np.zeros((h, w), np.uint8)
+    cv2.polylines(line, [jaw], False, 1, 1)
+    cols = np.flatnonzero(line.any(axis=0))
+    lowest = (h - 1 - np.argmax(line[::-1], axis=0)).astype(float)
+    c = np.arange(w)
+    ends = {True: float(jaw[np.argmin(jaw[:, 0]), 1]), False: float(jaw[np.argmax(jaw[:, 0]), 1])}
+    lowest[c < cols[0]] = ends[True] + 0.5 * height
+    lowest[c > cols[-1]] = ends[False] + 0.5 * height
+    return np.arange(h)[:, None] > lowest[None, :]
 
 
 def _outside_pct(tex, vertices, faces, face_mask, camera, outside) -> float:
-    """% of the face's covered texels' weight taken from ``outside`` pixels (one photo)."""
+    """% of the face's covered texels whose colour is taken from ``outside`` pixels (one photo: a
+    texel's colour is its photo's wherever its weight is above 0, the blend being normalised)."""
     raster = rasterise_cylinder(tex.cylinder, vertices, faces, TEXTURE_SIZE, face_mask.astype(np.float64)[:, None])
     idx = np.flatnonzero(raster.surface)
     face = raster.attributes.reshape(-1, raster.attributes.shape[-1])[idx, 0] > 0.5
