@@ -116,7 +116,7 @@ def _annotated_outside(shape, pts: np.ndarray) -> np.ndarray:
     return np.arange(h)[:, None] > lowest[None, :]
 
 
-def _outside_pct(tex, vertices, faces, face_mask, camera, outside) -> float:
+def _outside_pct(tex, vertices, faces, face_mask, camera, outside) -> float | None:
     """% of the face's covered texels whose colour is taken from ``outside`` pixels (one photo: a
     texel's colour is its photo's wherever its weight is above 0, the blend being normalised)."""
     raster = rasterise_cylinder(tex.cylinder, vertices, faces, TEXTURE_SIZE, face_mask.astype(np.float64)[:, None])
@@ -125,7 +125,7 @@ def _outside_pct(tex, vertices, faces, face_mask, camera, outside) -> float:
     g = tex.weight_maps[0].reshape(-1)[idx]
     use = face & (g > 0)
     if not use.any():
-        return 0.0
+        return None  # the photo gives the face nothing
     uv, _ = project_points(camera, raster.points.reshape(-1, 3)[idx[use]])
     h, w = outside.shape
     col = np.clip(np.round(uv[:, 0]), 0, w - 1).astype(int)

