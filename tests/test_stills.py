@@ -132,6 +132,34 @@ def test_the_real_clip_stills_avoid_the_hand():
     assert max(yaws) - min(yaws) >= 15.0  # her turn is about −13…+12°
 
 
+def test_the_real_clip_stills_are_views_apart_and_its_clear_part_flags_nothing():
+    # the real clip without the hand (every 6th frame outside REAL_HAND_FRAMES, as a clip where
+    # nothing covers the face): no frame flagged; the stills at least MIN_YAW_STEP_DEG apart in the
+    # yaw the rule cuts by (before 2026-12 two neighbouring parts' picks could lie 4.7° apart)
+    video = VideoFrames(clip_path())
+    looks, _ = look_at_clip(video, every=6)
+    for part in (looks, [lk for lk in looks if lk.frame not in REAL_HAND_FRAMES and lk.frame != 66]):
+        chosen, occluded = choose_stills(part, 5, video.fps)
+        yaws = sorted(lk.yaw_deg for lk in chosen)
+        assert len(chosen) >= 2 and min(np.diff(yaws)) >= MIN_YAW_STEP_DEG, yaws
+    assert occluded == []
+
+
+def test_cheek_shading_is_not_an_occlusion():
+    # real frames after the hand, darkened across the face from one side (light from the other
+    # side: 45 % of the light on the far cheek): the lower face moves between the detector's crops
+    # more in the dark, but nothing covers it and no frame is flagged
+    video = VideoFrames(clip_path())
+    looks = []
+    for i, rgb in video.frames():
+        if i >= 240 and i % 8 == 0:
+            image = (rgb * 255.0 + 0.5).astype(np.uint8)
+            ramp = np.linspace(0.45, 1.0, image.shape[1], dtype=np.float32)[None, :, None]
+            looks.append(look_at_frame(i, np.clip(image * ramp, 0, 255).astype(np.uint8)))
+    _, occluded = choose_stills([lk for lk in looks if lk is not None], 5, video.fps)
+    assert occluded == []
+
+
 def test_new_from_a_video(tmp_path, capsys):
     project = tmp_path / "me.facestudio.json"
     assert facestudio(["new", str(project), "--video", str(SAMPLE_VIDEO), "--stills", "3", "--json"]) == 0

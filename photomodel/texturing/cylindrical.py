@@ -646,6 +646,7 @@ def cylindrical_texture(
     depths: Sequence[np.ndarray] | None = None,
     cylinder: CylinderMap | None = None,
     fill: bool = True,
+    masks: Sequence[np.ndarray] | None = None,
     progress=None,
     cancel=None,
 ) -> CylindricalTexture:
@@ -684,6 +685,11 @@ def cylindrical_texture(
         default :func:`cylinder_map_for` the mesh.
     fill : bool
         fill the holes (default True).
+    masks : k (H_k, W_k) bool, optional
+        the pixels of each photograph that may be taken (the person's face and head, not the
+        background or clothes: :func:`photomodel.landmarks.segment.face_pixels`); a texel seen
+        elsewhere counts as not visible in that photo, so its weight ramps to 0 there and
+        it comes from the other photos or the hole filler. None: every pixel.
     progress : callable ``(stage: str, fraction: float)``, optional
         called before the raster, each photograph and the hole filling (fraction in [0, 1]).
     cancel : callable returning bool, optional
@@ -700,7 +706,9 @@ def cylindrical_texture(
         ``cancel()`` returned True.
     """
 
-    V, F, photos, size, single_view = _check_texture_inputs(vertices, faces, cameras, photos, size, depths, single_view)
+    V, F, photos, size, single_view = _check_texture_inputs(
+        vertices, faces, cameras, photos, size, depths, single_view, masks
+    )
     k = len(cameras)
 
     def step(stage: str, fraction: float) -> None:
@@ -718,7 +726,8 @@ def cylindrical_texture(
     for i, (cam, photo) in enumerate(zip(cameras, photos, strict=True)):
         step(f"photo {i + 1} of {k}", 0.15 + 0.7 * i / k)
         depth = render_depth(cam, V, F) if depths is None else depths[i]
-        g[i], colors[i] = _photo_weight(texels, cam, photo, depth, size, feather_mm, tol_mm)
+        mask = None if masks is None else masks[i]
+        g[i], colors[i] = _photo_weight(texels, cam, photo, depth, size, feather_mm, tol_mm, mask)
         weight_maps[i].reshape(-1)[texels.idx] = g[i]
 
     step("blending and hole filling", 0.85)
@@ -737,7 +746,7 @@ def cylindrical_texture(
     )
 
 
-def _check_texture_inputs(vertices, faces, cameras, photos, size, depths, single_view):
+def _check_texture_inputs(vertices, faces, cameras, photos, size, depths, single_view, masks=None):
     """:func:`cylindrical_texture`'s arguments checked: ``(V, F, photos, size, single_view)``, or a
     ValueError naming the one that does not fit."""
     V, F = check_mesh(vertices, faces)
@@ -747,6 +756,12 @@ def _check_texture_inputs(vertices, faces, cameras, photos, size, depths, single
     photos = check_photos(cameras, photos)
     if depths is not None and len(depths) != len(cameras):
         raise ValueError(f"{len(cameras)} cameras but {len(depths)} depth maps")
+    if masks is not None:
+        if len(masks) != len(cameras):
+            raise ValueError(f"{len(cameras)} cameras but {len(masks)} masks")
+        for i, (m, p) in enumerate(zip(masks, photos, strict=True)):
+            if np.shape(m) != p.shape[:2]:
+                raise ValueError(f"mask {i} is {np.shape(m)} but its photo is {p.shape[:2]}")
     if single_view is not None:
         single_view = np.asarray(single_view, dtype=np.float32).reshape(-1)
         if single_view.shape != (len(V),):
@@ -785,13 +800,18 @@ def _surface_texels(cmap: CylinderMap, V, F, size: int, single_view) -> _Surface
     return _SurfaceTexels(raster, idx, pts, nrm, (sy, sx), s)
 
 
-def _photo_weight(texels: _SurfaceTexels, cam, photo, depth, size: int, feather_mm: float, tol_mm: float):
+def _photo_weight(texels: _SurfaceTexels, cam, photo, depth, size: int, feather_mm: float, tol_mm: float, mask=None):
     """One photograph's blending weight ``g_k = F_k P_k`` (t,) of each surface texel and its
-    colour there (t, 3) uint8 (§5.2.1)."""
+    colour there (t, 3) uint8 (§5.2.1); texels seen outside ``mask`` (H, W) bool are not visible."""
     idx, pts = texels.idx, texels.pts
     uv, z = project_points(cam, pts)
     P = positional_certainty(cam, pts, texels.nrm)  # > 0: front-facing (§5.2.1, consideration 1)
     vis = depth_visible(cam, pts, depth, tol_mm=tol_mm, uv=uv, z=z) & (P > 0)
+    if mask is not None:
+        h, w = mask.shape
+        col = np.clip(np.round(uv[:, 0]), 0, w - 1).astype(np.intp)
+        row = np.clip(np.round(uv[:, 1]), 0, h - 1).astype(np.intp)
+        vis &= mask[row, col]
     binary = np.ones((size, size), bool)  # texels off the surface are not a visibility boundary
     binary.reshape(-1)[idx] = vis
     Fk = feather(binary, feather_mm, pixel_size=texels.texel_mm).reshape(-1)[idx]

@@ -39,6 +39,7 @@ from photomodel.exchange.mesh import read_mesh
 from photomodel.exchange.obj import encode_textured_obj
 from photomodel.exchange.ply import encode_colored_ply
 from photomodel.exchange.uv import merge_uv_seams
+from photomodel.landmarks.segment import face_pixels
 from photomodel.photos.reading import MAX_WORKING_SIDE, read_photo
 from photomodel.project.io import default_filename
 from photomodel.texturing.cylindrical import (
@@ -238,10 +239,12 @@ def extract_texture(
     size: int = 1024,
     *,
     face_mask: np.ndarray | None = None,
+    mask_photos: bool = True,
     progress: Callable[[str, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> TextureJob:
-    """The cylindrical texture of §5.2.2 with the §5.2.4 ears/hair fallback.
+    """The cylindrical texture of §5.2.2 with the §5.2.4 ears/hair fallback, each photo's
+    background and clothes left out (``mask_photos``).
 
     Parameters
     ----------
@@ -250,6 +253,11 @@ def extract_texture(
     face_mask : (N,) bool, optional
         the generic mesh's face (:attr:`GenericMesh.face_mask`); when given and the fitted mesh
         has as many vertices, vertices away from it are textured from the single best photo.
+    mask_photos : bool
+        take from each photo only its person's face and head
+        (:func:`photomodel.landmarks.segment.face_pixels`: not the background, not below the jaw);
+        the weight maps fall to 0 elsewhere and the texels come from the other photos or the hole
+        filler. Measured on real photos (``benchmarks/bench_real.py``, docs/texturing.md).
     progress, cancel : see :func:`photomodel.texturing.cylindrical.cylindrical_texture` (``cancel`` raises
         :class:`photomodel.errors.Cancelled`).
 
@@ -264,6 +272,7 @@ def extract_texture(
     V = inputs.vertices
     t0 = time.perf_counter()
     single = single_view_weights(V, face_mask) if face_mask is not None and len(face_mask) == len(V) else None
+    masks = [face_pixels(p) for p in inputs.photos] if mask_photos else None
     tex = cylindrical_texture(
         V,
         inputs.faces,
@@ -271,6 +280,7 @@ def extract_texture(
         inputs.photos,
         size=int(size),
         single_view=single,
+        masks=masks,
         progress=progress,
         cancel=cancel,
     )
@@ -282,6 +292,8 @@ def extract_texture(
         "extract_s": round(seconds, 3),
         "photos": list(inputs.photo_ids),
         "single_view_fallback": single is not None,
+        # each photo's share of pixels left out as background or clothes (None: not masked)
+        "masked_pct": None if masks is None else [round(100.0 * float(1.0 - m.mean()), 1) for m in masks],
         # the texture's parameterisation: the tracking model maps its vertices with it
         "cylinder": {
             "centre": list(c.centre),

