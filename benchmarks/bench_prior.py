@@ -27,8 +27,9 @@ onto their true positions):
   correspondence lies in the region is dropped). The scan's 68 annotated landmarks are given.
   Per region: ``missing_mm`` (mean distance to the clean scan over the removed region's
   vertices), ``present_mm`` (over the rest of the face) and ``under_1mm_pct`` (of all the face's
-  vertices, the removed region's included; the fraction over the rest alone is printed), per method; ``fit_s``: the local prior's mean fit time. The ``rbf`` peer here is the
-  generic mesh warped by the landmarks and then non-rigid ICP without a prior
+  vertices, the removed region's included; the fraction over the rest alone is printed), per
+  method; ``fit_s``: the local prior's mean fit time. The ``rbf`` peer here is the generic mesh
+  warped by the landmarks and then non-rigid ICP without a prior
   (:func:`photomodel.modeling.scan_fit.fit_scan_rbf`: an RBF with a ridge through a subsample of
   the paired vertices); all three get the same final detail step.
 

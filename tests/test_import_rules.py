@@ -27,6 +27,8 @@ QT_PACKAGES = ("PySide6", "PySide2", "PyQt5", "PyQt6", "shiboken6", "qtpy")
 KNOWN_PRIVATE_IMPORTS = {
     ("photomodel.modeling.generic_mesh", "photomodel.samples.sample_data", "_load_npz"),
     ("photomodel.modeling.generic_mesh", "photomodel.samples.sample_data", "_save_npz"),
+    ("photomodel.modeling.face_prior", "photomodel.samples.sample_data", "_load_npz"),
+    ("photomodel.modeling.face_prior", "photomodel.samples.sample_data", "_save_npz"),
     ("photomodel.rig.build", "photomodel.samples.sample_data", "_load_npz"),
     ("photomodel.rig.build", "photomodel.samples.sample_data", "_save_npz"),
     ("photomodel.samples.synthetic", "photomodel.samples.sample_data", "_load_npz"),

@@ -70,7 +70,12 @@ from scipy.optimize import lsq_linear
 from scipy.spatial import cKDTree
 
 from photomodel.alignment import similarity_transform
+from photomodel.modeling.generic_mesh import GENERIC_MESH_VERSION
 from photomodel.rendering.renderer import vertex_normals
+from photomodel.rig.build import load_registration
+from photomodel.rig.ict import load_ict
+from photomodel.samples.fetch import cache_dir
+from photomodel.samples.sample_data import _load_npz, _save_npz
 
 __all__ = [
     "FacePrior",
@@ -276,9 +281,6 @@ def global_prior(faces: np.ndarray, modes: np.ndarray, support: np.ndarray) -> F
 def ict_modes_on_mesh(mesh, registration=None, ict=None) -> tuple[np.ndarray, np.ndarray]:
     """ICT's identity modes (K, N, 3) mm resampled onto ``mesh`` and faded outside ICT's face
     area, with the fade ``support`` (N,)."""
-    from photomodel.rig.build import load_registration
-    from photomodel.rig.ict import load_ict
-
     ict = ict or load_ict()
     reg = registration or load_registration(mesh, ict)
     lo, hi = FADE_MM
@@ -294,10 +296,6 @@ _LOADED: dict = {}
 def load_face_prior(mesh, kind: str = "local") -> FacePrior:
     """The prior of the built-in generic mesh (``kind`` "local" or "global"), from the cache or
     built (a few seconds) and cached."""
-    from photomodel.modeling.generic_mesh import GENERIC_MESH_VERSION
-    from photomodel.samples.fetch import cache_dir
-    from photomodel.samples.sample_data import _load_npz, _save_npz
-
     key = (kind, len(mesh.vertices))
     if key in _LOADED:
         return _LOADED[key]

@@ -32,11 +32,13 @@ ridge (:data:`ICP_SMOOTHING`) through a subsample of the paired vertices (one in
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sparse
+import trimesh
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
@@ -101,8 +103,6 @@ class ScanFit:
 
 def read_scan(path) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """``(points (n, 3), faces (m, 3) or None, normals (n, 3) or None)`` of a PLY/OBJ/STL scan."""
-    import trimesh
-
     path = Path(path)
     try:
         loaded = trimesh.load(str(path), process=False)
@@ -271,8 +271,6 @@ def fit_scan(
     ScanError
         when no face is found on the scan.
     """
-    import time
-
     t0 = time.perf_counter()
     if landmarks is not None and unit_mm is None:  # the landmarks give the scale
         L = np.asarray(landmarks, float)
