@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 from tqdm import tqdm
 
 from app.edit_command import add_edit_parser
+from app.fit_scan_command import add_parser as add_fit_scan_parser
 from app.rig_command import add_rig_parsers
 from app.terminal_progress import StageProgress
 from photomodel.errors import FaceStudioError, MissingClicks, ProjectError
@@ -307,6 +308,7 @@ def cmd_fit(args) -> int:
                 refine=not args.no_refine,
                 weigh_auto_clicks=args.weigh_auto_clicks,
                 person_prior=not args.no_person_prior,
+                face_prior=args.face_prior,
             )
 
             def stage(label, frac, i=i, name=name):  # which expression, and the whole run's fraction
@@ -772,6 +774,14 @@ def build_parser() -> argparse.ArgumentParser:
         "person prior (with several photos; one photo always uses it): the mesh then follows "
         "the detector's error",
     )
+    f.add_argument(
+        "--face-prior",
+        action=argparse.BooleanOptionalAction,
+        default=FitOptions.face_prior,
+        help="pull the mesh towards plausible faces (ICT's identities, localised) before the RBF honours "
+        "every click; --no-face-prior: the generic mesh deformed by the clicks alone "
+        "(default: off, see docs/modeling.md)",
+    )
     f.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     f.add_argument("--dry-run", action="store_true", help="report only; do not write into the project")
     f.set_defaults(func=cmd_fit)
@@ -876,6 +886,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.set_defaults(func=cmd_track_many)
     add_edit_parser(sub)
     add_rig_parsers(sub)
+    add_fit_scan_parser(sub)
     s = sub.add_parser("sample-data", help="fetch, verify and cache the sample data; print its folder")
     s.set_defaults(func=cmd_sample_data)
     g = sub.add_parser("studio", help="open the studio window (click points, draw curves, fit, look)")

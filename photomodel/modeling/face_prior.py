@@ -86,6 +86,7 @@ __all__ = [
     "global_prior",
     "fit_face_prior",
     "load_face_prior",
+    "prior_deformer",
     "LEVELS",
     "LANDMARK_BOX",
     "DENSE_BOX",
@@ -230,7 +231,7 @@ def build_face_prior(
     cols, lv_of = [], []
     for lv, (radius, most) in enumerate(levels):
         if radius is None:
-            U, s, _ = np.linalg.svd(R, full_matrices=False)
+            U, s = _thin_svd(R)
             m = min(most, _kept(s))
             cols.append(sparse.csc_matrix(U[:, :m] * s[:m]))
             R = R - U[:, :m] @ (U[:, :m].T @ R)
@@ -243,7 +244,7 @@ def build_face_prior(
             row = phi.getrow(p)
             vs, w = row.indices, row.data
             rr = _rows(vs)
-            U, s, _ = np.linalg.svd(R[rr], full_matrices=False)
+            U, s = _thin_svd(R[rr])
             m = min(most, _kept(s))
             if m == 0:
                 continue
@@ -261,6 +262,17 @@ def build_face_prior(
     basis = sparse.hstack(cols, format="csc")
     basis.sort_indices()
     return FacePrior(basis, np.array(lv_of, dtype=np.int64), np.asarray(support, float), np.asarray(faces))
+
+
+def _thin_svd(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Left singular vectors and values of a tall ``M`` (m, k) from the eigenvectors of ``MᵀM``
+    (k × k): ~50× faster than LAPACK's SVD of the tall matrix here, and exact enough for the
+    modes kept (those above 1 % of the variance)."""
+    w, V = np.linalg.eigh(M.T @ M)
+    order = np.argsort(w)[::-1]
+    s = np.sqrt(np.maximum(w[order], 0.0))
+    keep = s > 1e-9 * max(s[0], 1e-300)
+    return (M @ V[:, order[keep]]) / s[keep], s[keep]
 
 
 def _kept(s: np.ndarray) -> int:
@@ -554,3 +566,8 @@ class PriorDeformer:
         fit = fit_face_prior(self.prior, V, idx, T, similarity=False)
         self.last = fit
         return self.inner(fit.vertices, idx, T, **kw)
+
+
+def prior_deformer(mesh, inner) -> PriorDeformer:
+    """:class:`PriorDeformer` of the built-in mesh's local prior around ``inner`` (the RBF)."""
+    return PriorDeformer(load_face_prior(mesh, "local"), inner)

@@ -62,6 +62,7 @@ from photomodel.modeling.camera_solve import (
     solve_cameras,
 )
 from photomodel.modeling.checklist import require_clicks
+from photomodel.modeling.face_prior import prior_deformer
 from photomodel.modeling.pose import PoseResult, recover_poses, reprojection_residuals
 from photomodel.modeling.rbf import deform_vertices
 from photomodel.modeling.refine import refine_points, triangulate
@@ -118,6 +119,11 @@ class FitOptions:
     #: likelihood), as before 2026-12; the sample's auto fit then follows the detector's error
     #: (1.69 against 1.31 mm from the scan). ``facestudio fit --no-person-prior``.
     person_prior: bool = True
+    #: Move the generic mesh towards plausible faces first with the localised ICT face prior
+    #: (:class:`photomodel.modeling.face_prior.PriorDeformer`); the RBF then honours every click.
+    #: Off by default: benchmarks/bench_prior.py did not show it better on the sample
+    #: (docs/modeling.md, "A localised face prior"). ``facestudio fit --face-prior``.
+    face_prior: bool = False
 
 
 @dataclass
@@ -608,7 +614,10 @@ def fit_expression(
         if curve_mesh.shape != mesh.vertices.shape:
             raise FitError(f"curve_mesh has shape {curve_mesh.shape}, the generic mesh {mesh.vertices.shape}")
     inputs = FitInputs.from_project(project, expression_name, opt, n_vertices=len(mesh.vertices))
-    return _fit(inputs, mesh.vertices, opt, progress, cancel, deform or deform_vertices, curve_mesh)
+    deform = deform or deform_vertices
+    if opt.face_prior:  # the prior's shape first, the RBF from it (one hook: the deformation)
+        deform = prior_deformer(mesh, deform)
+    return _fit(inputs, mesh.vertices, opt, progress, cancel, deform, curve_mesh)
 
 
 def _fit(inputs: FitInputs, generic, opt: FitOptions, progress, cancel, deform, curve_mesh) -> FitResult:

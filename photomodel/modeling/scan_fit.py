@@ -245,7 +245,7 @@ def prepare_scan(points, normals=None, faces=None, unit_mm: float | None = None)
 
 
 def fit_scan(
-    prior: FacePrior,
+    prior,
     mesh,
     points: np.ndarray,
     normals: np.ndarray | None = None,
@@ -258,7 +258,7 @@ def fit_scan(
 
     Parameters
     ----------
-    prior : FacePrior (on ``mesh``).
+    prior : FacePrior (on ``mesh``), or a callable returning it (called once a face is found).
     mesh : GenericMesh (``vertices``, ``faces``, ``landmarks`` (68,), ``face_mask``).
     points : (n, 3) float, scan units; normals : (n, 3), optional (estimated when None).
     landmarks : (68, 3) float, scan units, iBUG order, optional (else found by aligning ``template``).
@@ -290,6 +290,7 @@ def fit_scan(
         L = T[mesh.landmarks] @ (s * R).T + t
     else:
         L = np.asarray(landmarks, float) * unit_mm
+    prior = prior() if callable(prior) else prior
     fit = fit_face_prior(prior, mesh.vertices, mesh.landmarks, L, scan=scan, face=face)
     V = _with_detail(fit.vertices, mesh.faces, face, scan)
     d, _ = scan.tree.query(V[face], distance_upper_bound=FACE_INLIER_MM)
