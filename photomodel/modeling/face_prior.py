@@ -71,11 +71,13 @@ from scipy.spatial import cKDTree
 
 from photomodel.alignment import similarity_transform
 from photomodel.modeling.generic_mesh import GENERIC_MESH_VERSION
+from photomodel.modeling.rbf import RBFInterpolant
 from photomodel.rendering.renderer import vertex_normals
 from photomodel.rig.build import load_registration
 from photomodel.rig.ict import load_ict
 from photomodel.samples.fetch import cache_dir
 from photomodel.samples.sample_data import _load_npz, _save_npz
+from photomodel.samples.synthetic import ScanSurface
 
 __all__ = [
     "FacePrior",
@@ -573,11 +575,30 @@ class PriorDeformer:
         V = np.asarray(vertices, float)
         if idx.ndim != 1 or T.shape != (len(idx), 3) or len(idx) < 4 or not np.all(np.isfinite(T)):
             return self.inner(vertices, constrained, targets, **kw)  # let the RBF word the error
-        fit = fit_face_prior(
-            self.prior, V, idx, T, similarity=False, tangent_weight=0.0, surface_weight=1.0, ridge=CLICK_RIDGE
-        )
+        fit = fit_face_prior(self.prior, V, idx, T, tangent_weight=0.0, surface_weight=1.0, ridge=CLICK_RIDGE)
         self.last = fit
-        return self.inner(fit.vertices, idx, T, **kw)
+        moved = self.inner(fit.vertices, idx, T, **kw)
+        return slide_onto(fit.vertices, self.prior.faces, moved, idx, T)
+
+
+def slide_onto(surface: np.ndarray, faces: np.ndarray, moved: np.ndarray, idx: np.ndarray, targets: np.ndarray):
+    """The RBF's answer ``moved`` (N, 3) laid back onto the prior's surface ``surface`` (N, 3) plus
+    a smooth offset along its normal that meets every target: each vertex goes to its closest point
+    ``c`` on the prior's surface, then ``h(c)`` along the surface normal there, ``h`` the RBF
+    interpolant of the targets' signed distances from that surface. The clicks' sliding along the
+    skin (the RBF's tangential moves) is kept, its bending of the surface between clicks is not;
+    the targeted vertices land on their targets (snapped, as the RBF snaps them).
+
+    Returns (N, 3) float mm."""
+    surf = ScanSurface(surface, faces)
+    closest, _, tri = surf.closest(moved)
+    normal = surf.face_normals[tri]
+    c_t, _, tri_t = surf.closest(targets)
+    h_t = np.sum(surf.face_normals[tri_t] * (targets - c_t), axis=1)
+    f = RBFInterpolant.fit(c_t, np.column_stack([h_t, np.zeros((len(h_t), 2))]), smoothing=0.0)
+    out = closest + normal * f(closest)[:, :1]
+    out[idx] = targets
+    return out
 
 
 def prior_deformer(mesh, inner) -> PriorDeformer:
