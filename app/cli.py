@@ -777,10 +777,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument(
         "--face-prior",
         action=argparse.BooleanOptionalAction,
-        default=FitOptions.face_prior,
-        help="pull the mesh towards plausible faces (ICT's identities, localised) before the RBF honours "
-        "every click; --no-face-prior: the generic mesh deformed by the clicks alone "
-        "(default: off, see docs/modeling.md)",
+        default=True,
+        help="pull the mesh towards plausible faces (ICT's identities, localised) while every click is "
+        "still met (default; benchmarks/bench_prior.py); --no-face-prior: the generic mesh deformed "
+        "by the clicks alone, as before",
     )
     f.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     f.add_argument("--dry-run", action="store_true", help="report only; do not write into the project")

@@ -119,10 +119,12 @@ class FitOptions:
     #: likelihood), as before 2026-12; the sample's auto fit then follows the detector's error
     #: (1.69 against 1.31 mm from the scan). ``facestudio fit --no-person-prior``.
     person_prior: bool = True
-    #: Move the generic mesh towards plausible faces first with the localised ICT face prior
-    #: (:class:`photomodel.modeling.face_prior.PriorDeformer`); the RBF then honours every click.
-    #: Off by default: benchmarks/bench_prior.py did not show it better on the sample
-    #: (docs/modeling.md, "A localised face prior"). ``facestudio fit --face-prior``.
+    #: Fit the localised ICT face prior to the clicks and lay the RBF's answer onto its surface,
+    #: every click still met (:class:`photomodel.modeling.face_prior.PriorDeformer`). On the
+    #: sample (benchmarks/bench_prior.py) it took the 68-landmark fit 1.17 → 0.99 mm, the
+    #: detector's 1.29 → 1.19, the hand clicks' 0.73 → 0.60. ``facestudio fit`` turns it on
+    #: (``--no-face-prior`` off); the library default stays off until the interactive refit
+    #: (:mod:`photomodel.modeling.refit`, whose cached RBF solves it bypasses) is measured with it.
     face_prior: bool = False
 
 
