@@ -452,11 +452,7 @@ def fit_face_prior(
             X = shape()
             rows_v, rhs_v = Bl, Fm @ (Pm - X[idx]).ravel() + Bl[:, cols] @ b[cols]
             if surface_weight > 0:  # each target to the model's surface: point-to-plane at its nearest vertex
-                near = fitted[cKDTree(X[fitted]).query(Pm)[1]]
-                nv = vertex_normals(X, prior.faces)[near] * (surface_weight * np.sqrt(wt))[:, None]
-                G = _row_blocks(nv)
-                A_s = (G @ prior.basis[_rows(near)]).tocsr()
-                rhs_s = np.sum(nv * (Pm - X[near]), axis=1) + A_s[:, cols] @ b[cols]
+                A_s, rhs_s = _surface_rows(prior, X, fitted, Pm, surface_weight * np.sqrt(wt), cols, b)
                 rows_v, rhs_v = sparse.vstack([rows_v, A_s]).tocsr(), np.concatenate([rhs_v, rhs_s])
             _solve_level(rows_v, rhs_v, cols, b, landmark_box, ridge)
     report = {"landmark_rms_mm": _rms(shape()[idx] @ (s * R).T + t - P)}
@@ -467,6 +463,15 @@ def fit_face_prior(
     V = shape() @ (s * R).T + t
     report["rms_mm"] = _rms(V[idx] - P)
     return PriorFit(V, b, float(s), R, t, report)
+
+
+def _surface_rows(prior, X, fitted, Pm, w, cols, b):
+    """Point-to-plane rows (and right-hand side) of targets ``Pm`` (model frame) at their nearest
+    ``fitted`` vertex of shape ``X``, weighed by ``w``, for solving the weights ``cols``."""
+    near = fitted[cKDTree(X[fitted]).query(Pm)[1]]
+    nv = vertex_normals(X, prior.faces)[near] * w[:, None]
+    A_s = (_row_blocks(nv) @ prior.basis[_rows(near)]).tocsr()
+    return A_s, np.sum(nv * (Pm - X[near]), axis=1) + A_s[:, cols] @ b[cols]
 
 
 def _frames(normals: np.ndarray) -> np.ndarray:
