@@ -40,3 +40,10 @@ def test_fit_scan_without_a_face_exits_2(project_copy, tmp_path, capsys):
     assert facestudio(["fit-scan", project, str(ball)]) == 2
     assert "no face found on the scan" in capsys.readouterr().err
     assert open(project, encoding="utf-8").read() == before  # nothing written
+
+
+def test_unit_from_landmarks_snaps_to_a_unit():
+    # a head 6 % smaller than the generic one, in metres: the landmarks' scale says 946 mm per unit
+    assert scan_fit._snapped_unit(946.0) == 1000.0
+    assert scan_fit._snapped_unit(10.9) == 10.0
+    assert scan_fit._snapped_unit(3.0) == 3.0  # no unit near: the measured scale is kept

@@ -4,7 +4,8 @@ The scan is a point cloud or a mesh (PLY, OBJ, STL — read with trimesh, :func:
 own frame and units. :func:`fit_scan` brings the studio's topology onto it in four steps:
 
 1. **Units.** With landmarks given, the similarity of the generic mesh's 68 landmark vertices onto
-   them gives the scale. Without, the scan's bounding-box diagonal is compared with a head's
+   them gives the scale (snapped to the nearest of :data:`UNITS` within 25 %: a person's head is
+   not the generic head's size). Without, the scan's bounding-box diagonal is compared with a head's
    (:data:`HEAD_DIAGONAL_MM`): of metres, decimetres, centimetres, inches and millimetres
    (:data:`UNITS`), the unit that brings it nearest is taken (a head scan measures 0.2–0.5 m
    across whatever it includes: a unit is a factor 10 or 25 away from the next, so the bounding
@@ -72,6 +73,8 @@ MIN_FACE_INLIERS = 0.6
 DETAIL_CUTOFF_MM = 2.5
 DETAIL_SMOOTHING = 4
 DETAIL_PASSES = 2
+#: Weight of a landmark against one scan point in the prior's fit.
+LANDMARK_WEIGHT = 0.05
 #: Non-rigid ICP peer: rounds, cut-off (mm), centre stride, RBF ridge.
 ICP_ROUNDS = 4
 ICP_CUTOFF_MM = 5.0
@@ -137,6 +140,13 @@ def guess_unit(points: np.ndarray) -> tuple[str, float]:
         raise ScanError("the scan has no extent (all points coincide or are not finite)")
     name = min(UNITS, key=lambda u: abs(np.log(diag * UNITS[u] / HEAD_DIAGONAL_MM)))
     return name, UNITS[name]
+
+
+def _snapped_unit(mm_per_unit: float) -> float:
+    """The unit of :data:`UNITS` nearest ``mm_per_unit`` (a head is 0.8–1.25× the generic one),
+    else ``mm_per_unit`` itself."""
+    best = min(UNITS.values(), key=lambda u: abs(np.log(mm_per_unit / u)))
+    return best if abs(np.log(mm_per_unit / best)) < np.log(1.25) else mm_per_unit
 
 
 def _starts() -> list[np.ndarray]:
@@ -238,7 +248,7 @@ def prepare_scan(points, normals=None, faces=None, unit_mm: float | None = None)
     if unit_mm is None:
         unit, unit_mm = guess_unit(pts)
     else:
-        unit = f"{unit_mm:g} mm"
+        unit = next((k for k, v in UNITS.items() if v == unit_mm), f"{unit_mm:g} mm")
     pts = pts * unit_mm
     nrm = scan_normals(pts) if normals is None else np.asarray(normals, float)
     return ScanData(pts, nrm), unit, unit_mm
@@ -275,7 +285,7 @@ def fit_scan(
     if landmarks is not None and unit_mm is None:  # the landmarks give the scale
         L = np.asarray(landmarks, float)
         s, _, _ = similarity_transform(mesh.vertices[mesh.landmarks], L)
-        unit_mm = 1.0 / s
+        unit_mm = _snapped_unit(1.0 / s)
     scan, unit, unit_mm = prepare_scan(points, normals, unit_mm=unit_mm)
     face = np.asarray(mesh.face_mask, bool)
     if landmarks is None:
@@ -291,7 +301,7 @@ def fit_scan(
     else:
         L = np.asarray(landmarks, float) * unit_mm
     prior = prior() if callable(prior) else prior
-    fit = fit_face_prior(prior, mesh.vertices, mesh.landmarks, L, scan=scan, face=face)
+    fit = _prior_fit(prior, mesh, L, scan, face)
     V = _with_detail(fit.vertices, mesh.faces, face, scan)
     d, _ = scan.tree.query(V[face], distance_upper_bound=FACE_INLIER_MM)
     inliers = float(np.isfinite(d).mean())
@@ -326,5 +336,22 @@ def fit_scan_rbf(mesh, scan: ScanData, landmarks: np.ndarray) -> np.ndarray:
 def fit_scan_prior_peer(prior: FacePrior, mesh, scan: ScanData, landmarks: np.ndarray) -> np.ndarray:
     """A prior's fit with given landmarks (mm) on prepared scan data (for benchmarks): (N, 3) mm."""
     face = np.asarray(mesh.face_mask, bool)
-    fit = fit_face_prior(prior, mesh.vertices, mesh.landmarks, landmarks, scan=scan, face=face)
+    fit = _prior_fit(prior, mesh, landmarks, scan, face)
     return _with_detail(fit.vertices, mesh.faces, face, scan)
+
+
+def _prior_fit(prior: FacePrior, mesh, landmarks, scan: ScanData, face):
+    """The prior on a scan: the landmarks place it and shape the landmark stage, to the model's
+    surface (a landmark's vertex on the generic mesh lies mm away along the skin from the same
+    point on a person), then weakly (:data:`LANDMARK_WEIGHT`) beside the scan's many points."""
+    return fit_face_prior(
+        prior,
+        mesh.vertices,
+        mesh.landmarks,
+        landmarks,
+        scan=scan,
+        face=face,
+        target_weights=np.full(len(mesh.landmarks), LANDMARK_WEIGHT),
+        tangent_weight=0.0,
+        surface_weight=1.0 / np.sqrt(LANDMARK_WEIGHT),
+    )
