@@ -51,6 +51,7 @@ from app.cli import (
     edit,
     export,
     fit,
+    fit_scan,
     new,
     rig,
     sample_data,
@@ -63,7 +64,7 @@ from app.cli.common import WRITE_ERRNOS, write_error_message
 from photomodel.errors import FaceStudioError, MissingClicks
 
 #: The command modules, in the order ``facestudio --help`` lists them.
-COMMANDS = (new, add_photos, fit, texture, track, track_many, edit, rig, export, sample_data, studio)
+COMMANDS = (new, add_photos, fit, fit_scan, texture, track, track_many, edit, rig, export, sample_data, studio)
 
 
 def version() -> str:

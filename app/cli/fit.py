@@ -9,6 +9,7 @@ work; a missing photo is a warning (the fit needs only the stored clicks).
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
 import sys
@@ -19,7 +20,9 @@ from app.cli.progress import command_progress
 from photomodel.errors import PhotoError, ProjectError
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, uses_person_prior
 from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.modeling.rbf import deform_vertices
 from photomodel.photos.reading import photo_size
+from photomodel.prior.face_prior import prior_deformer
 from photomodel.project import load_project, record_fit, save_results
 
 NAME = "fit"
@@ -73,15 +76,19 @@ def _fit_all(args, project, names: list[str], mesh) -> list:
     """``[(name, FitResult)]`` of every expression in ``names``, in order, recorded in ``project``."""
     results = []
     options = FitOptions(
-        refine=not args.no_refine, weigh_auto_clicks=args.weigh_auto_clicks, person_prior=not args.no_person_prior
+        refine=not args.no_refine,
+        weigh_auto_clicks=args.weigh_auto_clicks,
+        person_prior=not args.no_person_prior,
     )
+    # the localised face prior (seed 004) wraps the RBF deformation; every click is still met
+    deform = prior_deformer(mesh, deform_vertices) if args.face_prior else None
     with command_progress(args, NAME) as progress:
         for i, name in enumerate(names):
 
             def stage(label, frac, i=i, name=name):  # which expression, and the whole run's fraction
                 progress(f"{name} ({i + 1}/{len(names)}): {label}", (i + frac) / len(names))
 
-            result = fit_expression(project, name, mesh, options, progress=stage)
+            result = fit_expression(project, name, mesh, options, progress=stage, deform=deform)
             results.append((name, result))
             # in memory at once: an expression fitted next may take its cameras from this one
             record_fit(project, name, result)
@@ -228,6 +235,14 @@ def add_parser(sub) -> None:
         help="fit weighed automatic clicks as they are instead of the most probable face under the "
         "person prior (with several photos; one photo always uses it): the mesh then follows "
         "the detector's error",
+    )
+    f.add_argument(
+        "--face-prior",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="pull the mesh towards plausible faces (ICT's identities, localised) while every click is "
+        "still met (default; benchmarks/bench_prior.py); --no-face-prior: the generic mesh deformed "
+        "by the clicks alone, as before",
     )
     add_json_flag(f, "the table")
     f.add_argument("--dry-run", action="store_true", help="report only; do not write into the project")

@@ -624,7 +624,8 @@ def fit_expression(
         if curve_mesh.shape != mesh.vertices.shape:
             raise FitError(f"curve_mesh has shape {curve_mesh.shape}, the generic mesh {mesh.vertices.shape}")
     inputs = FitInputs.from_project(project, expression_name, opt, n_vertices=len(mesh.vertices))
-    return _fit(inputs, mesh.vertices, opt, progress, cancel, deform or deform_vertices, curve_mesh)
+    deform = deform or deform_vertices
+    return _fit(inputs, mesh.vertices, opt, progress, cancel, deform, curve_mesh)
 
 
 def _fit(inputs: FitInputs, generic, opt: FitOptions, progress, cancel, deform, curve_mesh) -> FitResult:

@@ -1,0 +1,361 @@
+"""Fitting the generic mesh to a 3D scan of the head: holes, noise and stray points allowed.
+
+The scan is a point cloud or a mesh (PLY, OBJ, STL — read with trimesh, :func:`read_scan`) in its
+own frame and units. :func:`fit_scan` brings the studio's topology onto it in four steps:
+
+1. **Units.** With landmarks given, the similarity of the generic mesh's 68 landmark vertices onto
+   them gives the scale (snapped to the nearest of :data:`UNITS` within 25 %: a person's head is
+   not the generic head's size). Without, the scan's bounding-box diagonal is compared with a head's
+   (:data:`HEAD_DIAGONAL_MM`): of metres, decimetres, centimetres, inches and millimetres
+   (:data:`UNITS`), the unit that brings it nearest is taken (a head scan measures 0.2–0.5 m
+   across whatever it includes: a unit is a factor 10 or 25 away from the next, so the bounding
+   box cannot confuse them).
+2. **Pose and centring** (no landmarks): the template (the project's fitted neutral when there
+   is one, else the generic head) is centred on the scan's centroid and turned through the 24
+   axis-aligned rotations and ±45° yaws; each start is refined by trimmed rigid ICP
+   (similarity, :func:`photomodel.alignment.similarity_transform`) and the start whose face
+   region lies best on the scan is kept; its landmark vertices become the scan's landmarks. A
+   scan on which no start puts :data:`MIN_FACE_INLIERS` of the face within
+   :data:`FACE_INLIER_MM` has **no face**: :class:`ScanError`.
+3. **The prior** (:func:`photomodel.prior.face_prior.fit_face_prior`): landmark stage, then
+   robust point-to-plane stage, coarse to fine, box-bounded local weights — holes are filled
+   by the prior, stray points beyond the cut-off ignored.
+4. **Detail**: each face vertex moves along its normal by its (smoothed) point-to-plane offset to
+   the scan where the scan is within :data:`DETAIL_CUTOFF_MM` — the prior's patches are coarser
+   than the skin's detail — averaged over mesh neighbours (:data:`DETAIL_SMOOTHING` rounds) so
+   that the scanner's noise is not copied; where the scan has a hole nothing moves.
+
+The peer without a prior (:func:`fit_scan_rbf`) is the generic mesh warped by the landmarks (RBF,
+§5.1.2) and then moved to closest points (non-rigid ICP), regularised by fitting the RBF with a
+ridge (:data:`ICP_SMOOTHING`) through a subsample of the paired vertices (one in
+:data:`ICP_STRIDE`), so the warp stays smooth and a hole is bridged by the interpolant.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sparse
+import trimesh
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from photomodel.alignment import similarity_transform
+from photomodel.errors import FitError
+from photomodel.modeling.rbf import deform_vertices
+from photomodel.prior.face_prior import FacePrior, ScanData, fit_face_prior
+from photomodel.rendering.renderer import vertex_normals
+
+__all__ = [
+    "ScanError",
+    "ScanFit",
+    "read_scan",
+    "scan_normals",
+    "guess_unit",
+    "align_template",
+    "fit_scan",
+    "fit_scan_rbf",
+    "detail_offsets",
+]
+
+#: A head scan's bounding-box diagonal, mm (face to whole head with shoulders: 200–500).
+HEAD_DIAGONAL_MM = 320.0
+#: Units a scan may be in: name → millimetres per unit.
+UNITS = {"m": 1000.0, "dm": 100.0, "inch": 25.4, "cm": 10.0, "mm": 1.0}
+#: A face vertex lies on the scan when within this distance (mm) after the rigid alignment…
+FACE_INLIER_MM = 4.0
+#: …and a scan has a face when this fraction of the face region does.
+MIN_FACE_INLIERS = 0.6
+#: Detail step: cut-off (mm), rounds of neighbour averaging, passes.
+DETAIL_CUTOFF_MM = 2.5
+DETAIL_SMOOTHING = 4
+DETAIL_PASSES = 2
+#: Weight of a landmark against one scan point in the prior's fit.
+LANDMARK_WEIGHT = 0.05
+#: Non-rigid ICP peer: rounds, cut-off (mm), centre stride, RBF ridge.
+ICP_ROUNDS = 4
+ICP_CUTOFF_MM = 5.0
+ICP_STRIDE = 6
+ICP_SMOOTHING = 1e-3
+
+
+class ScanError(FitError):
+    """The scan cannot be fitted: unreadable, empty, or no face in it."""
+
+
+@dataclass
+class ScanFit:
+    """A fit to a scan.
+
+    Attributes
+    ----------
+    vertices : (N, 3) float mm, the fitted mesh in the scan's frame scaled to mm.
+    unit_mm : float, millimetres per scan unit (applied to the scan).
+    to_template : (s, R, t), the similarity scan (mm) → template frame.
+    report : dict (``unit``, ``face_inliers``, ``seconds`` …).
+    """
+
+    vertices: np.ndarray
+    unit_mm: float
+    to_template: tuple
+    report: dict = field(default_factory=dict)
+
+
+def read_scan(path) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """``(points (n, 3), faces (m, 3) or None, normals (n, 3) or None)`` of a PLY/OBJ/STL scan."""
+    path = Path(path)
+    try:
+        loaded = trimesh.load(str(path), process=False)
+    except Exception as exc:  # trimesh raises many kinds on a bad file
+        raise ScanError(f"{path}: not a readable scan ({exc})") from exc
+    if isinstance(loaded, trimesh.Scene):
+        geoms = [g for g in loaded.dump() if hasattr(g, "vertices")]
+        if not geoms:
+            raise ScanError(f"{path}: no geometry in the file")
+        loaded = trimesh.util.concatenate(geoms)
+    points = np.asarray(loaded.vertices, float)
+    if points.ndim != 2 or len(points) < 100:
+        raise ScanError(f"{path}: {len(points)} points — too few for a head scan (need ≥ 100)")
+    faces = np.asarray(loaded.faces) if hasattr(loaded, "faces") and len(loaded.faces) else None
+    normals = None if faces is None else vertex_normals(points, faces)
+    return points, faces, normals
+
+
+def scan_normals(points: np.ndarray, k: int = 12) -> np.ndarray:
+    """(n, 3) unit normals of a point cloud by local PCA of ``k`` neighbours (sign arbitrary: the
+    fit compares normals up to sign)."""
+    _, nb = cKDTree(points).query(points, k)
+    nbr = points[nb] - points[nb].mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", nbr, nbr)
+    return np.linalg.eigh(cov)[1][:, :, 0]
+
+
+def guess_unit(points: np.ndarray) -> tuple[str, float]:
+    """The unit (name, mm per unit) that makes the scan's bounding box nearest a head's."""
+    diag = float(np.linalg.norm(np.ptp(points, axis=0)))
+    if not np.isfinite(diag) or diag <= 0:
+        raise ScanError("the scan has no extent (all points coincide or are not finite)")
+    name = min(UNITS, key=lambda u: abs(np.log(diag * UNITS[u] / HEAD_DIAGONAL_MM)))
+    return name, UNITS[name]
+
+
+def _snapped_unit(mm_per_unit: float) -> float:
+    """The unit of :data:`UNITS` nearest ``mm_per_unit`` (a head is 0.8–1.25× the generic one),
+    else ``mm_per_unit`` itself."""
+    best = min(UNITS.values(), key=lambda u: abs(np.log(mm_per_unit / u)))
+    return best if abs(np.log(mm_per_unit / best)) < np.log(1.25) else mm_per_unit
+
+
+def _starts() -> list[np.ndarray]:
+    """24 axis-aligned rotations and, for each, ±45° about the template's vertical axis."""
+    base = Rotation.create_group("O").as_matrix()
+    out = []
+    for R in base:
+        for yaw in (0.0, 45.0, -45.0):
+            out.append(R @ Rotation.from_euler("y", yaw, degrees=True).as_matrix())
+    return out
+
+
+def _icp(src, tree, pts, sim, rounds, cutoff, scale=True):
+    """Trimmed ICP (similarity) of template points ``src`` onto the scan; returns (s, R, t, inliers)."""
+    s, R, t = sim
+    inl = 0.0
+    for _ in range(rounds):
+        Y = src @ (s * R).T + t
+        d, j = tree.query(Y, distance_upper_bound=cutoff)
+        ok = np.isfinite(d)
+        inl = float(ok.mean())
+        if ok.sum() < 10:
+            break
+        s, R, t = similarity_transform(src[ok], pts[j[ok]], scale=scale)
+        if not scale:
+            s = sim[0]
+            R, t = _rigid_with_scale(src[ok], pts[j[ok]], s)
+    return s, R, t, inl
+
+
+def _rigid_with_scale(src, dst, s):
+    _, R, _ = similarity_transform(s * src, dst, scale=False)
+    t = dst.mean(0) - s * src.mean(0) @ R.T
+    return R, t
+
+
+def align_template(template: np.ndarray, face: np.ndarray, points: np.ndarray) -> tuple[tuple, float]:
+    """The similarity template → scan (both mm) that puts the template's face best on the scan,
+    from many starts (module notes, step 2), and the fraction of face vertices within
+    :data:`FACE_INLIER_MM` of the scan."""
+    tree = cKDTree(points)
+    src = template[face][:: max(1, int(face.sum()) // 400)]
+    centre = points.mean(0)
+    best = None
+    for R0 in _starts():
+        t0 = centre - src.mean(0) @ R0.T
+        s, R, t, _ = _icp(src, tree, points, (1.0, R0, t0), 8, 40.0, scale=False)
+        s, R, t, inl = _icp(src, tree, points, (s, R, t), 8, 12.0, scale=False)
+        if best is None or inl > best[1]:
+            best = ((s, R, t), inl)
+    (s, R, t), _ = best
+    s, R, t, _ = _icp(src, tree, points, (s, R, t), 10, 8.0, scale=True)
+    s, R, t, inl = _icp(src, tree, points, (s, R, t), 10, FACE_INLIER_MM, scale=True)
+    return (s, R, t), inl
+
+
+def _neighbours(n: int, faces: np.ndarray) -> sparse.csr_matrix:
+    """Row-normalised vertex adjacency (with self) of a triangle mesh."""
+    i = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2], np.arange(n)])
+    j = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0], np.arange(n)])
+    A = sparse.csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
+    A = ((A + A.T) > 0).astype(float)
+    return sparse.diags(1.0 / np.asarray(A.sum(axis=1)).ravel()) @ A
+
+
+def detail_offsets(vertices, faces, face, scan: ScanData, cutoff=DETAIL_CUTOFF_MM, rounds=DETAIL_SMOOTHING):
+    """(N, 3) mm: each ``face`` vertex's smoothed point-to-plane step onto the scan (module notes, step 4)."""
+    n = vertex_normals(vertices, faces)
+    verts = np.flatnonzero(face)
+    d, j = scan.tree.query(vertices[verts], distance_upper_bound=cutoff)
+    ok = np.isfinite(d)
+    j = np.where(ok, j, 0)
+    ok &= np.abs(np.sum(scan.normals[j] * n[verts], axis=1)) > 0.7
+    delta = np.zeros(len(vertices))
+    have = np.zeros(len(vertices))
+    delta[verts[ok]] = np.sum(n[verts[ok]] * (scan.points[j[ok]] - vertices[verts[ok]]), axis=1)
+    have[verts[ok]] = 1.0
+    A = _neighbours(len(vertices), faces)
+    num, den = delta * have, have.copy()
+    for _ in range(rounds):
+        num, den = A @ num, A @ den
+    step = np.where(den > 1e-6, num / np.maximum(den, 1e-6), 0.0) * np.clip(den / 0.5, 0.0, 1.0)
+    step[~face] = 0.0
+    return n * step[:, None]
+
+
+def _with_detail(vertices, faces, face, scan):
+    V = vertices
+    for _ in range(DETAIL_PASSES):
+        V = V + detail_offsets(V, faces, face, scan)
+    return V
+
+
+def prepare_scan(points, normals=None, faces=None, unit_mm: float | None = None) -> tuple[ScanData, str, float]:
+    """The scan in mm as :class:`ScanData` (normals estimated for a point cloud) and its unit."""
+    pts = np.asarray(points, float)
+    if not np.all(np.isfinite(pts)):
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if unit_mm is None:
+        unit, unit_mm = guess_unit(pts)
+    else:
+        unit = next((k for k, v in UNITS.items() if v == unit_mm), f"{unit_mm:g} mm")
+    pts = pts * unit_mm
+    nrm = scan_normals(pts) if normals is None else np.asarray(normals, float)
+    return ScanData(pts, nrm), unit, unit_mm
+
+
+def fit_scan(
+    prior,
+    mesh,
+    points: np.ndarray,
+    normals: np.ndarray | None = None,
+    *,
+    landmarks: np.ndarray | None = None,
+    template: np.ndarray | None = None,
+    unit_mm: float | None = None,
+) -> ScanFit:
+    """Fit the generic mesh's topology to a scan with the prior (module notes).
+
+    Parameters
+    ----------
+    prior : FacePrior (on ``mesh``), or a callable returning it (called once a face is found).
+    mesh : GenericMesh (``vertices``, ``faces``, ``landmarks`` (68,), ``face_mask``).
+    points : (n, 3) float, scan units; normals : (n, 3), optional (estimated when None).
+    landmarks : (68, 3) float, scan units, iBUG order, optional (else found by aligning ``template``).
+    template : (N, 3) float mm, the person's shape to align when no landmarks are given (e.g. the
+        project's fitted neutral; default the generic mesh).
+    unit_mm : float, mm per scan unit (default: guessed, step 1).
+
+    Raises
+    ------
+    ScanError
+        when no face is found on the scan.
+    """
+    t0 = time.perf_counter()
+    if landmarks is not None and unit_mm is None:  # the landmarks give the scale
+        L = np.asarray(landmarks, float)
+        s, _, _ = similarity_transform(mesh.vertices[mesh.landmarks], L)
+        unit_mm = _snapped_unit(1.0 / s)
+    scan, unit, unit_mm = prepare_scan(points, normals, unit_mm=unit_mm)
+    face = np.asarray(mesh.face_mask, bool)
+    if landmarks is None:
+        T = mesh.vertices if template is None else np.asarray(template, float)
+        sim, inl = align_template(T, face, scan.points)
+        if inl < MIN_FACE_INLIERS:
+            raise ScanError(
+                f"no face found on the scan: at best {inl:.0%} of the face region lies within "
+                f"{FACE_INLIER_MM:g} mm of it (need {MIN_FACE_INLIERS:.0%}); give --landmarks or check the file"
+            )
+        s, R, t = sim
+        L = T[mesh.landmarks] @ (s * R).T + t
+    else:
+        L = np.asarray(landmarks, float) * unit_mm
+    prior = prior() if callable(prior) else prior
+    fit = _prior_fit(prior, mesh, L, scan, face, given=landmarks is not None)
+    V = _with_detail(fit.vertices, mesh.faces, face, scan)
+    d, _ = scan.tree.query(V[face], distance_upper_bound=FACE_INLIER_MM)
+    inliers = float(np.isfinite(d).mean())
+    if inliers < MIN_FACE_INLIERS / 2:
+        raise ScanError(f"no face found on the scan: only {inliers:.0%} of the fitted face lies on it")
+    s, R, t = fit.scale, fit.rotation, fit.translation
+    report = {"unit": unit, "face_inliers": inliers, "seconds": time.perf_counter() - t0} | fit.report
+    return ScanFit(V, unit_mm, (1.0 / s, R.T, -(t @ R) / s), report)
+
+
+def fit_scan_rbf(mesh, scan: ScanData, landmarks: np.ndarray) -> np.ndarray:
+    """The peer without a prior (module notes): (N, 3) mm, scan frame; ``landmarks`` (68, 3) mm."""
+    face = np.asarray(mesh.face_mask, bool)
+    s, R, t = similarity_transform(mesh.vertices[mesh.landmarks], landmarks)
+    G = mesh.vertices @ (s * R).T + t
+    V = deform_vertices(G, mesh.landmarks, landmarks)
+    verts = np.flatnonzero(face)[::ICP_STRIDE]
+    verts = np.setdiff1d(verts, mesh.landmarks)
+    for _ in range(ICP_ROUNDS):
+        n = vertex_normals(V, mesh.faces)[verts]
+        d, j = scan.tree.query(V[verts], distance_upper_bound=ICP_CUTOFF_MM)
+        ok = np.isfinite(d)
+        j = np.where(ok, j, 0)
+        ok &= np.abs(np.sum(scan.normals[j] * n, axis=1)) > 0.5
+        foot = V[verts] + n * np.sum(n * (scan.points[j] - V[verts]), axis=1, keepdims=True)
+        idx = np.concatenate([mesh.landmarks, verts[ok]])
+        tgt = np.concatenate([landmarks, foot[ok]])
+        V = deform_vertices(G, idx, tgt, smoothing=ICP_SMOOTHING)
+    return _with_detail(V, mesh.faces, face, scan)
+
+
+def fit_scan_prior_peer(prior: FacePrior, mesh, scan: ScanData, landmarks: np.ndarray) -> np.ndarray:
+    """A prior's fit with given landmarks (mm) on prepared scan data (for benchmarks): (N, 3) mm."""
+    face = np.asarray(mesh.face_mask, bool)
+    fit = _prior_fit(prior, mesh, landmarks, scan, face, given=True)
+    return _with_detail(fit.vertices, mesh.faces, face, scan)
+
+
+def _prior_fit(prior: FacePrior, mesh, landmarks, scan: ScanData, face, given: bool):
+    """The prior on a scan. Landmarks ``given`` on the scan are fitted vertex to vertex beside the
+    scan's points (measured: they hold the shape of a hole they lie in — weakened, the removed
+    chin came out 1.78 mm off instead of 1.23). Landmarks found by aligning a template are the
+    template's, not the scan's: they only place the prior and shape the landmark stage, to the
+    model's surface, then weigh :data:`LANDMARK_WEIGHT` of a scan point."""
+    if given:
+        return fit_face_prior(prior, mesh.vertices, mesh.landmarks, landmarks, scan=scan, face=face)
+    return fit_face_prior(
+        prior,
+        mesh.vertices,
+        mesh.landmarks,
+        landmarks,
+        scan=scan,
+        face=face,
+        target_weights=np.full(len(mesh.landmarks), LANDMARK_WEIGHT),
+        tangent_weight=0.0,
+        surface_weight=1.0 / np.sqrt(LANDMARK_WEIGHT),
+    )
