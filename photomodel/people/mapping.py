@@ -129,12 +129,12 @@ class ExpressionMapping:
         cls,
         source: ExpressionSpace,
         target: ExpressionSpace,
-        similarity=(1.0, np.eye(3)),
+        similarity=None,
         residual: bool = True,
     ) -> ExpressionMapping:
         """The map of ``source`` onto ``target``; ``similarity`` ``(s, R)`` turns the source's vectors
-        into the target's frame (:func:`align_similarity`)."""
-        s, Rot = similarity[0], similarity[1]
+        into the target's frame (:func:`align_similarity`; default none)."""
+        s, Rot = (1.0, np.eye(3)) if similarity is None else (similarity[0], similarity[1])
         S = _rotate(source.basis.T, s, Rot).T  # (d, r) aligned, scaled by s
         inner = target.basis.T @ S  # (q, r) Eq. 3's R
         res = S - target.basis @ inner  # §3.2 per unit parameter (sign: δ_s − δ_t)
