@@ -84,3 +84,7 @@ def test_clone_onto_the_same_face_by_displacement_gives_the_weights_back(fitted_
                 got = [rec["weights"][region][n] for n in model.names]
                 np.testing.assert_allclose(got, Wf[k], atol=1e-6)  # least squares of an exact blend
         np.testing.assert_allclose(rec["R"], FACING)
+    # export --glb --track takes B's cloned results as it takes B's own tracking
+    glb = tmp_path / "cloned.glb"
+    assert facestudio(["export", str(fitted_project_copy), "--glb", str(glb), "--track", str(out)]) == 0
+    assert glb.stat().st_size > 0

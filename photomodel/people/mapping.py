@@ -123,6 +123,7 @@ class ExpressionMapping:
     aligned_source_basis: np.ndarray  # (d, r)
     limits: np.ndarray  # (q,) ± LIMIT_SIGMA √γ*
     residual: bool = True
+    _stacked: np.ndarray | None = None
 
     @classmethod
     def between(
@@ -147,7 +148,8 @@ class ExpressionMapping:
     def __call__(self, frames: np.ndarray) -> np.ndarray:
         """(f, d) target shapes of source frames (f, d) mm (Eq. 3, plus Eq. 4 when ``residual``)."""
         p = self.source.parameters(frames)
-        out = self.target.mean + self.map_parameters(p) @ self.target.basis.T
-        if self.residual:
-            out = out + p @ self.residual_vectors.T
-        return out
+        if not self.residual:
+            return self.target.mean + self.map_parameters(p) @ self.target.basis.T
+        if self._stacked is None:  # one product for Eq. 3's and Eq. 4's terms
+            self._stacked = np.concatenate([self.target.basis, self.residual_vectors], axis=1).T
+        return self.target.mean + np.concatenate([self.map_parameters(p), p], axis=1) @ self._stacked
