@@ -4,7 +4,8 @@
                      [--method multilinear|mapping|displacement|names] [--out DIR] [--json]
 
 Writes B's tracking results (``track.json`` + ``track.csv``, the format of ``facestudio track``; default
-``<B's folder>/results/<track folder>_from_<A>``) so that ``edit`` and ``export --glb --track`` take them.
+``<B's folder>/results/<track folder>_from_<A>``) so that ``edit`` and ``export --glb --track`` take them,
+and ``side_by_side.mp4`` there (A's frames | B rendered with B's texture; ``--no-video`` skips it).
 The logic is :mod:`tracking.clone` (Qt-free); ``multilinear`` needs the model file
 (``python -m photomodel.people.model_file``), ``names`` a rig in both projects (``facestudio rig``).
 Standalone module with ``add_parser(subparsers)`` / ``run(args)`` for the CLI package.
@@ -23,7 +24,8 @@ from photomodel.errors import FaceStudioError
 from photomodel.people.model_file import model_path
 from photomodel.people.multilinear import MultilinearModel
 from photomodel.project import load_project, load_rig_shapes
-from tracking.clone import METHODS, cloned_results, map_faces, performance_faces, weights_of_faces
+from tracking.clone import METHODS, cloned_results, map_faces, performance_faces, side_by_side_frames, weights_of_faces
+from tracking.edit_video import write_video
 from tracking.face_from_project import face_model_from_project
 from tracking.track_result import load_track_results, save_results
 
@@ -69,13 +71,17 @@ def run(args) -> int:
     }
     doc = cloned_results(doc_a, model_b, args.to, W, cloned_from)
     files = save_results(out, doc, bool(doc_a.get("complete")))
+    files = {k: str(v) for k, v in files.items()}
+    if not args.no_video:  # A's frames | B rendered with B's texture
+        files["video"] = str(out / "side_by_side.mp4")
+        write_video(files["video"], side_by_side_frames(doc, model_b, W), doc["video"].get("fps") or 25.0)
     summary = {
         "out": str(out),
         "frames": len(doc["frames"]),
         "method": args.method,
         "expressions": list(model_b.names),
         "weights_residual_mm": round(float(residual), 4),
-        "files": {k: str(v) for k, v in files.items()},
+        "files": files,
         "seconds": round(time.perf_counter() - t0, 2),
     }
     if args.json:
@@ -102,6 +108,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--method", choices=METHODS, default="multilinear", help="how A's faces become B's (default multilinear)"
     )
     c.add_argument("--out", type=Path, help="B's results folder (default <B>/results/<track>_from_<A>)")
+    c.add_argument("--no-video", action="store_true", help="do not write the side-by-side video")
     c.add_argument("--json", action="store_true", help="print a JSON summary")
     c.set_defaults(func=run)
     return c

@@ -5,13 +5,14 @@ import json
 import numpy as np
 
 from app.cli import main as facestudio
+from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
 from tracking.blendshape_face import CONTROL_REGIONS
 from tracking.face_from_project import face_model_from_project
 from tracking.track_result import FACING, FORMAT, VERSION, load_track_results, save_results
 
 
-def _track_doc(project_path, model, weights):
+def _track_doc(project_path, model, weights, video):
     """A hand-made track.json of ``model``: frames of the given region weights (f, R, m), facing the camera."""
     frames = []
     for i, W in enumerate(weights):
@@ -41,8 +42,13 @@ def _track_doc(project_path, model, weights):
         "format": FORMAT,
         "version": VERSION,
         "project": str(project_path),
-        "video": {"path": "none.mp4", "kind": "file", "width": 640, "height": 480, "fps": 25.0, "frames": len(frames)},
-        "camera": {"focal_px": 800.0, "width": 640, "height": 480, "convention": "X_cam = R X + t"},
+        "video": {"path": str(video.path), "kind": "file", "width": video.width, "height": video.height, "fps": 25.0},
+        "camera": {
+            "focal_px": 1.5 * video.width,
+            "width": video.width,
+            "height": video.height,
+            "convention": "X_cam = R X + t",
+        },
         "model": {
             "source": "test",
             "expressions": list(model.names),
@@ -70,12 +76,15 @@ def test_clone_onto_the_same_face_by_displacement_gives_the_weights_back(fitted_
     W[:, 1:, 0] = 1.0 - W[:, 1:, 1:].sum(axis=2)
     src = tmp_path / "track_a"
     src.mkdir()
-    save_results(src, _track_doc(fitted_project_copy, model, W), True)
+    video = VideoFrames(fitted_project_copy.parent / "video" / "james_track.mp4")
+    save_results(src, _track_doc(fitted_project_copy, model, W, video), True)
     out = tmp_path / "cloned"
     argv = ["clone", "--from", str(fitted_project_copy), "--track", str(src), "--to", str(fitted_project_copy)]
     assert facestudio([*argv, "--method", "displacement", "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["frames"] == 4
+    side = VideoFrames(summary["files"]["video"])  # A's frames | B rendered
+    assert (side.width, side.height) == (2 * video.width, video.height) and side.count == 4
     doc = load_track_results(out)  # B's results open as tracking results
     assert doc["cloned_from"]["method"] == "displacement"
     for rec, Wf in zip(doc["frames"], W, strict=True):

@@ -33,12 +33,15 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import lsq_linear
 
+from photomodel.camera import Camera
 from photomodel.errors import FaceStudioError
 from photomodel.people.mapping import ExpressionMapping, align_similarity, displacement_copy, expression_space
-from tracking.blendshape_face import CONTROL_REGIONS, FaceModel
+from photomodel.photos.video import VideoFrames
+from photomodel.rendering.renderer import get_renderer
+from tracking.blendshape_face import CONTROL_REGIONS, FaceModel, render_model
 from tracking.performance import region_targets
 
-__all__ = ["METHODS", "performance_faces", "map_faces", "weights_of_faces", "cloned_results"]
+__all__ = ["METHODS", "performance_faces", "map_faces", "weights_of_faces", "cloned_results", "side_by_side_frames"]
 
 METHODS = ("multilinear", "mapping", "displacement", "names")
 
@@ -149,3 +152,22 @@ def cloned_results(
         rec.update(rms=0.0, pixels=0, diverged=False, steps=0, evaluations=0, seconds=0.0)
         rec.pop("landmarks_xy", None)
     return doc
+
+
+def side_by_side_frames(doc_b: dict, model_b: FaceModel, weights: np.ndarray):
+    """Yield (H, 2W, 3) float RGB images: A's video frame | B's model rendered with B's texture at the
+    frame's pose and B's ``weights`` (f, R, m), for the frames of ``doc_b`` (B's cloned results)."""
+    video = VideoFrames(doc_b["video"]["path"])
+    cam = doc_b["camera"]
+    recs = {r["frame"]: (r, W) for r, W in zip(doc_b["frames"], weights, strict=True)}
+    renderer = get_renderer()
+    for i, frame in video.frames(0, max(recs) + 1):
+        if i not in recs:
+            continue
+        rec, W = recs[i]
+        vw = model_b.vertex_weights(W)
+        camera = Camera(
+            np.array(rec["R"], float), np.array(rec["t_mm"], float), cam["focal_px"], video.width, video.height
+        )
+        image = render_model(renderer, camera, model_b, model_b.blend_geometry(vw), vw).image
+        yield np.concatenate([frame, image], axis=1)
