@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from photomodel.errors import FaceStudioError
-from photomodel.people.model_file import model_path
+from photomodel.people.model_file import MODEL_PEOPLE, model_path
 from photomodel.people.multilinear import MultilinearModel
 from photomodel.project import load_project, load_rig_shapes
 from tracking.clone import METHODS, cloned_results, map_faces, performance_faces, side_by_side_frames, weights_of_faces
@@ -44,7 +44,7 @@ def run(args) -> int:
     faces = performance_faces(model_a, doc_a)
     people_model = rigs = None
     if args.method == "multilinear":
-        path = model_path(30)
+        path = model_path(MODEL_PEOPLE)
         if not path.is_file():
             raise FaceStudioError(
                 f"the multilinear model {path} is missing; build it: python -m photomodel.people.model_file"

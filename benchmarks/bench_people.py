@@ -1,6 +1,6 @@
 """Several people: imputation of missing expressions, cloning a performance between people, speed.
 
-    .venv/bin/python benchmarks/bench_people.py [--json] [--people 30] [--model-people 30]
+    .venv/bin/python benchmarks/bench_people.py [--json] [--people 30] [--model-people 100]
         [--draws 3] [--pairs 50] [--frames-per-pair 10]
 
 Data (:mod:`photomodel.people.dataset`): ``--model-people`` ICT identities build the multilinear model
@@ -178,7 +178,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--people", type=int, default=30)
-    ap.add_argument("--model-people", type=int, default=30)
+    ap.add_argument("--model-people", type=int, default=100)
     ap.add_argument("--draws", type=int, default=3)
     ap.add_argument("--pairs", type=int, default=50)
     ap.add_argument("--frames-per-pair", type=int, default=10)
