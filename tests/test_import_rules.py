@@ -31,7 +31,7 @@ PHOTOMODEL_ORDER = (
     ("exchange", "closest_points"),  # file formats (a format per module, one atomic writer); closest points
     ("project", "modeling"),  # the project's data model and file; cameras, RBF, refinement
     ("rig", "landmarks"),  # the ARKit rig from ICT-FaceKit; automatic landmarks
-    ("photos", "prior"),  # photos and video stills into a project; the localised face prior and scan fits
+    ("photos", "prior", "people"),  # photos and stills into a project; the face prior; the multilinear people model
     ("texturing",),  # the texture of a fitted expression, stored with the project
 )
 #: Left out of the order: ``samples`` (tests, benchmarks, the sample project and the ``sample-data``

@@ -1,0 +1,1 @@
+"""Several people: seed 000's multilinear face model and seed 001's expression cloning."""

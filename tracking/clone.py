@@ -1,0 +1,173 @@
+"""One person's tracked performance on another person's face (issue 37; seeds 000 and 001).
+
+:func:`clone_track` takes person A's tracking results (``track.json`` of A's face model, Pighin et al.
+§6.1.1: per control region, weights of A's photographed expressions) and writes B's: the same frames,
+head pose and camera, with weights of *B's* face model, so ``facestudio edit``, ``export --glb --track``
+and the studio's tracking view take it as they take B's own tracking. Four steps:
+
+1. **A's faces.** Every frame's consensus geometry of A's model at its recorded weights (n, 3) mm,
+   head frame (:meth:`tracking.blendshape_face.FaceModel.blend_geometry`).
+2. **Onto B** (:data:`METHODS`):
+   ``displacement`` — A's displacement from A's neutral, similarity-aligned, on B's neutral
+   (:func:`photomodel.people.mapping.displacement_copy`);
+   ``mapping`` — seed 001: A's and B's own expression spaces are the PCA of their photographed
+   expressions (their models' ``E_k``), mapped by Eq. 3–4 with ±3σ limits (:mod:`photomodel.people.mapping`);
+   ``multilinear`` — seed 000's model (:mod:`photomodel.people.model_file`, built beforehand): both
+   people's identity weights fitted to their neutrals, each frame's expression weights solved with A's
+   identity and B's displacement from them added to B's neutral;
+   ``names`` — both projects have an ARKit rig (``facestudio rig``): A's faces said in A's rig weights
+   (bounded least squares over the face), the same weights on B's rig.
+3. **B's weights.** Each mapped face is said in B's model: per-region weights of B's expressions by least
+   squares over the face against B's per-region targets ``μ_r (E_k − E_1)``
+   (:func:`tracking.performance.region_targets`), the neutral's weight ``1 − Σ`` (the model's Eq. 4 form).
+4. **B's results**: A's ``track.json`` with B's project and model, each frame's pose (``R``, ``t``) kept
+   (``centre_mm`` moved to B's head centre), weights and ``α`` of B, fit statistics zeroed, and a
+   ``cloned_from`` record (A's project, A's results folder, the method).
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from photomodel.camera import Camera
+from photomodel.errors import FaceStudioError
+from photomodel.people.mapping import ExpressionMapping, align_similarity, displacement_copy, expression_space
+from photomodel.photos.video import VideoFrames
+from photomodel.rendering.renderer import get_renderer
+from tracking.blendshape_face import CONTROL_REGIONS, FaceModel, render_model
+from tracking.performance import region_targets
+
+__all__ = ["METHODS", "performance_faces", "map_faces", "weights_of_faces", "cloned_results", "side_by_side_frames"]
+
+METHODS = ("multilinear", "mapping", "displacement", "names")
+
+
+def _region_weights(model: FaceModel, rec: dict) -> np.ndarray:
+    """(R, m) region weights of a ``track.json`` frame record (rest: the neutral)."""
+    W = np.zeros((len(CONTROL_REGIONS), model.m))
+    W[0, 0] = 1.0
+    for r, region in enumerate(CONTROL_REGIONS):
+        if r:
+            w = rec["weights"][region]
+            W[r] = [w[name] for name in model.names]
+    return W
+
+
+def performance_faces(model: FaceModel, doc: dict) -> np.ndarray:
+    """(f, n, 3) mm, head frame: step 1, the tracked frames' faces of ``model`` (A's)."""
+    if list(doc["model"]["expressions"]) != list(model.names):
+        raise FaceStudioError(
+            f"the tracking was made with the expressions {doc['model']['expressions']} but the face model has "
+            f"{list(model.names)}"
+        )
+    return np.array([model.blend_geometry(model.vertex_weights(_region_weights(model, r))) for r in doc["frames"]])
+
+
+def map_faces(
+    faces: np.ndarray, model_a: FaceModel, model_b: FaceModel, method: str, *, people_model=None, rigs=None
+) -> np.ndarray:
+    """(f, n, 3) mm: step 2, A's faces (f, n, 3) on B (see the module notes).
+
+    ``people_model``: the :class:`photomodel.people.multilinear.MultilinearModel` (``multilinear``);
+    ``rigs``: ``((names_a, deltas_a), (names_b, deltas_b))`` of the two rigs (``names``).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    f, n = faces.shape[:2]
+    nA, nB = model_a.geometry[0], model_b.geometry[0]
+    mask = model_a.face_mask & model_b.face_mask
+    X = faces.reshape(f, -1)
+    if method == "displacement":
+        out = displacement_copy(X, nA, nB, mask)
+    elif method == "mapping":
+        if model_a.m < 2 or model_b.m < 2:
+            raise FaceStudioError("the mapping needs at least two photographed expressions in each project")
+        s, R, _ = align_similarity(nA, nB, mask)
+        space_a = expression_space(model_a.geometry.reshape(model_a.m, -1))
+        space_b = expression_space(model_b.geometry.reshape(model_b.m, -1))
+        out = ExpressionMapping.between(space_a, space_b, (s, R))(X)
+    elif method == "multilinear":
+        pm = people_model
+        if pm is None or pm.mean.shape != (3 * n,):
+            raise FaceStudioError("the multilinear model is missing or of another mesh; build it first")
+        CA = pm.expression_space(pm.fit_identity(nA.ravel()[None], [0]))
+        CB = pm.expression_space(pm.fit_identity(nB.ravel()[None], [0]))
+        g = (X - nA.ravel()) @ pm.vertex_basis
+        out = nB.ravel() + (g @ (CB @ np.linalg.pinv(CA)).T) @ pm.vertex_basis.T
+    else:
+        (names_a, da), (names_b, db) = rigs
+        if list(names_a) != list(names_b):
+            raise FaceStudioError("the two rigs have different shapes; run `facestudio rig` on both")
+        A = da[:, mask].reshape(len(da), -1).T
+        disp = (faces - nA)[:, mask].reshape(f, -1)
+        W = np.array([lsq_linear(A, d, bounds=(0.0, 1.0)).x for d in disp])
+        out = nB.ravel() + W @ db.reshape(len(db), -1)
+    return np.asarray(out).reshape(f, n, 3)
+
+
+def weights_of_faces(model: FaceModel, faces: np.ndarray) -> np.ndarray:
+    """(f, R, m): step 3, region weights of ``model`` (B's) closest to ``faces`` (f, n, 3) over its face."""
+    _names, targets = region_targets(model)
+    mask = model.face_mask
+    A = targets[:, mask].reshape(len(targets), -1).T
+    rhs = (faces - model.geometry[0])[:, mask].reshape(len(faces), -1).T
+    w = np.linalg.lstsq(A, rhs, rcond=None)[0].T  # (f, (R - 1)(m - 1)), region-major as region_targets
+    W = np.zeros((len(faces), len(CONTROL_REGIONS), model.m))
+    W[:, 0, 0] = 1.0
+    W[:, 1:, 1:] = w.reshape(len(faces), len(CONTROL_REGIONS) - 1, model.m - 1)
+    W[:, 1:, 0] = 1.0 - W[:, 1:, 1:].sum(axis=2)
+    return W
+
+
+def cloned_results(
+    doc_a: dict, model_b: FaceModel, project_b: str | Path, weights: np.ndarray, cloned_from: dict
+) -> dict:
+    """Step 4: B's ``track.json`` document (see the module notes) from A's ``doc_a`` and B's ``weights`` (f, R, m)."""
+    doc = copy.deepcopy(doc_a)
+    regions = [r for r, a in zip(CONTROL_REGIONS, model_b.n_alpha, strict=True) if a]
+    doc["project"] = str(Path(project_b).absolute())
+    doc["model"] = {
+        "source": f"cloned from {cloned_from['project']} ({cloned_from['method']})",
+        "expressions": list(model_b.names),
+        "regions": list(CONTROL_REGIONS),
+        "regions_with_parameters": regions,
+        "n_alpha": list(model_b.n_alpha),
+        "centre_mm": np.asarray(model_b.centre, float).tolist(),
+    }
+    doc["corrections"] = []
+    doc["cloned_from"] = cloned_from
+    for rec, W in zip(doc["frames"], weights, strict=True):
+        R = np.array(rec["R"], float)
+        rec["centre_mm"] = (R @ model_b.centre + np.array(rec["t_mm"], float)).tolist()
+        rec["alpha"] = model_b.alpha_of_weights(W).tolist()
+        rec["weights"] = {
+            region: dict(zip(model_b.names, map(float, W[r]), strict=True))
+            for r, region in enumerate(CONTROL_REGIONS)
+            if r
+        }
+        rec.update(rms=0.0, pixels=0, diverged=False, steps=0, evaluations=0, seconds=0.0)
+        rec.pop("landmarks_xy", None)
+    return doc
+
+
+def side_by_side_frames(doc_b: dict, model_b: FaceModel, weights: np.ndarray):
+    """Yield (H, 2W, 3) float RGB images: A's video frame | B's model rendered with B's texture at the
+    frame's pose and B's ``weights`` (f, R, m), for the frames of ``doc_b`` (B's cloned results)."""
+    video = VideoFrames(doc_b["video"]["path"])
+    cam = doc_b["camera"]
+    recs = {r["frame"]: (r, W) for r, W in zip(doc_b["frames"], weights, strict=True)}
+    renderer = get_renderer()
+    for i, frame in video.frames(0, max(recs) + 1):
+        if i not in recs:
+            continue
+        rec, W = recs[i]
+        vw = model_b.vertex_weights(W)
+        camera = Camera(
+            np.array(rec["R"], float), np.array(rec["t_mm"], float), cam["focal_px"], video.width, video.height
+        )
+        image = render_model(renderer, camera, model_b, model_b.blend_geometry(vw), vw).image
+        yield np.concatenate([frame, image], axis=1)
