@@ -465,6 +465,7 @@ def cmd_track(args) -> int:  # noqa: C901 - one branch per user-facing error of 
             first_pose=args.first_pose,
             focal_px=args.focal_px,
             max_frames=args.frames,
+            basis=args.basis,
             restart=args.restart,
             correct_frame=args.correct,
             correct_pose=args.pose,
@@ -816,6 +817,12 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument(
         "--expressions",
         help="comma-separated expressions of the face model, neutral first (default: every expression of the project)",
+    )
+    k.add_argument(
+        "--basis",
+        choices=("arkit", "photographed", "both"),
+        help="the expression basis: the rig's 51 ARKit shapes, the photographed expressions per region, or both "
+        "(default: arkit when the project has a rig, else photographed)",
     )
     k.add_argument("--restart", action="store_true", help="discard earlier results in the output folder")
     k.add_argument(

@@ -31,7 +31,7 @@ from photomodel.project import load_project, save_project, store_rig
 from photomodel.rig.build import RigBuilder
 from photomodel.rig.ict import ARKIT_SHAPES
 from tracking.face_from_project import model_expressions
-from tracking.performance import arkit_weights, blend_shapes, track_performance
+from tracking.performance import arkit_weights, blend_shapes, track_performance, tracked_arkit_weights
 from tracking.track_result import FACING, load_track_results
 
 __all__ = ["add_rig_parsers", "cmd_rig", "cmd_export"]
@@ -102,6 +102,10 @@ def cmd_export(args) -> int:
         raise FaceStudioError(f"{args.track}: no track.json; run `facestudio track` first")
     names = doc["model"]["expressions"] if doc else None
     shapes, model = blend_shapes(project, names)
+    if args.csv and shapes.rig_shapes == 0:  # before anything is written
+        raise FaceStudioError(
+            "--csv writes the rig's ARKit weights: the project has no rig; run `facestudio rig` first"
+        )
     perf = None
     if doc is not None:
         perf = track_performance(doc, shapes.names)
@@ -124,9 +128,13 @@ def cmd_export(args) -> int:
         "photographed_targets": shapes.photographed,
         "frames": 0 if perf is None else len(perf.times_s),
         "pose_frame": "video camera (glTF camera convention: +Y up, looking along -Z)",
+        "arkit_tracked": bool(doc is not None and doc["model"].get("arkit")),
     }
     if args.csv:
-        arkit = arkit_weights(shapes, perf.weights, model.face_mask)
+        rig_names = shapes.names[: shapes.rig_shapes]
+        arkit = tracked_arkit_weights(doc, rig_names)
+        if arkit is None:  # a track of the photographed expressions: said in ARKit's shapes by fitting
+            arkit = arkit_weights(shapes, perf.weights, model.face_mask)
         full = np.zeros((len(arkit), len(ARKIT_SHAPES)))
         full[:, [ARKIT_SHAPES.index(n) for n in shapes.names[: shapes.rig_shapes]]] = arkit
         head = np.radians([r["head_rotation_deg"] for r in doc["frames"]])  # pitch, yaw, roll

@@ -13,6 +13,12 @@ The targets of ``facestudio export --glb`` are
   exactly: target ``<expression>_<region>`` is ``μ_r (E_k − E_1)`` and a tracked frame's weight
   ``w_rk`` (``track.json``'s ``weights[region][expression]``) is its weight, unchanged.
 
+A track in ARKit terms (:mod:`tracking.arkit_face`: ``track.json`` frames carry ``arkit``
+{shape: weight}) animates the rig's targets with those weights themselves
+(:func:`track_performance`), and its Live Link CSV carries them (:func:`tracked_arkit_weights`);
+a track of the photographed expressions alone is said in ARKit's shapes by fitting
+(:func:`arkit_weights`).
+
 The base mesh is the model's ``E_1`` (the neutral fit), with the neutral's texture and its
 cylindrical coordinates; triangles crossing the texture's seam are left out, as in tracking.
 """
@@ -30,7 +36,14 @@ from photomodel.project import load_rig_shapes
 from tracking.blendshape_face import CONTROL_REGIONS, FaceModel
 from tracking.face_from_project import face_model_from_project
 
-__all__ = ["BlendShapes", "arkit_weights", "blend_shapes", "track_performance", "region_targets"]
+__all__ = [
+    "BlendShapes",
+    "arkit_weights",
+    "blend_shapes",
+    "track_performance",
+    "tracked_arkit_weights",
+    "region_targets",
+]
 
 
 @dataclass
@@ -91,7 +104,8 @@ def blend_shapes(project, expressions=None) -> tuple[BlendShapes, FaceModel]:
 
 def track_performance(doc: dict, names: list[str]) -> Performance:
     """The ``track.json`` document ``doc`` as a :class:`Performance` over the targets ``names``:
-    each tracked ``weights[region][expression]`` on target ``<expression>_<region>``, the others 0."""
+    each tracked ``weights[region][expression]`` on target ``<expression>_<region>``, each tracked
+    ARKit weight (``arkit[shape]``) on the rig's target ``shape``, the others 0."""
     frames = doc["frames"]
     fps = float(doc["video"].get("fps") or 0.0)
     if not frames:
@@ -106,6 +120,10 @@ def track_performance(doc: dict, names: list[str]) -> Performance:
                 i = index.get(f"{expr}_{region}")
                 if i is not None:
                     W[f, i] = w
+        for shape, w in rec.get("arkit", {}).items():
+            i = index.get(shape)
+            if i is not None:
+                W[f, i] = w
     cam = doc["camera"]
     return Performance(
         times_s=np.array([r["frame"] for r in frames], float) / fps,
@@ -125,8 +143,18 @@ def arkit_weights(shapes: BlendShapes, weights: np.ndarray, mask: np.ndarray | N
     r = shapes.rig_shapes
     if r == 0:
         raise FaceStudioError("the project has no rig; run `facestudio rig` first")
+    if len(shapes.deltas) == r:  # no photographed target: the frames are the neutral
+        return np.zeros((len(weights), r))
     sel = slice(None) if mask is None else np.asarray(mask, bool)
     A = shapes.deltas[:r, sel].reshape(r, -1).T  # (3n', r)
     B = shapes.deltas[r:, sel].reshape(len(shapes.deltas) - r, -1).T  # (3n', k)
     W = np.asarray(weights, float)[:, r:] if np.shape(weights)[1] == len(shapes.names) else np.asarray(weights, float)
     return np.array([lsq_linear(A, B @ w, bounds=(0.0, 1.0)).x for w in W])
+
+
+def tracked_arkit_weights(doc: dict, shapes: list[str]) -> np.ndarray | None:
+    """(f, k) the tracked ARKit weights of ``doc``'s frames over ``shapes`` (0 for a shape the track
+    did not have), or None when the track is not in ARKit terms (``model.arkit`` empty)."""
+    if not doc.get("model", {}).get("arkit"):
+        return None
+    return np.array([[rec.get("arkit", {}).get(n, 0.0) for n in shapes] for rec in doc["frames"]], float)
