@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
+from app.auto_command import add_parser as add_auto_parser
 from app.edit_command import add_edit_parser
 from app.rig_command import add_rig_parsers
 from app.terminal_progress import StageProgress
@@ -883,6 +884,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.set_defaults(func=cmd_track_many)
     add_edit_parser(sub)
     add_rig_parsers(sub)
+    add_auto_parser(sub)
     s = sub.add_parser("sample-data", help="fetch, verify and cache the sample data; print its folder")
     s.set_defaults(func=cmd_sample_data)
     g = sub.add_parser("studio", help="open the studio window (click points, draw curves, fit, look)")

@@ -31,8 +31,10 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from photomodel.errors import FaceStudioError
-from photomodel.exchange.gltf_animation import Performance
+from photomodel.exchange.gltf_animation import Performance, write_rigged_glb
+from photomodel.exchange.livelink import ROTATION_COLUMNS, write_livelink_csv
 from photomodel.project import load_rig_shapes
+from photomodel.rig.ict import ARKIT_SHAPES
 from tracking.blendshape_face import CONTROL_REGIONS, FaceModel
 from tracking.face_from_project import face_model_from_project
 
@@ -42,6 +44,7 @@ __all__ = [
     "blend_shapes",
     "track_performance",
     "tracked_arkit_weights",
+    "export_track",
     "region_targets",
 ]
 
@@ -158,3 +161,40 @@ def tracked_arkit_weights(doc: dict, shapes: list[str]) -> np.ndarray | None:
     if not doc.get("model", {}).get("arkit"):
         return None
     return np.array([[rec.get("arkit", {}).get(n, 0.0) for n in shapes] for rec in doc["frames"]], float)
+
+
+def export_track(project, doc: dict, glb, csv=None) -> dict:
+    """Write the animated glb of a ``track.json`` document ``doc`` (the targets of
+    :func:`blend_shapes` on the tracked expressions, animated by :func:`track_performance`) and,
+    with ``csv``, its Live Link Face CSV (the tracked ARKit weights, :func:`tracked_arkit_weights`,
+    else the rig's weights fitted to each frame, :func:`arkit_weights`; head yaw/pitch/roll).
+    What ``facestudio export --track`` writes. Returns ``{"targets", "rig_names", "frames"}``.
+
+    Raises FaceStudioError when ``csv`` is asked of a project without a rig (before anything is
+    written), or the track holds no frame."""
+    shapes, model = blend_shapes(project, doc["model"]["expressions"])
+    if csv is not None and shapes.rig_shapes == 0:
+        raise FaceStudioError("the Live Link CSV carries the rig's ARKit weights: the project has no rig")
+    perf = track_performance(doc, shapes.names)
+    write_rigged_glb(
+        glb,
+        shapes.neutral,
+        shapes.faces,
+        shapes.deltas,
+        shapes.names,
+        uv=shapes.uv,
+        texture=shapes.texture_png,
+        performance=perf,
+    )
+    rig_names = shapes.names[: shapes.rig_shapes]
+    if csv is not None:
+        arkit = tracked_arkit_weights(doc, rig_names)
+        if arkit is None:
+            arkit = arkit_weights(shapes, perf.weights, model.face_mask)
+        full = np.zeros((len(arkit), len(ARKIT_SHAPES)))
+        full[:, [ARKIT_SHAPES.index(n) for n in rig_names]] = arkit
+        head = np.radians([r["head_rotation_deg"] for r in doc["frames"]])  # pitch, yaw, roll
+        rot = np.zeros((len(full), len(ROTATION_COLUMNS)))
+        rot[:, :3] = head[:, [1, 0, 2]]
+        write_livelink_csv(csv, full, float(doc["video"]["fps"]), rot)
+    return {"targets": len(shapes.names), "rig_names": list(rig_names), "frames": len(perf.times_s)}
