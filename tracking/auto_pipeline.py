@@ -317,7 +317,8 @@ def run_auto(
     begin("track")
     done = load_track_results(track_dir) if track_dir.is_dir() else None
     total = video.count if max_frames is None else min(max_frames, video.count or max_frames)
-    if done is not None and done.get("complete") and len(done["frames"]) >= (total or 0):
+    tracked = 0 if done is None else len(done["frames"])
+    if done is not None and (done.get("complete") or (total is not None and tracked >= total)):
         result.skipped.append("track")
         records = done["frames"]
         track_fps = 0.0
