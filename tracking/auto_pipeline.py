@@ -78,6 +78,9 @@ class AutoResult:
     recovered: int = 0
     glb_info: dict = field(default_factory=dict)
     total_s: float = 0.0
+    #: (frames,) px each tracked frame's landmark error against the detector (NaN: no face found,
+    #: or the frame was fitted again from the detector's pose).
+    landmark_errors: np.ndarray | None = None
 
     def as_dict(self) -> dict:
         return {
@@ -377,6 +380,7 @@ def _landmark_figures(result: AutoResult, video: VideoFrames, records: list[dict
         err.append(landmark_error_px(records[i]["landmarks_xy"], det) if det else np.nan)
     err, found = np.array(err, float), np.array(found, bool)
     kept = np.array([r.get("start") == "predicted" for r in records[: len(err)]]) & found
+    result.landmark_errors = np.where(kept, err, np.nan)
     if kept.any():
         result.landmark_err_px = float(np.nanmean(err[kept]))
     result.lost, result.recovered = lost_and_recovered(np.nan_to_num(err, nan=np.inf), found)
