@@ -93,6 +93,7 @@ __all__ = [
     "bandpass",
     "home_regions",
     "outlier_pixels",
+    "mirrored_pairs",
     "OUTLIER_FACTOR",
 ]
 
@@ -183,7 +184,8 @@ class TrackOptions:
     #: beyond the paper), each in units of :attr:`penalty` like :attr:`coherence`, for what the views
     #: cannot separate (see docs/tracking.md, "Tracking in ARKit terms", for the measurements):
     #: ``sparsity`` · c · Σ_k a_k (a shape not needed stays at 0: with 51 shapes several explain
-    #: the same pixels), ``symmetry`` · c · Σ (a_left − a_right)² over the Left/Right pairs (where
+    #: the same pixels), ``symmetry`` · c · Σ (a_left − a_right)² over the pairs of
+    #: :func:`mirrored_pairs` (where
     #: the data are silent, the two sides move alike; a wink the image sees outweighs it), and
     #: ``smoothness`` · c · Σ_k (a_k − â_k)² with â the frame's prediction (the weights of the
     #: two frames before, extrapolated, clipped to [0, 1]; not on a frame fitted from a pose).
@@ -335,6 +337,26 @@ def outlier_pixels(pixel_rms: np.ndarray) -> np.ndarray:
     return r > OUTLIER_FACTOR * float(np.median(r))
 
 
+def mirrored_pairs(names) -> np.ndarray:
+    """(p, 2) int: the pairs of ``names`` that are one motion on the two sides of the face, which the
+    symmetry prior (:attr:`TrackOptions.symmetry`) keeps alike: ``<stem>Left`` with ``<stem>Right``
+    (ARKit's names; the subject's sides), except the sideways motions ``jawLeft``/``jawRight`` and
+    ``mouthLeft``/``mouthRight`` (opposites, not sides), and with the gaze's conjugate pairs for the
+    eyes (looking left turns the left eye out and the right eye in: ``eyeLookOutLeft`` with
+    ``eyeLookInRight``, ``eyeLookInLeft`` with ``eyeLookOutRight``)."""
+    names = list(names)
+    swap = {"eyeLookOut": "eyeLookIn", "eyeLookIn": "eyeLookOut"}
+    pairs = []
+    for i, n in enumerate(names):
+        if not n.endswith("Left") or n in ("jawLeft", "mouthLeft"):
+            continue
+        stem = n[: -len("Left")]
+        partner = swap.get(stem, stem) + "Right"
+        if partner in names:
+            pairs.append((i, names.index(partner)))
+    return np.array(pairs, int).reshape(-1, 2)
+
+
 def home_regions(model: FaceModel) -> np.ndarray:
     """(m,) int: each expression's *home* control region (index into ``model``'s regions, ≥ 1; 0
     for neutral) — where it moves the face most: the largest ``Σ_i μ_ir ‖E_k,i − E_0,i‖²`` over the
@@ -421,13 +443,7 @@ class FrameFitter:
         # row), their Left/Right pairs, and the prediction the smoothness prior pulls towards
         shared = np.flatnonzero(model.shared_expressions)
         self._shared_w = (len(bases) - 2) * m + shared if len(shared) else np.zeros(0, int)
-        names = [model.names[k] for k in shared]
-        pairs = [
-            (i, names.index(n[: -len("Left")] + "Right"))
-            for i, n in enumerate(names)
-            if n.endswith("Left") and n[: -len("Left")] + "Right" in names
-        ]
-        self._shared_pairs = np.array(pairs, int).reshape(-1, 2)
+        self._shared_pairs = mirrored_pairs([model.names[k] for k in shared])
         self._anchor: np.ndarray | None = None
         self._prior_scale = 1.0
         # per-vertex weight of the pixels in ε (TrackOptions.outside_weight): 1 on the face,
