@@ -40,6 +40,7 @@ __all__ = [
     "BASES",
     "MIN_SHAPE_MM",
     "default_basis",
+    "basis_of",
     "with_shared_shapes",
     "shape_weights",
     "arkit_face_model",
@@ -59,6 +60,14 @@ _BLACK = np.zeros((4, 4, 3), np.float32)
 def default_basis(project) -> str:
     """``"arkit"`` when the project has a rig, else ``"photographed"``."""
     return "arkit" if getattr(project, "rig", None) is not None else "photographed"
+
+
+def basis_of(model: FaceModel) -> str:
+    """The basis a face model tracks with (:data:`BASES`): ``"photographed"`` without shared shapes,
+    ``"arkit"`` with them and the neutral alone, else ``"both"``."""
+    if not model.n_shared:
+        return "photographed"
+    return "arkit" if model.m - int(model.shared_expressions.sum()) == 1 else "both"
 
 
 def with_shared_shapes(model: FaceModel, names, deltas: np.ndarray, min_mm: float = MIN_SHAPE_MM) -> FaceModel:

@@ -65,7 +65,7 @@ from photomodel.errors import FaceStudioError, FitError
 from photomodel.exchange.files import atomic_write_bytes, encode_png
 from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
-from tracking.arkit_face import tracking_face_model
+from tracking.arkit_face import basis_of, tracking_face_model
 from tracking.blendshape_face import FaceModel
 from tracking.detected_pose import REDETECT_EVERY, Redetector, detected_spec, video_focal_px
 from tracking.first_pose import (
@@ -273,7 +273,7 @@ class _Run:
     options: TrackOptions
     max_frames: int | None
     out: Path
-    basis: str = "given"
+    basis: str = "photographed"
     redetect: int = REDETECT_EVERY
     work: FrameFitter | None = None  # the fitter of the reduced frames (:func:`_work_fitter`)
     work_factor: int = 1
@@ -300,7 +300,7 @@ class _Run:
         if model is None:
             model, model_source, basis = tracking_face_model(project, basis, expressions)
         else:
-            basis = "given"
+            basis = basis_of(model)
         model_source = model_source or "given by the caller"
         if first_pose is None and default_first_pose_path(frames_in.path).is_file():
             first_pose = default_first_pose_path(frames_in.path)
