@@ -206,8 +206,8 @@ def run_auto(
     max_frames : track only the first frames (tests; default the whole clip).
     validate : run the Khronos validator on the glb (when installed).
     progress : ``progress(stage, fraction of the whole, detail)``.
-    cancel : ``cancel() -> bool``, checked between tracked frames: True saves the track and stops
-        (the result then has ``stages["track"]`` but no export).
+    cancel : ``cancel() -> bool``, checked between stages and between tracked frames: True stops
+        there (KeyboardInterrupt) with what was done saved; a run again resumes.
 
     Raises
     ------
@@ -249,6 +249,7 @@ def run_auto(
                 f"clip, the {stills} clearest unoccluded ones as stills"
             ) from exc
     end("stills")
+    _stop_if(cancel)
     project = load_project(project_path)
 
     # 2. fit
@@ -284,6 +285,7 @@ def run_auto(
     vertices, _ = read_mesh(project.resolve(project.expression(neutral).result.mesh_obj))
     result.depth_ratio = depth_ratio(vertices, mesh)
     end("fit")
+    _stop_if(cancel)
 
     # 3. texture
     begin("texture")
@@ -304,6 +306,7 @@ def run_auto(
     if prepared:
         save_results(project, textures=prepared)
     end("texture")
+    _stop_if(cancel)
 
     # 4. rig
     begin("rig")
@@ -315,6 +318,7 @@ def run_auto(
         store_rig(project, neutral=neutral, names=rig.names, deltas=rig.deltas, report=rig.report)
         save_project(project)
     end("rig")
+    _stop_if(cancel)
 
     # 5. track in ARKit terms
     begin("track")
@@ -363,6 +367,12 @@ def run_auto(
     tell("export", 1.0, "done")
     result.total_s = time.perf_counter() - t_all
     return result
+
+
+def _stop_if(cancel) -> None:
+    """Between stages: a cancel asked for stops here (what the stage wrote is saved)."""
+    if cancel is not None and cancel():
+        raise KeyboardInterrupt
 
 
 def _landmark_figures(result: AutoResult, video: VideoFrames, records: list[dict]) -> None:
