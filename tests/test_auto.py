@@ -4,11 +4,12 @@ import json
 
 import cv2
 import numpy as np
+import pytest
 
 from app.cli import main
 from photomodel.project import load_project
 from photomodel.samples.real_clip import clip_path
-from tracking.auto_pipeline import STAGES
+from tracking.auto_pipeline import STAGES, run_auto
 
 
 def _short_clip(path, frames):
@@ -30,9 +31,21 @@ def _short_clip(path, frames):
 def test_auto_makes_a_project_the_studio_opens_and_an_animated_glb(tmp_path, capsys):
     clip = _short_clip(tmp_path / "talk.mp4", 48)
     out = tmp_path / "talk_auto"
+    # Ctrl-C (a cancel) once the track has a frame: the project opens, the track is saved
+    seen = []
+
+    def progress(stage, fraction, detail=""):
+        seen.append((stage, detail))
+
+    with pytest.raises(KeyboardInterrupt):
+        run_auto(clip, out, max_frames=3, stills=4, progress=progress, cancel=lambda: ("track", "frame 1 of 3") in seen)
+    assert load_project(out / "talk.facestudio.json").rig is not None
+    assert len(json.loads((out / "results" / "track_talk" / "track.json").read_text())["frames"]) == 1
+    # run again: the stages done are found, the track goes on from frame 1
     rc = main(["auto", str(clip), "--out", str(out), "--frames", "3", "--stills", "4", "--json"])
     assert rc == 0
     report = json.loads(capsys.readouterr().out)["auto"]
+    assert report["resumed_stages"] == ["stills", "fit", "texture", "rig"]
     assert set(report["stages"]) == {f"{name}_s" for name, _ in STAGES}
     assert report["frames"] == 3 and report["fit_rms_px"] < 5.0
     assert 0.6 < report["depth_ratio"] < 1.4
@@ -43,7 +56,7 @@ def test_auto_makes_a_project_the_studio_opens_and_an_animated_glb(tmp_path, cap
     assert project.rig is not None and project.expression("neutral").result.texture is not None
     assert (out / "talk.glb").is_file() and (out / "talk.csv").is_file()
     assert json.loads((out / "results" / "track_talk" / "track.json").read_text())["model"]["basis"] == "arkit"
-    # a second run resumes: every stage but the export is found done
+    # a third run finds every stage but the export done
     assert main(["auto", str(clip), "--out", str(out), "--frames", "3", "--json", "--no-validate"]) == 0
     again = json.loads(capsys.readouterr().out)["auto"]
     assert again["resumed_stages"] == ["stills", "fit", "texture", "rig", "track"]
