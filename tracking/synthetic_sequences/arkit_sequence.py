@@ -14,6 +14,8 @@ imports this module.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -80,7 +82,8 @@ def rigged_sample_project(folder: str | Path) -> Path:
         shutil.copytree(src.parent, dst, dirs_exist_ok=True)
     path = dst / src.name
     if load_project(path).rig is None:
-        cmd_rig(argparse.Namespace(project=path, neutral=None, json=True))
+        with contextlib.redirect_stdout(io.StringIO()):  # the command's summary is not the caller's output
+            cmd_rig(argparse.Namespace(project=path, neutral=None, json=True))
     return path
 
 
