@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from app.terminal_progress import StageProgress
+from photomodel.errors import FaceStudioError
 from tracking.auto_pipeline import run_auto
 
 __all__ = ["add_parser", "run"]
@@ -46,6 +47,10 @@ def add_parser(subparsers) -> None:
 
 def run(args) -> int:
     """Run :func:`tracking.auto_pipeline.run_auto` with a progress display and Ctrl-C handling."""
+    if args.frames is not None and args.frames < 1:
+        raise FaceStudioError(f"--frames {args.frames}: track at least one frame")
+    if args.stills < 2:
+        raise FaceStudioError(f"--stills {args.stills}: the fit needs at least two stills of the face")
     show = StageProgress("auto", enabled=not args.json or sys.stderr.isatty())
     stop = []
 
