@@ -191,7 +191,7 @@ class TrackOptions:
     #: two frames before, extrapolated, clipped to [0, 1]; not on a frame fitted from a pose).
     #: No effect on a model without a shared basis.
     sparsity: float = 1e-3
-    symmetry: float = 2e-3
+    symmetry: float = 2e-4
     smoothness: float = 1e-3
 
     def __post_init__(self):
