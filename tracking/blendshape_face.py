@@ -100,6 +100,14 @@ class FaceModel:
         the head centre (mm, head frame) about which the tracked rotation acts.
     face_mask : (n,) bool
         vertices used by accuracy metrics.
+    shared : (m, s) float, optional
+        a basis applied alike at every vertex, beside the regions' (beyond the paper): the
+        rig's ARKit shapes (:mod:`tracking.arkit_face`). Its expressions are *displacements*
+        (``E_k`` = the shape's offset from the neutral, mm, with a black texture: they move the
+        surface and add no colour), each column one shape scaled to move the face by 1 mm at
+        most per unit ``α``, so that ``W_k = α_k / s_k`` is the shape's own weight. Its
+        parameters follow the regions' in the concatenated ``α``; :meth:`region_weights` then
+        has one more row, the shared weights, added at every vertex (:meth:`vertex_weights`).
     """
 
     names: tuple
@@ -112,6 +120,7 @@ class FaceModel:
     bases: list
     centre: np.ndarray
     face_mask: np.ndarray
+    shared: np.ndarray | None = None
     _texture_groups: list = field(default_factory=list, repr=False)
     _group_uv: tuple | None = field(default=None, repr=False, compare=False)
 
@@ -124,6 +133,41 @@ class FaceModel:
     def n_alpha(self) -> list[int]:
         """Number of expression parameters of each region (rest: 0)."""
         return [Q.shape[1] for Q in self.bases]
+
+    @property
+    def n_shared(self) -> int:
+        """Number of parameters of the shared basis (0 without one)."""
+        return 0 if self.shared is None else self.shared.shape[1]
+
+    @property
+    def n_params(self) -> int:
+        """Length of the concatenated ``α``: the regions' parameters, then the shared ones."""
+        return sum(self.n_alpha) + self.n_shared
+
+    @property
+    def shared_slice(self) -> slice:
+        """The shared basis' parameters in the concatenated ``α``."""
+        a = sum(self.n_alpha)
+        return slice(a, a + self.n_shared)
+
+    @property
+    def shared_expressions(self) -> np.ndarray:
+        """(m,) bool: the expressions of the shared basis (displacements, see the class notes)."""
+        if self.shared is None:
+            return np.zeros(self.m, bool)
+        return np.any(self.shared != 0, axis=1)
+
+    @property
+    def all_bases(self) -> list:
+        """``bases`` and, with a shared basis, the shared basis last (one per row of :meth:`region_weights`)."""
+        return list(self.bases) + ([self.shared] if self.n_shared else [])
+
+    @property
+    def all_membership(self) -> np.ndarray:
+        """(n, R) memberships, with a column of ones for the shared basis when there is one."""
+        if not self.n_shared:
+            return self.membership
+        return np.column_stack([self.membership, np.ones(len(self.membership))])
 
     @property
     def alpha_slices(self) -> list[slice]:
@@ -141,24 +185,38 @@ class FaceModel:
 
     def region_weights(self, alpha: np.ndarray) -> np.ndarray:
         """(R, m) blending weights of each region from the concatenated ``α`` (Eq. 4);
-        row 0 (rest) is neutral."""
+        row 0 (rest) is neutral. With a shared basis, (R + 1, m): the last row holds the shared
+        shapes' weights (0 on every other expression)."""
         alpha = np.asarray(alpha, float)
-        W = np.zeros((len(self.bases), self.m))
+        W = np.zeros((len(self.bases) + (1 if self.n_shared else 0), self.m))
         W[0, 0] = 1.0
         for r, (Q, s) in enumerate(zip(self.bases, self.alpha_slices, strict=True)):
             if r:
                 W[r] = Q @ alpha[s] + self.w_star
+        if self.n_shared:
+            W[-1] = self.shared @ alpha[self.shared_slice]
         return W
 
     def alpha_of_weights(self, weights: np.ndarray) -> np.ndarray:
-        """Concatenated ``α`` closest (least squares) to region weights (R, m) or (m,) for all."""
-        W = np.broadcast_to(np.asarray(weights, float), (len(self.bases), self.m))
+        """Concatenated ``α`` closest (least squares) to region weights (R, m) or (m,) for all
+        (with a shared basis, (R + 1, m) gives its row too; else its parameters are 0)."""
+        W = np.asarray(weights, float)
+        shared = np.zeros(self.n_shared)
+        if self.n_shared and W.ndim == 2 and len(W) == len(self.bases) + 1:
+            shared = np.linalg.lstsq(self.shared, W[-1], rcond=None)[0]
+            W = W[:-1]
+        W = np.broadcast_to(W, (len(self.bases), self.m))
         parts = [np.linalg.lstsq(Q, W[r] - self.w_star, rcond=None)[0] for r, Q in enumerate(self.bases) if r]
-        return np.concatenate([np.zeros(0)] + parts)
+        return np.concatenate([np.zeros(0)] + parts + [shared])
 
     def vertex_weights(self, region_weights: np.ndarray) -> np.ndarray:
-        """(n, m) per-vertex blending weights ``W_i = Σ_r μ_ir w_r``."""
-        return self.membership @ np.asarray(region_weights, float)
+        """(n, m) per-vertex blending weights ``W_i = Σ_r μ_ir w_r`` (plus the shared row, alike
+        at every vertex, when there is one)."""
+        rw = np.asarray(region_weights, float)
+        W = self.membership @ rw[: len(self.bases)]
+        if len(rw) > len(self.bases):
+            W += rw[len(self.bases)]
+        return W
 
     def blend_geometry(self, vertex_weights: np.ndarray) -> np.ndarray:
         """(n, 3) mm consensus geometry ``X_i = Σ_k W_ik E_k,i``."""

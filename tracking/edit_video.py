@@ -3,7 +3,7 @@
 A short sequence of steps over arrays (:func:`edit_track`):
 
 1. the results of ``facestudio track`` (``track.json``) and the footage they name are read, the
-   project's face model rebuilt (:func:`tracking.face_from_project.project_face_model`, as the review does);
+   project's face model rebuilt (:func:`tracking.arkit_face.model_for_results`, as the review does);
 2. optionally the expression weights of the whole clip are solved again, temporally smooth
    (:func:`tracking.smooth.smooth_clip`, §3.1.4);
 3. the edits are applied to the weight curves (:mod:`tracking.edit`, §4–5);
@@ -34,9 +34,9 @@ from photomodel.errors import FaceStudioError
 from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
 from photomodel.rendering.renderer import get_renderer
+from tracking.arkit_face import model_for_results
 from tracking.edit import edited_alphas, edits_document, save_edits
 from tracking.expression_flow import FlowOptions, edit_frame
-from tracking.face_from_project import project_face_model
 from tracking.frame_fit import FrameFitter
 from tracking.smooth import SmoothOptions, smooth_clip, weight_curves
 from tracking.track_result import load_track_results, state_of
@@ -231,7 +231,7 @@ def edit_track(
     if not records:
         raise FaceStudioError(f"{track_dir}/track.json holds no tracked frame")
     report = progress or (lambda stage, done, total: None)
-    model, _ = project_face_model(load_project(doc["project"] if project is None else project))
+    model = model_for_results(load_project(doc["project"] if project is None else project), doc)
     cam = doc["camera"]
     fitter = FrameFitter(model, cam["focal_px"], cam["width"], cam["height"])
     video = VideoFrames(doc["video"]["path"])

@@ -171,7 +171,7 @@ def pose_from_spec(
         if "t_mm" not in spec:
             raise FitError(f"{where}: a pose needs 't_mm' (X_cam = R X + t, mm) besides the rotation")
         t = _vector(spec, "t_mm", (3,), where)
-        state = FrameState(R, t + R @ model.centre, np.zeros(sum(model.n_alpha)))
+        state = FrameState(R, t + R @ model.centre, np.zeros(model.n_params))
         source = f"{where}: pose given"
     else:
         raise FitError(

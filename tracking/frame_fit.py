@@ -95,6 +95,7 @@ __all__ = [
     "bandpass",
     "home_regions",
     "outlier_pixels",
+    "mirrored_pairs",
     "OUTLIER_FACTOR",
 ]
 
@@ -115,9 +116,17 @@ MIN_PIXELS = 200
 FD_STEPS = {"rotation": 1e-2, "translation": 2.0, "alpha": 0.3}
 #: Radius (mm) over which a rotation step is turned into image motion for the stopping test.
 HEAD_RADIUS_MM = 100.0
+#: Most channels OpenCV's filters take in one call (a Jacobian of many parameters is filtered in parts).
+CV_MAX_CHANNELS = 128
 #: Smallest robust scale σ (intensity units): a frame the model renders exactly (the benchmark's
 #: sequence a) would otherwise get σ → 0 and every pixel would count as an outlier.
 ROBUST_FLOOR = 0.005
+#: The same for a model with a shared basis (the rig's ARKit shapes): measured on renders of the
+#: rigged sample (30 frames, talking, blinking), with 0.005 a blink or a jaw opening faster than
+#: the prediction left the mouth and eyes as outliers, and the weights stayed behind (jawOpen
+#: error 0.18, blinks missed); with 0.1, 0.007 — as without the robust error — while on real
+#: footage σ is set by the median residual, not the floor.
+SHARED_ROBUST_FLOOR = 0.1
 
 
 @dataclass
@@ -173,6 +182,19 @@ class TrackOptions:
     #: near neutral instead of borrowing an unrelated expression (the eyes' part of ``frown``)
     #: that the home region (the brows) does not show. See :meth:`FrameFitter._penalty`.
     coherence: float = 1.0
+    #: Priors on the weights of a shared basis (the rig's ARKit shapes, :mod:`tracking.arkit_face`;
+    #: beyond the paper), each in units of :attr:`penalty` like :attr:`coherence`, for what the views
+    #: cannot separate (see docs/tracking.md, "Tracking in ARKit terms", for the measurements):
+    #: ``sparsity`` · c · Σ_k a_k (a shape not needed stays at 0: with 51 shapes several explain
+    #: the same pixels), ``symmetry`` · c · Σ (a_left − a_right)² over the pairs of
+    #: :func:`mirrored_pairs` (where
+    #: the data are silent, the two sides move alike; a wink the image sees outweighs it), and
+    #: ``smoothness`` · c · Σ_k (a_k − â_k)² with â the frame's prediction (the weights of the
+    #: two frames before, extrapolated, clipped to [0, 1]; not on a frame fitted from a pose).
+    #: No effect on a model without a shared basis.
+    sparsity: float = 1e-3
+    symmetry: float = 2e-4
+    smoothness: float = 1e-3
 
     def __post_init__(self):
         for name in ("pose_jacobian", "expression_jacobian"):
@@ -225,6 +247,13 @@ def bandpass(image: np.ndarray, sigmas: tuple) -> np.ndarray:
     shift-variant, ε then jitters as the model moves, and LM stalled (measured: joint fit from
     2°/9 mm ended at 0.25° instead of 0.02°)."""
     s1, s2 = sigmas
+    if image.ndim == 3 and image.shape[2] > CV_MAX_CHANNELS:  # OpenCV filters at most this many at once
+        out = np.empty_like(image)
+        for c in range(0, image.shape[2], CV_MAX_CHANNELS):
+            out[:, :, c : c + CV_MAX_CHANNELS] = bandpass(
+                np.ascontiguousarray(image[:, :, c : c + CV_MAX_CHANNELS]), sigmas
+            )
+        return out
     k1, k2 = 2 * int(np.ceil(3 * s1)) + 1, 2 * int(np.ceil(3 * s2)) + 1
     a = cv2.GaussianBlur(image, (k1, k1), s1, borderType=cv2.BORDER_REPLICATE)
     b = cv2.GaussianBlur(image, (k2, k2), s2, borderType=cv2.BORDER_REPLICATE)
@@ -310,6 +339,26 @@ def outlier_pixels(pixel_rms: np.ndarray) -> np.ndarray:
     return r > OUTLIER_FACTOR * float(np.median(r))
 
 
+def mirrored_pairs(names) -> np.ndarray:
+    """(p, 2) int: the pairs of ``names`` that are one motion on the two sides of the face, which the
+    symmetry prior (:attr:`TrackOptions.symmetry`) keeps alike: ``<stem>Left`` with ``<stem>Right``
+    (ARKit's names; the subject's sides), except the sideways motions ``jawLeft``/``jawRight`` and
+    ``mouthLeft``/``mouthRight`` (opposites, not sides), and with the gaze's conjugate pairs for the
+    eyes (looking left turns the left eye out and the right eye in: ``eyeLookOutLeft`` with
+    ``eyeLookInRight``, ``eyeLookInLeft`` with ``eyeLookOutRight``)."""
+    names = list(names)
+    swap = {"eyeLookOut": "eyeLookIn", "eyeLookIn": "eyeLookOut"}
+    pairs = []
+    for i, n in enumerate(names):
+        if not n.endswith("Left") or n in ("jawLeft", "mouthLeft"):
+            continue
+        stem = n[: -len("Left")]
+        partner = swap.get(stem, stem) + "Right"
+        if partner in names:
+            pairs.append((i, names.index(partner)))
+    return np.array(pairs, int).reshape(-1, 2)
+
+
 def home_regions(model: FaceModel) -> np.ndarray:
     """(m,) int: each expression's *home* control region (index into ``model``'s regions, ≥ 1; 0
     for neutral) — where it moves the face most: the largest ``Σ_i μ_ir ‖E_k,i − E_0,i‖²`` over the
@@ -319,6 +368,8 @@ def home_regions(model: FaceModel) -> np.ndarray:
     energy = disp @ model.membership[:, 1:]  # (m, R − 1)
     home = 1 + np.argmax(energy, axis=1)
     home[0] = 0
+    if model.n_shared:  # a shared shape's home is the shared row (:meth:`FaceModel.region_weights`)
+        home[model.shared_expressions] = len(model.bases)
     return home
 
 
@@ -405,11 +456,13 @@ class FrameFitter:
         self.evaluations = 0
         # ∂X_i/∂α per vertex (n, A, 3): μ_ir Σ_k Q_r(k, l) E_k,i (App. B.2), and the blending
         # coefficients per texture group (G, A): Σ_{k in group} Q_r(k, l)
+        # (a shared basis, when the model has one, is the last "region", its membership 1 everywhere)
         cols, blend, region_of = [], [], []
         groups = model.texture_groups()
-        for r, Q in enumerate(model.bases):
+        membership = model.all_membership
+        for r, Q in enumerate(model.all_bases):
             for j in range(Q.shape[1]):
-                cols.append(model.membership[:, r, None] * np.einsum("k,knd->nd", Q[:, j], model.geometry))
+                cols.append(membership[:, r, None] * np.einsum("k,knd->nd", Q[:, j], model.geometry))
                 blend.append([Q[ks, j].sum() for _, ks in groups])
                 region_of.append(r)
         n = model.geometry.shape[1]
@@ -420,12 +473,21 @@ class FrameFitter:
         self._dX_dalpha32 = self._dX_dalpha.astype(np.float32)
         # D's weights are linear in α: w_r = Q_r α_r + w* (regions 1.., rows (region, expression))
         m = model.m
-        self._dw_dalpha = np.zeros(((len(model.bases) - 1) * m, self.n_alpha))
-        for r, (Q, sl) in enumerate(zip(model.bases, model.alpha_slices, strict=True)):
+        bases = model.all_bases
+        slices = model.alpha_slices + ([model.shared_slice] if model.n_shared else [])
+        self._dw_dalpha = np.zeros(((len(bases) - 1) * m, self.n_alpha))
+        for r, (Q, sl) in enumerate(zip(bases, slices, strict=True)):
             if r:
                 self._dw_dalpha[(r - 1) * m : r * m, sl] = Q
         self._home = home_regions(model)
-        self._membership32 = model.membership.astype(np.float32)
+        self._membership32 = membership.astype(np.float32)
+        # the shared shapes' weights in D's flattened weights (rows: regions 1.., then the shared
+        # row), their Left/Right pairs, and the prediction the smoothness prior pulls towards
+        shared = np.flatnonzero(model.shared_expressions)
+        self._shared_w = (len(bases) - 2) * m + shared if len(shared) else np.zeros(0, int)
+        self._shared_pairs = mirrored_pairs([model.names[k] for k in shared])
+        self._anchor: np.ndarray | None = None
+        self._prior_scale = 1.0
         # per-vertex weight of the pixels in ε (TrackOptions.outside_weight): 1 on the face,
         # ``outside_weight`` elsewhere, across a transition as wide as the regions' (smoothed)
         o = float(self.options.outside_weight)
@@ -488,14 +550,17 @@ class FrameFitter:
         are smaller), so that ε stays one function within a phase (LM compares its values) and
         the scale follows the footage (noise, lighting, the model's own texture error).
         """
+        self._prior_scale = 1.0
         if self.options.robust_scale is None or not self._weighted:
             return 0.5 * float((diff * diff).sum()), None
         r2 = np.einsum("ijc,ijc->ij", diff, diff).reshape(-1)
         s2 = self._sigma2.get(filtered)
         if s2 is None:
             med = float(np.median(np.sqrt(np.take(r2, local)))) if len(local) else 0.0
-            s2 = max(self.options.robust_scale * med, ROBUST_FLOOR) ** 2
+            floor = SHARED_ROBUST_FLOOR if len(self._shared_w) else ROBUST_FLOOR
+            s2 = max(self.options.robust_scale * med, floor) ** 2
             self._sigma2[filtered] = s2
+        self._prior_scale = float(s2)  # the image part below carries σ²: so does a shared basis' prior
         s2 = np.float32(s2)
         w = s2 / (s2 + r2)
         return 0.5 * float(s2) * float((r2 * w).sum()), w
@@ -558,8 +623,43 @@ class FrameFitter:
             g_w[i] += 2 * kappa * excess[r, k]
             g_w[j] -= 2 * kappa * excess[r, k]
             H_w[np.ix_([i, j], [i, j])] += 2 * kappa * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        if len(self._shared_w):
+            Dp, gp, Hp = self.shared_prior(w.ravel(), c)
+            # in ε beside the image part, scaled like it (σ² with the robust error, :meth:`_robust`);
+            # in the normal equations beside JᵀJ, which is not scaled
+            D, g_w, H_w = D + self._prior_scale * Dp, g_w + gp, H_w + Hp
         B = self._dw_dalpha
         return D, B.T @ g_w, B.T @ H_w @ B
+
+    def shared_prior(self, w: np.ndarray, c: float) -> tuple[float, np.ndarray, np.ndarray]:
+        """The priors on a shared basis' weights (:attr:`TrackOptions.sparsity`, ``symmetry``,
+        ``smoothness``): value, gradient and Hessian with respect to D's flattened weights ``w``
+        (rows: control regions 1.., then the shared row; see :meth:`_penalty`). Quadratic in ``w``,
+        so exact in the normal equations; ``c`` the penalty constant of the frame."""
+        o = self.options
+        idx = self._shared_w
+        D, g, H = 0.0, np.zeros(len(w)), np.zeros((len(w), len(w)))
+        if o.sparsity:
+            D += o.sparsity * c * float(w[idx].sum())
+            g[idx] += o.sparsity * c
+        if o.symmetry and len(self._shared_pairs):
+            left, right = idx[self._shared_pairs[:, 0]], idx[self._shared_pairs[:, 1]]
+            d = w[left] - w[right]
+            k = o.symmetry * c
+            D += k * float(d @ d)
+            g[left] += 2 * k * d
+            g[right] -= 2 * k * d
+            H[left, left] += 2 * k
+            H[right, right] += 2 * k
+            H[left, right] -= 2 * k
+            H[right, left] -= 2 * k
+        if o.smoothness and self._anchor is not None:
+            d = w[idx] - self._anchor
+            k = o.smoothness * c
+            D += k * float(d @ d)
+            g[idx] += 2 * k * d
+            H[idx, idx] += 2 * k
+        return D, g, H
 
     # -- Jacobians --------------------------------------------------------------------
     def jacobian(self, frame: np.ndarray, ev: _Eval, params: np.ndarray, method: str, filtered: bool):
@@ -893,6 +993,11 @@ class FrameFitter:
         # a frame fitted in several rounds starts far from its optimum (the first frame, from the
         # user's pose and a neutral face): no tracking economies there (see fit())
         far = o.rounds > 1
+        # the smoothness prior of a shared basis pulls towards the prediction (not from a pose)
+        self._anchor = None
+        if len(self._shared_w) and not far:
+            predicted = self.model.region_weights(initial.alpha)[1:].ravel()[self._shared_w]
+            self._anchor = np.clip(predicted, 0.0, 1.0)
         pose_tol = o.step_tolerance_mm if far else o.pose_tolerance_mm
         rounds = max(1, o.rounds)
         for k in range(rounds):

@@ -1,7 +1,7 @@
 """The overlay: the face model rendered over the footage at its tracked parameters.
 
 :func:`overlay_frame` draws one frame (alpha blend, occluded pixels tinted, silhouette outlined,
-frame index and RMS); the
+frame index and RMS; for a track in ARKit terms, the shapes weighing most); the
 studio's tracking view shows it while scrubbing. :func:`write_overlay_video` writes every tracked
 frame's as ``overlay.mp4``, atomically.
 """
@@ -35,6 +35,8 @@ MIN_OCCLUDER_SHARE = 0.02
 #: :func:`occluded_pixels`: pixels nearer the model's silhouette than this share of the face's size
 #: are not tinted (hair framing the face, the silhouette a few pixels off).
 EDGE_BAND_FACE = 0.08
+#: ARKit shapes written on an overlay frame (those weighing most, over 0.05).
+OVERLAY_SHAPES = 3
 
 
 def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=None) -> np.ndarray:
@@ -42,7 +44,8 @@ def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=No
     :data:`OVERLAY_ALPHA`), the pixels :func:`occluded_pixels` finds occluded tinted
     :data:`OCCLUDED_RGB` (only when the fitter's error is robust), its
     silhouette outlined in green (red when the frame diverged), and the frame index with its RMS
-    written in the corner."""
+    written in the corner — and under it, for a track in ARKit terms (``rec["arkit"]``), the
+    :data:`OVERLAY_SHAPES` shapes weighing most with their weights."""
     model = fitter.model
     st = state_of(rec)
     Wv = model.vertex_weights(model.region_weights(st.alpha))
@@ -71,6 +74,11 @@ def overlay_frame(fitter: FrameFitter, frame: np.ndarray, rec: dict, renderer=No
         1,
         cv2.LINE_AA,
     )
+    top = sorted(rec.get("arkit", {}).items(), key=lambda kv: -kv[1])[:OVERLAY_SHAPES]
+    for j, (name, w) in enumerate(kv for kv in top if kv[1] > 0.05):
+        cv2.putText(
+            img, f"{name} {w:.2f}", (6, 34 + 16 * j), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 0), 1, cv2.LINE_AA
+        )
     return img.astype(np.float32) / 255.0
 
 

@@ -13,6 +13,12 @@ The targets of ``facestudio export --glb`` are
   exactly: target ``<expression>_<region>`` is ``μ_r (E_k − E_1)`` and a tracked frame's weight
   ``w_rk`` (``track.json``'s ``weights[region][expression]``) is its weight, unchanged.
 
+A track in ARKit terms (:mod:`tracking.arkit_face`: ``track.json`` frames carry ``arkit``
+{shape: weight}) animates the rig's targets with those weights themselves
+(:func:`track_performance`), and its Live Link CSV carries them (:func:`tracked_arkit_weights`);
+a track of the photographed expressions alone is said in ARKit's shapes by fitting
+(:func:`arkit_weights`).
+
 The base mesh is the model's ``E_1`` (the neutral fit), with the neutral's texture and its
 cylindrical coordinates; triangles crossing the texture's seam are left out, as in tracking.
 """
@@ -25,12 +31,24 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from photomodel.errors import FaceStudioError
-from photomodel.exchange.gltf_animation import Performance
+from photomodel.exchange.files import write_files
+from photomodel.exchange.gltf_animation import Performance, encode_rigged_glb
+from photomodel.exchange.livelink import ROTATION_COLUMNS, livelink_csv_bytes
 from photomodel.project import load_rig_shapes
+from photomodel.rig.ict import ARKIT_SHAPES
 from tracking.blendshape_face import CONTROL_REGIONS, FaceModel
 from tracking.face_from_project import face_model_from_project
 
-__all__ = ["BlendShapes", "arkit_weights", "blend_shapes", "track_performance", "region_targets"]
+__all__ = [
+    "BlendShapes",
+    "arkit_weights",
+    "blend_shapes",
+    "track_performance",
+    "tracked_arkit_weights",
+    "export_track",
+    "track_livelink_bytes",
+    "region_targets",
+]
 
 
 @dataclass
@@ -91,7 +109,8 @@ def blend_shapes(project, expressions=None) -> tuple[BlendShapes, FaceModel]:
 
 def track_performance(doc: dict, names: list[str]) -> Performance:
     """The ``track.json`` document ``doc`` as a :class:`Performance` over the targets ``names``:
-    each tracked ``weights[region][expression]`` on target ``<expression>_<region>``, the others 0."""
+    each tracked ``weights[region][expression]`` on target ``<expression>_<region>``, each tracked
+    ARKit weight (``arkit[shape]``) on the rig's target ``shape``, the others 0."""
     frames = doc["frames"]
     fps = float(doc["video"].get("fps") or 0.0)
     if not frames:
@@ -106,6 +125,10 @@ def track_performance(doc: dict, names: list[str]) -> Performance:
                 i = index.get(f"{expr}_{region}")
                 if i is not None:
                     W[f, i] = w
+        for shape, w in rec.get("arkit", {}).items():
+            i = index.get(shape)
+            if i is not None:
+                W[f, i] = w
     cam = doc["camera"]
     return Performance(
         times_s=np.array([r["frame"] for r in frames], float) / fps,
@@ -147,3 +170,58 @@ def arkit_weights(
         if progress is not None:
             progress(i + 1, len(W))
     return out
+
+
+def tracked_arkit_weights(doc: dict, shapes: list[str]) -> np.ndarray | None:
+    """(f, k) the tracked ARKit weights of ``doc``'s frames over ``shapes`` (0 for a shape the track
+    did not have), or None when the track is not in ARKit terms (``model.arkit`` empty)."""
+    if not doc.get("model", {}).get("arkit"):
+        return None
+    return np.array([[rec.get("arkit", {}).get(n, 0.0) for n in shapes] for rec in doc["frames"]], float)
+
+
+def track_livelink_bytes(doc: dict, shapes: BlendShapes, perf: Performance, face_mask=None, progress=None) -> bytes:
+    """The Live Link Face CSV of a tracked performance: the tracked ARKit weights themselves
+    (:func:`tracked_arkit_weights`) where the track is in ARKit terms, else the rig's weights fitted
+    to each frame (:func:`arkit_weights`, ``progress(done, f)``); head yaw/pitch/roll."""
+    rig_names = shapes.names[: shapes.rig_shapes]
+    arkit = tracked_arkit_weights(doc, rig_names)
+    if arkit is None:  # a track of the photographed expressions: said in ARKit's shapes by fitting
+        arkit = arkit_weights(shapes, perf.weights, face_mask, progress=progress)
+    full = np.zeros((len(arkit), len(ARKIT_SHAPES)))
+    full[:, [ARKIT_SHAPES.index(n) for n in rig_names]] = arkit
+    head = np.radians([r["head_rotation_deg"] for r in doc["frames"]])  # pitch, yaw, roll
+    rot = np.zeros((len(full), len(ROTATION_COLUMNS)))
+    rot[:, :3] = head[:, [1, 0, 2]]
+    return livelink_csv_bytes(full, float(doc["video"]["fps"]), rot)
+
+
+def export_track(project, doc: dict, glb, csv=None) -> dict:
+    """Write the animated glb of a ``track.json`` document ``doc`` (the targets of
+    :func:`blend_shapes` on the tracked expressions, animated by :func:`track_performance`) and,
+    with ``csv``, its Live Link Face CSV (:func:`track_livelink_bytes`). Both are encoded before
+    either is written. What ``facestudio export --track`` writes. Returns
+    ``{"targets", "rig_names", "frames"}``.
+
+    Raises FaceStudioError when ``csv`` is asked of a project without a rig (before anything is
+    written), or the track holds no frame."""
+    shapes, model = blend_shapes(project, doc["model"]["expressions"])
+    if csv is not None and shapes.rig_shapes == 0:
+        raise FaceStudioError("the Live Link CSV carries the rig's ARKit weights: the project has no rig")
+    perf = track_performance(doc, shapes.names)
+    files = {
+        glb: encode_rigged_glb(
+            shapes.neutral,
+            shapes.faces,
+            shapes.deltas,
+            shapes.names,
+            uv=shapes.uv,
+            texture=shapes.texture_png,
+            performance=perf,
+        )
+    }
+    if csv is not None:
+        files[csv] = track_livelink_bytes(doc, shapes, perf, model.face_mask)
+    write_files(files)
+    rig_names = shapes.names[: shapes.rig_shapes]
+    return {"targets": len(shapes.names), "rig_names": list(rig_names), "frames": len(perf.times_s)}

@@ -6,6 +6,9 @@ same from tracking records (:mod:`tracking.track_result`):
 
 * ``weights.png`` — one panel per control region with parameters, one curve per basic expression
   (the neutral one included: in each region the weights sum to 1);
+* ``arkit.png`` — for a track in ARKit terms (:mod:`tracking.arkit_face`), the rig's shapes'
+  weights in three panels (jaw and mouth, eyes, brows/cheeks/nose), the shapes that move most
+  (:data:`ARKIT_CURVES` per panel, weight ≥ :data:`ARKIT_SHOWN`);
 * ``rotation.png`` — the head's rotation relative to facing the camera, as a rotation vector in
   degrees about the camera's x (pitch), y (yaw) and z (roll) axes;
 * ``translation.png`` — the model centre in camera space (x right, y down, z depth), mm, one panel
@@ -187,6 +190,33 @@ class _Axes:
         cv2.putText(img, label, (ml + pw + 40, ly), FONT, 0.42, (0, 0, 0), 1, cv2.LINE_AA)
 
 
+#: Curves per panel of ``arkit.png``, and the smallest largest weight a shape needs to be drawn.
+ARKIT_CURVES = 6
+ARKIT_SHOWN = 0.05
+#: The panels of ``arkit.png``: a title and how its shapes' names start.
+ARKIT_PANELS = (
+    ("jaw and mouth", ("jaw", "mouth", "cheekPuff")),
+    ("eyes", ("eye",)),
+    ("brows, cheeks, nose", ("brow", "cheekSquint", "nose")),
+)
+
+
+def arkit_panels(frames: list[dict]) -> list[np.ndarray]:
+    """The panels of ``arkit.png`` from records with ``arkit`` {shape: weight} (none without)."""
+    names = list(frames[0].get("arkit", {})) if frames else []
+    if not names:
+        return []
+    x = np.array([f["frame"] for f in frames], float)
+    W = np.array([[f["arkit"].get(n, 0.0) for n in names] for f in frames], float)
+    panels = []
+    for title, prefixes in ARKIT_PANELS:
+        idx = [i for i, n in enumerate(names) if n.startswith(prefixes) and W[:, i].max() >= ARKIT_SHOWN]
+        idx = sorted(idx, key=lambda i: -W[:, i].max())[:ARKIT_CURVES]
+        series = [(names[i], W[:, i]) for i in idx] or [("(none moves)", np.zeros(len(x)))]
+        panels.append(line_panel(x, series, title=f"ARKit weights: {title}", ylabel="weight", ylim=(0.0, 1.0)))
+    return panels
+
+
 def stack_panels(panels: list[np.ndarray]) -> np.ndarray:
     """Panels of one width stacked top to bottom."""
     return np.concatenate(panels, axis=0)
@@ -207,8 +237,8 @@ def track_plots(
 
     Returns
     -------
-    dict file name → (H, W, 3) uint8 RGB image: ``weights.png``, ``rotation.png``,
-    ``translation.png``, ``rms.png``.
+    dict file name → (H, W, 3) uint8 RGB image: ``weights.png``, ``arkit.png`` (records with
+    ``arkit`` weights), ``rotation.png``, ``translation.png``, ``rms.png``.
     """
     x = np.array([f["frame"] for f in frames], float)
     out = {}
@@ -218,6 +248,9 @@ def track_plots(
         panels.append(line_panel(x, series, title=f"expression weights: {r}", ylabel="weight", ylim=(0.0, 1.0)))
     if panels:
         out["weights.png"] = stack_panels(panels)
+    shapes = arkit_panels(frames)
+    if shapes:
+        out["arkit.png"] = stack_panels(shapes)
     rot = np.array([f["head_rotation_deg"] for f in frames], float).reshape(-1, 3)
     out["rotation.png"] = line_panel(
         x,

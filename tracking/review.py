@@ -18,7 +18,7 @@ import numpy as np
 from photomodel.errors import FaceStudioError
 from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
-from tracking.face_from_project import project_face_model
+from tracking.arkit_face import model_for_results
 from tracking.frame_fit import DIVERGED_RMS, FrameFitter
 from tracking.overlay_video import overlay_frame
 from tracking.plots import track_plots
@@ -84,7 +84,7 @@ class TrackReview:
         the results name) and camera, built once."""
         if self._fitter is None:
             cam = self.doc["camera"]
-            model, _ = project_face_model(load_project(self.doc["project"]))
+            model = model_for_results(load_project(self.doc["project"]), self.doc)
             self._fitter = FrameFitter(model, cam["focal_px"], cam["width"], cam["height"])
         return self._fitter
 

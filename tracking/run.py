@@ -28,10 +28,13 @@ pose in several rounds like frame 0, and tracks on from there; ``track.json`` re
 Where the pieces come from
 --------------------------
 * **Video**: a file OpenCV decodes or a folder of PNG/JPG frames (:class:`photomodel.photos.video.VideoFrames`).
-* **Face model**: the blend-shape model of the project's fitted and textured expressions
-  (:func:`tracking.face_from_project.project_face_model`; ``facestudio fit`` then ``facestudio texture``
-  make them), recorded with its source in ``track.json``. A caller may pass its own
-  :class:`tracking.blendshape_face.FaceModel` with a ``model_source``.
+* **Face model**: with a rig (``facestudio rig``), by default the neutral and the rig's ARKit shapes
+  (``basis="arkit"``, :mod:`tracking.arkit_face`; ``"both"`` adds the photographed expressions per
+  region); without one, or with ``basis="photographed"``, the blend-shape model of the project's
+  fitted and textured expressions (:func:`tracking.face_from_project.project_face_model`;
+  ``facestudio fit`` then ``facestudio texture`` make them), recorded with its source and basis in
+  ``track.json``. A caller may pass its own :class:`tracking.blendshape_face.FaceModel` with a
+  ``model_source``.
 * **First frame's pose** (the user's part, §6.2): a JSON file (:mod:`tracking.first_pose`) with the
   video camera's focal length and either a pose or the image positions of at least six of the
   project's features in frame 0; by default ``<video stem>.first_pose.json`` beside a video file,
@@ -62,9 +65,9 @@ from photomodel.errors import FaceStudioError, FitError
 from photomodel.exchange.files import atomic_write_bytes, encode_png
 from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
+from tracking.arkit_face import basis_of, tracking_face_model
 from tracking.blendshape_face import FaceModel
 from tracking.detected_pose import REDETECT_EVERY, Redetector, detected_spec, video_focal_px
-from tracking.face_from_project import project_face_model
 from tracking.first_pose import (
     FirstPose,
     default_first_pose_path,
@@ -155,6 +158,7 @@ def track_video(
     focal_px: float | None = None,
     max_frames: int | None = None,
     options: TrackOptions | None = None,
+    basis: str | None = None,
     save_every: int = SAVE_EVERY,
     restart: bool = False,
     correct_frame: int | None = None,
@@ -182,6 +186,9 @@ def track_video(
     focal_px : the video camera's focal length in pixels, overriding the first-pose file's.
     max_frames : track frames 0 .. max_frames − 1 only (a later run may raise it and continue).
     options : :class:`tracking.frame_fit.TrackOptions`.
+    basis : the expression basis when ``model`` is not given (:data:`tracking.arkit_face.BASES`):
+        ``"arkit"`` (the rig's shapes), ``"photographed"`` or ``"both"``; default ``"arkit"`` when
+        the project has a rig, else ``"photographed"``.
     save_every : write the results after every this many frames.
     restart : discard results of other settings in ``out_dir`` instead of refusing to continue.
     correct_frame, correct_pose : the user's correction of a tracked frame N = ``correct_frame``
@@ -214,10 +221,11 @@ def track_video(
     """
     _check_request(correct_frame, correct_pose, restart)
     run = _Run.open(
-        project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames, options
+        project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames, options, basis
     )
     run.redetect = int(redetect)
     doc = new_results(project_path, run.video, run.model, run.model_source, run.first, run.options, max_frames)
+    doc["model"]["basis"] = run.basis
     _take_earlier_results(run, doc, restart, correct_frame)
     if correct_frame is not None:
         correct_frame = _apply_correction(run, doc, correct_frame, correct_pose)
@@ -265,20 +273,34 @@ class _Run:
     options: TrackOptions
     max_frames: int | None
     out: Path
+    basis: str = "photographed"
     redetect: int = REDETECT_EVERY
     work: FrameFitter | None = None  # the fitter of the reduced frames (:func:`_work_fitter`)
     work_factor: int = 1
 
     @classmethod
     def open(
-        cls, project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames, options
+        cls,
+        project_path,
+        video,
+        out_dir,
+        model,
+        model_source,
+        expressions,
+        first_pose,
+        focal_px,
+        max_frames,
+        options,
+        basis=None,
     ) -> _Run:
         """The project, the footage, the face model, the first pose and the output folder of
         :func:`track_video`'s arguments (the same names); raises what they raise."""
         project = load_project(project_path)
         frames_in = VideoFrames(video)
         if model is None:
-            model, model_source = project_face_model(project, expressions)
+            model, model_source, basis = tracking_face_model(project, basis, expressions)
+        else:
+            basis = basis_of(model)
         model_source = model_source or "given by the caller"
         if first_pose is None and default_first_pose_path(frames_in.path).is_file():
             first_pose = default_first_pose_path(frames_in.path)
@@ -290,7 +312,7 @@ class _Run:
         if max_frames is not None and max_frames < 1:
             raise FaceStudioError(f"the frame limit must be at least 1, got {max_frames}")
         out = Path(out_dir).absolute() if out_dir is not None else default_out_dir(project_path, video)
-        return cls(project, frames_in, model, model_source, fp, options, max_frames, out)
+        return cls(project, frames_in, model, model_source, fp, options, max_frames, out, basis)
 
     @property
     def json_path(self) -> Path:

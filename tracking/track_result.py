@@ -72,6 +72,7 @@ def new_results(
     :class:`tracking.first_pose.FirstPose`; the others as :func:`tracking.run.track_video` takes them.
     """
     regions = [r for r, a in zip(CONTROL_REGIONS, model.n_alpha, strict=True) if a]
+    shared = model.shared_expressions
     return {
         "format": FORMAT,
         "version": VERSION,
@@ -92,10 +93,12 @@ def new_results(
         },
         "model": {
             "source": model_source,
-            "expressions": list(model.names),
+            "expressions": [n for n, s in zip(model.names, shared, strict=True) if not s],
+            "arkit": [n for n, s in zip(model.names, shared, strict=True) if s],
             "regions": list(CONTROL_REGIONS),
             "regions_with_parameters": regions,
             "n_alpha": list(model.n_alpha),
+            "n_shared": model.n_shared,
             "centre_mm": np.asarray(model.centre, float).tolist(),
         },
         "first_pose": {"source": first_pose.source, "spec": first_pose.spec},
@@ -196,7 +199,9 @@ def frame_record(index: int, result, model: FaceModel, seconds: float, start: st
     (3,): the model centre in camera space; ``head_rotation_deg`` (3,): rotation vector of
     ``R · FACINGᵀ`` in degrees (pitch, yaw, roll about the camera axes); ``alpha``: the expression
     parameters (concatenated per region); ``weights`` {region: {expression: w}} of each control
-    region (rest excluded: it is always neutral); ``rms`` (image RMS, intensity in [0, 1]),
+    region (rest excluded: it is always neutral) over the photographed expressions; ``arkit``
+    {shape: w in [0, 1]} the rig's shapes' weights when the model has them (:mod:`tracking.arkit_face`,
+    else empty); ``rms`` (image RMS, intensity in [0, 1]),
     ``pixels`` covered, ``diverged``, ``steps`` (accepted LM steps), ``evaluations`` (renderings),
     ``seconds``; ``start``: where the fit started (:data:`STARTS`: ``"first_pose"``,
     ``"predicted"``, ``"user"`` for a corrected frame, ``"detected"`` for a frame fitted again from
@@ -208,6 +213,11 @@ def frame_record(index: int, result, model: FaceModel, seconds: float, start: st
         raise ValueError(f"start must be one of {STARTS}, got {start!r}")
     st = result.state
     R = np.asarray(st.R, float)
+    shared = model.shared_expressions
+    arkit = {}
+    if model.n_shared:
+        row = np.asarray(result.weights, float)[-1]
+        arkit = {n: float(np.clip(row[k], 0.0, 1.0)) for k, n in enumerate(model.names) if shared[k]}
     return {
         "frame": int(index),
         "rotation_vector": rotation_vector(R).tolist(),
@@ -217,10 +227,11 @@ def frame_record(index: int, result, model: FaceModel, seconds: float, start: st
         "head_rotation_deg": np.degrees(rotation_vector(R @ FACING.T)).tolist(),
         "alpha": np.asarray(st.alpha, float).tolist(),
         "weights": {
-            r: dict(zip(model.names, map(float, result.weights[i]), strict=True))
+            r: {n: float(w) for n, w, s in zip(model.names, result.weights[i], shared, strict=True) if not s}
             for i, r in enumerate(CONTROL_REGIONS)
             if i
         },
+        "arkit": arkit,
         "rms": float(result.rms),
         "pixels": int(result.pixels),
         "diverged": bool(result.diverged),
@@ -235,15 +246,18 @@ def state_of(rec: dict) -> FrameState:
     return FrameState(np.array(rec["R"], float), np.array(rec["centre_mm"], float), np.array(rec["alpha"], float))
 
 
-def csv_bytes(frames: list[dict], regions: list[str], names: list[str]) -> bytes:
+def csv_bytes(frames: list[dict], regions: list[str], names: list[str], arkit: list[str] = ()) -> bytes:
+    """``track.csv``: :data:`CSV_COLUMNS` around the weights ``w_<region>_<expression>`` and the
+    ARKit shapes' ``arkit_<shape>`` (when the track has them)."""
     head, tail = CSV_COLUMNS
     wcols = [(r, e) for r in regions for e in names]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(head + [f"w_{r}_{e}" for r, e in wcols] + tail)
+    w.writerow(head + [f"w_{r}_{e}" for r, e in wcols] + [f"arkit_{n}" for n in arkit] + tail)
     for f in frames:
         row = [f["frame"], *f["rotation_vector"], *f["head_rotation_deg"], *f["t_mm"], *f["centre_mm"]]
         row += [f["weights"][r][e] for r, e in wcols]
+        row += [f.get("arkit", {}).get(n, 0.0) for n in arkit]
         row += [
             f["rms"],
             f["pixels"],
@@ -264,7 +278,8 @@ def save_results(out_dir: Path, doc: dict, complete: bool) -> dict[str, Path]:
     files = {"json": out_dir / "track.json", "csv": out_dir / "track.csv"}
     doc["complete"] = complete
     model = doc["model"]
-    atomic_write_bytes(files["csv"], csv_bytes(doc["frames"], model["regions_with_parameters"], model["expressions"]))
+    table = csv_bytes(doc["frames"], model["regions_with_parameters"], model["expressions"], model.get("arkit", []))
+    atomic_write_bytes(files["csv"], table)
     atomic_write_bytes(files["json"], json.dumps(doc, indent=1).encode())
     return files
 

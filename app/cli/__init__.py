@@ -48,6 +48,7 @@ from importlib import metadata
 
 from app.cli import (
     add_photos,
+    auto,
     clone,
     edit,
     export,
@@ -65,7 +66,22 @@ from app.cli.common import WRITE_ERRNOS, write_error_message
 from photomodel.errors import FaceStudioError, MissingClicks
 
 #: The command modules, in the order ``facestudio --help`` lists them.
-COMMANDS = (new, add_photos, fit, fit_scan, texture, track, track_many, edit, clone, rig, export, sample_data, studio)
+COMMANDS = (
+    auto,
+    new,
+    add_photos,
+    fit,
+    fit_scan,
+    texture,
+    track,
+    track_many,
+    edit,
+    clone,
+    rig,
+    export,
+    sample_data,
+    studio,
+)
 
 
 def version() -> str:

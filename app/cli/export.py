@@ -24,10 +24,10 @@ from photomodel.camera import rodrigues
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import write_files
 from photomodel.exchange.gltf_animation import Performance, encode_rigged_glb
-from photomodel.exchange.livelink import ROTATION_COLUMNS, livelink_csv_bytes, read_livelink_csv
+from photomodel.exchange.livelink import ROTATION_COLUMNS, read_livelink_csv
 from photomodel.project import load_project
 from photomodel.rig.ict import ARKIT_SHAPES
-from tracking.performance import arkit_weights, blend_shapes, track_performance
+from tracking.performance import blend_shapes, track_livelink_bytes, track_performance
 from tracking.track_result import FACING, load_track_results
 
 NAME = "export"
@@ -71,6 +71,10 @@ def run(args) -> int:
     with command_progress(args, NAME) as progress:
         progress("the face model and its blend shapes", 0.0)
         shapes, model = blend_shapes(project, doc["model"]["expressions"] if doc else None)
+        if args.csv and shapes.rig_shapes == 0:  # before anything is written
+            raise FaceStudioError(
+                "--csv writes the rig's ARKit weights: the project has no rig; run `facestudio rig` first"
+            )
         perf = None
         if doc is not None:
             perf = track_performance(doc, shapes.names)
@@ -93,26 +97,21 @@ def run(args) -> int:
         with new_outputs([args.glb, *files]):
             write_files({args.glb: glb, **files})
         progress("writing", 1.0)
-    return _report(args, shapes, perf)
+    return _report(args, shapes, perf, doc)
 
 
 def _livelink_csv(doc: dict, shapes, perf: Performance, model, progress) -> bytes:
-    """The tracked performance as Live Link Face CSV bytes: the rig's weights fitted to each frame."""
-    arkit = arkit_weights(
+    """The tracked performance as Live Link Face CSV bytes (:func:`tracking.performance.track_livelink_bytes`)."""
+    return track_livelink_bytes(
+        doc,
         shapes,
-        perf.weights,
+        perf,
         model.face_mask,
         progress=lambda done, n: progress("the rig's weights", 0.1 + 0.8 * done / n, f"frame {done} of {n}"),
     )
-    full = np.zeros((len(arkit), len(ARKIT_SHAPES)))
-    full[:, [ARKIT_SHAPES.index(n) for n in shapes.names[: shapes.rig_shapes]]] = arkit
-    head = np.radians([r["head_rotation_deg"] for r in doc["frames"]])  # pitch, yaw, roll
-    rot = np.zeros((len(full), len(ROTATION_COLUMNS)))
-    rot[:, :3] = head[:, [1, 0, 2]]
-    return livelink_csv_bytes(full, float(doc["video"]["fps"]), rot)
 
 
-def _report(args, shapes, perf) -> int:
+def _report(args, shapes, perf, doc) -> int:
     out = {
         "glb": str(args.glb),
         "targets": len(shapes.names),
@@ -120,6 +119,7 @@ def _report(args, shapes, perf) -> int:
         "photographed_targets": shapes.photographed,
         "frames": 0 if perf is None else len(perf.times_s),
         "pose_frame": "video camera (glTF camera convention: +Y up, looking along -Z)",
+        "arkit_tracked": bool(doc is not None and doc["model"].get("arkit")),
     }
     if args.csv:
         out["csv"] = str(args.csv)

@@ -61,6 +61,7 @@ def run(args) -> int:
                 first_pose=args.first_pose,
                 focal_px=args.focal_px,
                 max_frames=args.frames,
+                basis=args.basis,
                 restart=args.restart,
                 correct_frame=args.correct,
                 correct_pose=args.pose,
@@ -175,6 +176,12 @@ def add_parser(sub) -> None:
     k.add_argument(
         "--expressions",
         help="comma-separated expressions of the face model, neutral first (default: every expression of the project)",
+    )
+    k.add_argument(
+        "--basis",
+        choices=("arkit", "photographed", "both"),
+        help="the expression basis: the rig's 51 ARKit shapes, the photographed expressions per region, or both "
+        "(default: arkit when the project has a rig, else photographed)",
     )
     k.add_argument("--restart", action="store_true", help="discard earlier results in the output folder")
     k.add_argument(
