@@ -77,7 +77,7 @@ def test_track_export_and_csv_carry_the_tracked_arkit_weights(rigged, tmp_path):
     from app.cli import main
     from photomodel.exchange.livelink import read_livelink_csv
     from photomodel.rig.ict import ARKIT_SHAPES
-    from tracking.synthetic_sequences.ground_truth import SAMPLE_PROJECT
+    from photomodel.samples.fitted_sample import SAMPLE_PROJECT
 
     path, _ = rigged
     out = tmp_path / "track"

@@ -173,6 +173,7 @@ def test_a_write_failing_later_names_the_file_and_leaves_no_glb(
 
     monkeypatch.setattr(files, "atomic_write_bytes", full)
     monkeypatch.setattr(app.cli.export, "_livelink_csv", lambda *a: b"csv")  # no rig needed: the writes matter
+    monkeypatch.setattr(app.cli.export, "check_csv_rig", lambda shapes: None)
     args = ["export", str(fitted_project_copy), "--track", str(tracked), "--glb", str(glb), "--csv", str(csv)]
     assert main(args) == 2
     err = capsys.readouterr().err

@@ -47,6 +47,14 @@ def check_args(args) -> None:
         raise FaceStudioError(f"--fps {args.fps}: the take's frame rate must be a positive number")
 
 
+def check_csv_rig(shapes) -> None:
+    """FaceStudioError before anything is written when ``--csv`` is asked of a project without a rig."""
+    if shapes.rig_shapes == 0:
+        raise FaceStudioError(
+            "--csv writes the rig's ARKit weights: the project has no rig; run `facestudio rig` first"
+        )
+
+
 def livelink_performance(path: Path, names: list[str], fps: float, focal_px: float = 1000.0) -> Performance:
     """A Live Link take on the rig's targets; the head at 0.5 m in front of a 1000-px camera, turned."""
     _codes, W, rot = read_livelink_csv(path)
@@ -71,10 +79,8 @@ def run(args) -> int:
     with command_progress(args, NAME) as progress:
         progress("the face model and its blend shapes", 0.0)
         shapes, model = blend_shapes(project, doc["model"]["expressions"] if doc else None)
-        if args.csv and shapes.rig_shapes == 0:  # before anything is written
-            raise FaceStudioError(
-                "--csv writes the rig's ARKit weights: the project has no rig; run `facestudio rig` first"
-            )
+        if args.csv:
+            check_csv_rig(shapes)
         perf = None
         if doc is not None:
             perf = track_performance(doc, shapes.names)
