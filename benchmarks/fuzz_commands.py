@@ -58,11 +58,14 @@ COMMANDS = {
     "edit": ["edit", "{p}", "--track", "{t}", "--scale", "smile=0.5", "--no-smooth", "--out", "{o}/e"],
     "rig": ["rig", "{p}"],
     "export": ["export", "{p}", "--track", "{t}", "--glb", "{o}/x.glb"],
+    "auto": ["auto", "{video}", "--out", "{o}/a", "--frames", "2", "--no-validate"],
+    "fit-scan": ["fit-scan", "{p}", "{scan}", "--expression", "neutral"],
+    "clone": ["clone", "--from", "{p}", "--track", "{t}", "--to", "{p}", "--method", "displacement", "--out", "{o}/c"],
     "sample-data": ["sample-data"],
     "studio": ["studio", "{p}"],
 }
 #: Commands that write into the project's folder (their read-only case makes that folder read-only).
-WRITE_PROJECT = {"add-photos", "fit", "texture", "rig"}
+WRITE_PROJECT = {"add-photos", "fit", "texture", "rig", "fit-scan"}
 #: command → (argument to replace, replacement) of the unknown-name case; absent: no name to give.
 UNKNOWN = {
     "fit": ("neutral", "nosuch"),
@@ -71,6 +74,8 @@ UNKNOWN = {
     "track-many": ("--no-overlay", "--no-overlay --expressions neutral,nosuch"),
     "edit": ("smile=0.5", "nosuch=0.5"),
     "rig": ("{p}", "{p} --neutral nosuch"),
+    "fit-scan": ("neutral", "nosuch"),
+    "clone": ("displacement", "nosuch"),
 }
 KINDS = ("read_only", "missing_input", "wrong_size_photo", "unknown_name", "odd_path")
 
@@ -148,6 +153,7 @@ def _case(command: str, kind: str, base_project: Path, work: Path) -> dict | Non
         "t": root / "track",
         "photos": root / "photos",
         "video": root / "james" / "video" / VIDEO.name,
+        "scan": root / "james" / "results" / "neutral.obj",  # the fitted neutral's mesh as a scan
     }
     env = {**os.environ, "PYTHONPATH": str(REPO), "QT_QPA_PLATFORM": "offscreen"}
     argv = list(COMMANDS[command])
@@ -165,9 +171,12 @@ def _case(command: str, kind: str, base_project: Path, work: Path) -> dict | Non
             return None
         lock = culprit = names["p"].parent if command in WRITE_PROJECT else names["o"]
     elif kind == "missing_input":
-        key = "photos" if command == "new" else "p"
-        names[key] = culprit = root / ("no_photos" if key == "photos" else "nosuch.facestudio.json")
+        key = {"new": "photos", "auto": "video"}.get(command, "p")
+        missing = {"photos": "no_photos", "video": "no_clip.mp4", "p": "nosuch.facestudio.json"}[key]
+        names[key] = culprit = root / missing
     elif kind == "wrong_size_photo":
+        if command == "auto":  # a clip, no project photo
+            return None
         one = names["photos"] / "neutral_front.png"
         cv2.imwrite(str(one), np.zeros((1, 1, 3), np.uint8))
         cv2.imwrite(str(root / "james" / "photos" / "neutral_front.png"), np.zeros((1, 1, 3), np.uint8))
