@@ -181,6 +181,23 @@ def _stage_clock(progress, result: AutoResult):
     return begin, end, tell
 
 
+@dataclass
+class _Run:
+    """What every stage of one :func:`run_auto` shares: the clip, the files, the result and the clock."""
+
+    clip: Path
+    video: VideoFrames
+    project_path: Path
+    track_dir: Path
+    result: AutoResult
+    mesh: object
+    begin: Callable
+    end: Callable
+    tell: Callable
+    cancel: Callable[[], bool] | None
+    t_all: float
+
+
 def run_auto(
     clip: str | os.PathLike,
     out_dir: str | os.PathLike | None = None,
@@ -214,6 +231,24 @@ def run_auto(
     AutoError when no usable face is in the clip (naming the frames looked at), or the fit cannot
     place one; KeyboardInterrupt after the running stage saved what it had.
     """
+    run = _start(clip, out_dir, glb, csv, progress, cancel)
+    _stills_stage(run, stills)
+    _stop_if(cancel)
+    project = load_project(run.project_path)
+    names, neutral, vertices = _fit_stage(run, project)
+    _stop_if(cancel)
+    _texture_stage(run, project, names)
+    _stop_if(cancel)
+    _rig_stage(run, project, neutral, vertices)
+    _stop_if(cancel)
+    _track_stage(run, max_frames)
+    _export_stage(run, validate)
+    run.result.total_s = time.perf_counter() - run.t_all
+    return run.result
+
+
+def _start(clip, out_dir, glb, csv, progress, cancel) -> _Run:
+    """Open the clip, name the files of ``out_dir`` (made if missing) and start the clock."""
     t_all = time.perf_counter()
     clip = Path(clip)
     video = VideoFrames(clip)  # VideoError naming the file when it cannot be read
@@ -227,33 +262,38 @@ def run_auto(
     result = AutoResult(project_path, track_dir, glb, csv)
     begin, end, tell = _stage_clock(progress, result)
     mesh = load_generic_mesh()
+    return _Run(clip, video, project_path, track_dir, result, mesh, begin, end, tell, cancel, t_all)
 
-    # 1. stills → a project
-    begin("stills")
-    if project_path.is_file():
-        result.skipped.append("stills")
+
+def _stills_stage(run: _Run, stills: int) -> None:
+    """1. Stills picked from the clip → a project (skipped when the project is there)."""
+    run.begin("stills")
+    if run.project_path.is_file():
+        run.result.skipped.append("stills")
     else:
-        features, curves = default_features(mesh)
+        features, curves = default_features(run.mesh)
         try:
             new_project_from_video(
-                clip,
-                project_path,
+                run.clip,
+                run.project_path,
                 features=features,
                 curves=curves,
                 count=stills,
-                progress=lambda label, f: tell("stills", f, label),
+                progress=lambda label, f: run.tell("stills", f, label),
             )
         except StillsError as exc:
             raise AutoError(
-                f"no usable face in {clip}: {exc}. Tried: the landmark detector on frames spread over the "
+                f"no usable face in {run.clip}: {exc}. Tried: the landmark detector on frames spread over the "
                 f"clip, the {stills} clearest unoccluded ones as stills"
             ) from exc
-    end("stills")
-    _stop_if(cancel)
-    project = load_project(project_path)
+    run.end("stills")
 
-    # 2. fit
-    begin("fit")
+
+def _fit_stage(run: _Run, project) -> tuple[list[str], str, np.ndarray]:
+    """2. Fit every expression not fitted yet; the neutral's rms and depth ratio into the result.
+    Returns the expressions in fit order, the neutral's name and its fitted vertices."""
+    tell, result, mesh = run.tell, run.result, run.mesh
+    run.begin("fit")
     names = fit_order(project, None)
     todo = [n for n in names if project.expression(n).result is None]
     if not todo:
@@ -270,8 +310,8 @@ def run_auto(
             )
         except FaceStudioError as exc:
             raise AutoError(
-                f"the stills of {clip} do not make a face: fitting {name!r} failed ({exc}); the stills and "
-                f"their automatic clicks are in {project_path} (open it in the studio to correct them)"
+                f"the stills of {run.clip} do not make a face: fitting {name!r} failed ({exc}); the stills and "
+                f"their automatic clicks are in {run.project_path} (open it in the studio to correct them)"
             ) from exc
         record_fit(project, name, res)
         fits[name] = res.vertices
@@ -284,44 +324,51 @@ def run_auto(
 
     vertices, _ = read_mesh(project.resolve(project.expression(neutral).result.mesh_obj))
     result.depth_ratio = depth_ratio(vertices, mesh)
-    end("fit")
-    _stop_if(cancel)
+    run.end("fit")
+    return names, neutral, vertices
 
-    # 3. texture
-    begin("texture")
+
+def _texture_stage(run: _Run, project, names: list[str]) -> None:
+    """3. Texture every expression without a texture."""
+    tell = run.tell
+    run.begin("texture")
     untextured = [n for n in names if project.expression(n).result.texture is None]
     if not untextured:
-        result.skipped.append("texture")
+        run.result.skipped.append("texture")
     prepared = []
     for i, name in enumerate(untextured):
         job = texture_expression(
             project,
             name,
             TEXTURE_SIZE,
-            face_mask=mesh.face_mask,
+            face_mask=run.mesh.face_mask,
             progress=lambda label, f, i=i, name=name: tell("texture", (i + f) / len(untextured), f"{name}: {label}"),
         )
         files, rel = encode_texture_outputs(project, job)
         prepared.append((job, files, rel))
     if prepared:
         save_results(project, textures=prepared)
-    end("texture")
-    _stop_if(cancel)
+    run.end("texture")
 
-    # 4. rig
-    begin("rig")
+
+def _rig_stage(run: _Run, project, neutral: str, vertices: np.ndarray) -> None:
+    """4. ICT-FaceKit's ARKit shapes onto the fitted neutral (skipped when rigged on that neutral)."""
+    run.begin("rig")
     if project.rig is not None and project.rig.neutral == neutral:
-        result.skipped.append("rig")
+        run.result.skipped.append("rig")
     else:
-        tell("rig", 0.1, "ICT-FaceKit onto the fitted neutral")
-        rig = RigBuilder(mesh).rig(vertices)
+        run.tell("rig", 0.1, "ICT-FaceKit onto the fitted neutral")
+        rig = RigBuilder(run.mesh).rig(vertices)
         store_rig(project, neutral=neutral, names=rig.names, deltas=rig.deltas, report=rig.report)
         save_project(project)
-    end("rig")
-    _stop_if(cancel)
+    run.end("rig")
 
-    # 5. track in ARKit terms
-    begin("track")
+
+def _track_stage(run: _Run, max_frames: int | None) -> None:
+    """5. Track the clip in ARKit terms (continuing a saved track; skipped when it is complete),
+    then the landmark figures. A cancel stops here with KeyboardInterrupt, the frames done saved."""
+    result, video, track_dir, tell = run.result, run.video, run.track_dir, run.tell
+    run.begin("track")
     done = load_track_results(track_dir) if track_dir.is_dir() else None
     total = video.count if max_frames is None else min(max_frames, video.count or max_frames)
     tracked = 0 if done is None else len(done["frames"])
@@ -331,30 +378,33 @@ def run_auto(
         track_fps = 0.0
     else:
         tr = track_video(
-            project_path,
-            clip,
+            run.project_path,
+            run.clip,
             track_dir,
             basis="arkit",
             max_frames=max_frames,
             progress=lambda n, tot: tell("track", n / tot if tot else 0.0, f"frame {n} of {tot or '?'}"),
-            cancel=cancel,
+            cancel=run.cancel,
         )
         records, track_fps = tr.frames, tr.fps
         if tr.cancelled:
-            end("track")
+            run.end("track")
             result.frames, result.track_fps = len(records), track_fps
-            result.total_s = time.perf_counter() - t_all
+            result.total_s = time.perf_counter() - run.t_all
             raise KeyboardInterrupt
     result.frames, result.track_fps = len(records), track_fps
     tell("track", 0.97, "landmark error against the detector")
     _landmark_figures(result, video, records)
-    end("track")
+    run.end("track")
 
-    # 6. export
-    begin("export")
-    doc = load_track_results(track_dir)
-    info = export_track(load_project(project_path), doc, glb, csv)
-    summary = glb_summary(glb, info["rig_names"], validate=validate)
+
+def _export_stage(run: _Run, validate: bool) -> None:
+    """6. The animated glb and the Live Link CSV, the glb read back into ``result.glb_info``."""
+    result = run.result
+    run.begin("export")
+    doc = load_track_results(run.track_dir)
+    info = export_track(load_project(run.project_path), doc, result.glb, result.csv)
+    summary = glb_summary(result.glb, info["rig_names"], validate=validate)
     result.glb_info = {
         "targets": summary["targets"],
         "expected_targets": info["targets"],
@@ -363,10 +413,8 @@ def run_auto(
         "validator_errors": summary["validator_errors"],
         "arkit_channels_moving": summary["arkit_channels_moving"],
     }
-    end("export")
-    tell("export", 1.0, "done")
-    result.total_s = time.perf_counter() - t_all
-    return result
+    run.end("export")
+    run.tell("export", 1.0, "done")
 
 
 def _stop_if(cancel) -> None:

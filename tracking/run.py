@@ -146,6 +146,7 @@ class TrackResult:
         return sum(bool(f["diverged"]) for f in self.frames)
 
 
+# long: a 50-line numpy docstring for 20 parameters; the body is 12 lines of named steps
 def track_video(
     project_path: str | os.PathLike,
     video: str | os.PathLike,
@@ -224,19 +225,40 @@ def track_video(
         project_path, video, out_dir, model, model_source, expressions, first_pose, focal_px, max_frames, options, basis
     )
     run.redetect = int(redetect)
+    doc, correct_frame = _results_to_continue(run, project_path, max_frames, restart, correct_frame, correct_pose)
+    start = len(doc["frames"])
+    starts = _fit_starts(run, doc, start)
+    fitter = _start_fitter(run, doc)
+    ended, cancelled, seconds = _fit_frames(run, doc, fitter, starts, start, save_every, progress, cancel)
+    files = _write_outputs(run, doc, fitter, ended, plots, overlay)
+    return _track_result(run, doc, start, ended, cancelled, seconds, files, correct_frame)
+
+
+def _results_to_continue(run, project_path, max_frames, restart: bool, correct_frame, correct_pose):
+    """The results document of this run: the earlier results of the same settings in ``run.out``
+    (kept up to the corrected frame, with the correction applied), else new ones. Returns it and
+    the corrected frame (None without a correction)."""
     doc = new_results(project_path, run.video, run.model, run.model_source, run.first, run.options, max_frames)
     doc["model"]["basis"] = run.basis
     _take_earlier_results(run, doc, restart, correct_frame)
     if correct_frame is not None:
         correct_frame = _apply_correction(run, doc, correct_frame, correct_pose)
-    start = len(doc["frames"])
-    starts = _fit_starts(run, doc, start)
+    return doc, correct_frame
+
+
+def _start_fitter(run, doc: dict) -> FrameFitter:
+    """Make the output folder and the frame fitter (and its working-size copy, ``run.work``)."""
     run.out.mkdir(parents=True, exist_ok=True)
     fitter = FrameFitter(run.model, run.first.focal_px, run.video.width, run.video.height, run.options)
     run.work = _work_fitter(fitter, run.first.state)
     doc["work_factor"] = run.work_factor = fitter.W // run.work.W
-    ended, cancelled, seconds = _fit_frames(run, doc, fitter, starts, start, save_every, progress, cancel)
-    files = _write_outputs(run, doc, fitter, ended, plots, overlay)
+    return fitter
+
+
+def _track_result(
+    run, doc: dict, start: int, ended, cancelled: bool, seconds: float, files, correct_frame
+) -> TrackResult:
+    """The :class:`TrackResult` of a run that fitted frames ``start`` .. on."""
     records = doc["frames"]
     return TrackResult(
         run.out,

@@ -641,7 +641,7 @@ _ALS_SWEEPS_BEFORE_POLISH = 3
 _LM_LAMBDA0 = 1e-3
 
 
-# long: a 50-line numpy docstring for 10 parameters; the body is 25 lines of named steps
+# long: a 46-line numpy docstring for 10 parameters; the body is 32 lines of named steps
 def recover_poses(
     observations: np.ndarray,
     cameras: Sequence[Camera],
