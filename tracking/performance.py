@@ -46,6 +46,7 @@ __all__ = [
     "track_performance",
     "tracked_arkit_weights",
     "export_track",
+    "rigged_glb_bytes",
     "track_livelink_bytes",
     "region_targets",
 ]
@@ -180,6 +181,19 @@ def tracked_arkit_weights(doc: dict, shapes: list[str]) -> np.ndarray | None:
     return np.array([[rec.get("arkit", {}).get(n, 0.0) for n in shapes] for rec in doc["frames"]], float)
 
 
+def rigged_glb_bytes(shapes: BlendShapes, perf: Performance | None = None) -> bytes:
+    """The glb of ``shapes`` (every blend shape a morph target, textured), animated by ``perf``."""
+    return encode_rigged_glb(
+        shapes.neutral,
+        shapes.faces,
+        shapes.deltas,
+        shapes.names,
+        uv=shapes.uv,
+        texture=shapes.texture_png,
+        performance=perf,
+    )
+
+
 def track_livelink_bytes(doc: dict, shapes: BlendShapes, perf: Performance, face_mask=None, progress=None) -> bytes:
     """The Live Link Face CSV of a tracked performance: the tracked ARKit weights themselves
     (:func:`tracked_arkit_weights`) where the track is in ARKit terms, else the rig's weights fitted
@@ -209,17 +223,7 @@ def export_track(project, doc: dict, glb, csv=None) -> dict:
     if csv is not None and shapes.rig_shapes == 0:
         raise FaceStudioError("the Live Link CSV carries the rig's ARKit weights: the project has no rig")
     perf = track_performance(doc, shapes.names)
-    files = {
-        glb: encode_rigged_glb(
-            shapes.neutral,
-            shapes.faces,
-            shapes.deltas,
-            shapes.names,
-            uv=shapes.uv,
-            texture=shapes.texture_png,
-            performance=perf,
-        )
-    }
+    files = {glb: rigged_glb_bytes(shapes, perf)}
     if csv is not None:
         files[csv] = track_livelink_bytes(doc, shapes, perf, model.face_mask)
     write_files(files)

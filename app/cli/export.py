@@ -23,11 +23,11 @@ from app.cli.progress import command_progress
 from photomodel.camera import rodrigues
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import write_files
-from photomodel.exchange.gltf_animation import Performance, encode_rigged_glb
+from photomodel.exchange.gltf_animation import Performance
 from photomodel.exchange.livelink import ROTATION_COLUMNS, read_livelink_csv
 from photomodel.project import load_project
 from photomodel.rig.ict import ARKIT_SHAPES
-from tracking.performance import blend_shapes, track_livelink_bytes, track_performance
+from tracking.performance import blend_shapes, rigged_glb_bytes, track_livelink_bytes, track_performance
 from tracking.track_result import FACING, load_track_results
 
 NAME = "export"
@@ -90,15 +90,7 @@ def run(args) -> int:
         if args.csv:
             files[args.csv] = _livelink_csv(doc, shapes, perf, model, progress)
         progress("encoding the glb", 0.9)
-        glb = encode_rigged_glb(
-            shapes.neutral,
-            shapes.faces,
-            shapes.deltas,
-            shapes.names,
-            uv=shapes.uv,
-            texture=shapes.texture_png,
-            performance=perf,
-        )
+        glb = rigged_glb_bytes(shapes, perf)
         progress("writing", 0.95)
         with new_outputs([args.glb, *files]):
             write_files({args.glb: glb, **files})

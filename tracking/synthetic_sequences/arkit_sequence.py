@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photomodel.camera import Camera, rodrigues
+from photomodel.camera import rodrigues
 from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.project import load_project, save_project, store_rig
@@ -27,7 +27,12 @@ from photomodel.rendering.renderer import get_renderer
 from photomodel.rig.build import RigBuilder
 from tracking.blendshape_face import FaceModel
 from tracking.face_from_project import model_expressions
-from tracking.synthetic_sequences.ground_truth import BACKGROUND_RGB, VIDEO_DISTANCE_MM, fitted_sample_project
+from tracking.synthetic_sequences.ground_truth import (
+    BACKGROUND_RGB,
+    VIDEO_DISTANCE_MM,
+    VideoTruth,
+    fitted_sample_project,
+)
 
 __all__ = ["ArkitTruth", "arkit_truth", "rigged_sample_project", "render_arkit_frame", "CURVES"]
 
@@ -52,24 +57,9 @@ CURVES = (
 
 
 @dataclass
-class ArkitTruth:
+class ArkitTruth(VideoTruth):
     """Ground truth of a rendered ARKit sequence: ``R`` (T, 3, 3), ``t`` (T, 3) mm (``X_cam = R X +
     t``), ``weights`` (T, k) in [0, 1] over ``names`` (the rig's shapes), the camera."""
-
-    R: np.ndarray
-    t: np.ndarray
-    weights: np.ndarray
-    names: tuple
-    focal_px: float
-    width: int
-    height: int
-
-    @property
-    def frames(self) -> int:
-        return len(self.R)
-
-    def camera(self, i: int) -> Camera:
-        return Camera(self.R[i], self.t[i], self.focal_px, self.width, self.height)
 
 
 def rigged_sample_project(folder: str | Path) -> Path:
