@@ -6,50 +6,9 @@ function), not from what a test run happened to import."""
 
 from __future__ import annotations
 
-import ast
-from functools import cache
-from pathlib import Path
+from import_graph import REPO, cycles, graph
 
-REPO = Path(__file__).resolve().parents[1]
-PACKAGES = ("photomodel", "tracking", "app")
 SAMPLES = ("photomodel.samples", "tracking.synthetic_sequences")
-
-
-def _module_name(path: Path) -> str:
-    parts = path.relative_to(REPO).with_suffix("").parts
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-
-
-def _is_module(name: str) -> bool:
-    base = REPO.joinpath(*name.split("."))
-    return base.with_suffix(".py").is_file() or (base / "__init__.py").is_file()
-
-
-def _imports(path: Path) -> set[str]:
-    """The first-party modules a file imports (``from pkg import mod`` names ``pkg.mod``)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    package = _module_name(path) if path.name == "__init__.py" else _module_name(path).rpartition(".")[0]
-    found = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                anchor = package.split(".")[: len(package.split(".")) - (node.level - 1)]
-                base = ".".join([*anchor, *([node.module] if node.module else [])])
-            names = [base, *(f"{base}.{a.name}" for a in node.names)]
-        else:
-            continue
-        found.update(n for n in names if n.split(".")[0] in PACKAGES and _is_module(n))
-    return found
-
-
-@cache
-def _graph() -> dict[str, set[str]]:
-    """Module → the first-party modules it imports, for the whole tree (read once per run; do not change it)."""
-    files = [p for pkg in PACKAGES for p in sorted((REPO / pkg).rglob("*.py"))]
-    return {_module_name(p): _imports(p) for p in files}
 
 
 def _in(name: str, packages) -> bool:
@@ -74,7 +33,7 @@ def _is_sample_data_command(module: str, target: str) -> bool:
 
 def test_only_the_samples_and_the_sample_data_command_import_the_samples():
     wrong = []
-    for module, imported in _graph().items():
+    for module, imported in graph().items():
         for target in sorted(imported):
             if not _in(target, SAMPLES) or _in(module, SAMPLES):
                 continue
@@ -88,7 +47,7 @@ def test_the_data_floor_imports_nothing_above_it():
     allowed = ("photomodel.data", "photomodel.errors")
     wrong = [
         f"{module} imports {target}"
-        for module, imported in _graph().items()
+        for module, imported in graph().items()
         if _in(module, ("photomodel.data",))
         for target in sorted(imported)
         if not _in(target, allowed) and target != "photomodel"
@@ -111,47 +70,6 @@ def _rooms(graph: dict[str, set[str]]) -> dict[str, set[str]]:
 
 
 def test_no_import_circle_passes_through_the_samples():
-    for graph in (_graph(), _rooms(_graph())):
-        circles = [c for c in _strongly_connected(graph) if len(c) > 1 and any(_in(m, SAMPLES) for m in c)]
+    for edges in (graph(), _rooms(graph())):
+        circles = [c for c in cycles(edges) if len(c) > 1 and any(_in(m, SAMPLES) for m in c)]
         assert circles == [], f"import circles through the samples: {circles}"
-
-
-def _strongly_connected(graph: dict[str, set[str]]) -> list[list[str]]:
-    """Tarjan's strongly connected components, iteratively (the graph is a few hundred modules)."""
-    index, low, on_stack, stack, out = {}, {}, set(), [], []
-    for root in graph:
-        if root in index:
-            continue
-        work = [(root, iter(sorted(graph[root])))]
-        index[root] = low[root] = len(index)
-        stack.append(root)
-        on_stack.add(root)
-        while work:
-            node, children = work[-1]
-            child = next(children, None)
-            if child is None:
-                work.pop()
-                if work:
-                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
-                if low[node] == index[node]:
-                    component = []
-                    while True:
-                        m = stack.pop()
-                        on_stack.discard(m)
-                        component.append(m)
-                        if m == node:
-                            break
-                    out.append(sorted(component))
-            elif child not in index:
-                index[child] = low[child] = len(index)
-                stack.append(child)
-                on_stack.add(child)
-                work.append((child, iter(sorted(graph.get(child, ())))))
-            elif child in on_stack:
-                low[node] = min(low[node], index[child])
-    return out
-
-
-def test_the_circle_finder_finds_circles():
-    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}, "e": set()}
-    assert sorted(c for c in _strongly_connected(graph) if len(c) > 1) == [["a", "b", "c"]]
