@@ -14,9 +14,6 @@ Two ways a folder refuses writes, each a parameter of the tests:
 
 from __future__ import annotations
 
-import builtins
-import errno
-import io
 import json
 import os
 import shutil
@@ -25,6 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from refused_writes import bind_read_only, refuse_writes, unmount
 
 from app.cli import main
 
@@ -71,66 +69,16 @@ def _permissions_refused(folders: list[Path]):
             _unlock(f)
 
 
-def _mount_read_only(folder: Path) -> bool:
-    """Bind-mount ``folder`` read-only onto itself (root); False, and nothing mounted, if refused."""
-    if os.geteuid() != 0 or shutil.which("mount") is None:
-        return False
-    if subprocess.run(["mount", "--bind", str(folder), str(folder)], capture_output=True).returncode != 0:
-        return False
-    if subprocess.run(["mount", "-o", "remount,bind,ro", str(folder)], capture_output=True).returncode != 0:
-        subprocess.run(["umount", str(folder)], capture_output=True)
-        return False
-    return True
-
-
-def _refuse_writes_under(monkeypatch, folder: Path) -> None:
-    """Every write under ``folder`` fails as on a read-only disk: ``OSError(EROFS)`` from the calls
-    the program's writers go through (the atomic writer's ``mkstemp`` uses ``os.open``; folders are
-    made with ``os.mkdir``), reads pass."""
-    root = folder.resolve()
-
-    def inside(path) -> bool:
-        if isinstance(path, int):  # a file descriptor: already open
-            return False
-        p = Path(os.fsdecode(path)).absolute()
-        return p == root or root in p.parents or root in p.resolve().parents
-
-    def refuse(path):
-        raise OSError(errno.EROFS, os.strerror(errno.EROFS), os.fsdecode(path))
-
-    real_os_open, real_open, real_mkdir = os.open, builtins.open, os.mkdir
-
-    def os_open(path, flags, *args, **kwargs):
-        if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC) and inside(path):
-            refuse(path)
-        return real_os_open(path, flags, *args, **kwargs)
-
-    def open_(file, mode="r", *args, **kwargs):
-        if any(c in mode for c in "wax+") and inside(file):
-            refuse(file)
-        return real_open(file, mode, *args, **kwargs)
-
-    def mkdir(path, *args, **kwargs):
-        if inside(path) and not os.path.exists(path):  # an existing folder: EEXIST, as on a disk
-            refuse(path)
-        return real_mkdir(path, *args, **kwargs)
-
-    monkeypatch.setattr(os, "open", os_open)
-    monkeypatch.setattr(builtins, "open", open_)
-    monkeypatch.setattr(io, "open", open_)
-    monkeypatch.setattr(os, "mkdir", mkdir)
-
-
 @contextmanager
 def _read_only(folder: Path, monkeypatch):
-    if _mount_read_only(folder):
+    if bind_read_only(folder):
         try:
             assert not _writable(folder)
             yield
         finally:
-            subprocess.run(["umount", str(folder)], check=True)
+            unmount(folder, check=True)
     else:
-        _refuse_writes_under(monkeypatch, folder)
+        refuse_writes(monkeypatch, folder)
         assert not _writable(folder)
         yield
 

@@ -5,22 +5,20 @@ CI runs as root, which ignores permission bits, and the failures of interest are
 errors anyway: as root the folder is made a read-only bind mount (``mount --bind D D; mount -o
 remount,bind,ro D``; skipped where that is refused), and everywhere the writers are made to
 fail with ``OSError(errno.EROFS)`` / ``OSError(errno.ENOSPC)`` for paths in that folder
-(:class:`Refuse`: ``os.open``, ``os.mkdir``, ``open``, ``os.replace``)."""
+(:func:`refused_writes.refuse_writes`: ``os.open``, ``os.mkdir``, ``open``, ``os.replace``)."""
 
 from __future__ import annotations
 
-import builtins
 import errno
-import io
 import json
 import os
 import shutil
-import subprocess
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from refused_writes import bind_read_only, refuse_writes, unmount
 
 import app.cli.common as common
 import app.cli.export
@@ -34,55 +32,6 @@ SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 VIDEO = SAMPLE / "video" / "james_track.mp4"
 
 
-class Refuse:
-    """The writers fail with ``OSError(code)`` for every path in ``folder`` (reads still work)."""
-
-    def __init__(self, monkeypatch, folder: Path, code: int):
-        self.folder, self.code = Path(folder).absolute(), code
-        real_open, real_mkdir, real_replace, real_io_open = os.open, os.mkdir, os.replace, io.open
-        write_flags = os.O_WRONLY | os.O_RDWR | os.O_CREAT
-
-        def os_open(path, flags, *a, **k):
-            if flags & write_flags:
-                self.check(path)
-            return real_open(path, flags, *a, **k)
-
-        def mkdir(path, *a, **k):
-            self.check(path)
-            return real_mkdir(path, *a, **k)
-
-        def replace(src, dst, *a, **k):
-            self.check(dst)
-            return real_replace(src, dst, *a, **k)
-
-        def py_open(file, mode="r", *a, **k):
-            if isinstance(file, (str, os.PathLike)) and any(c in mode for c in "wax+"):
-                self.check(file)
-            return real_io_open(file, mode, *a, **k)
-
-        monkeypatch.setattr(os, "open", os_open)
-        monkeypatch.setattr(os, "mkdir", mkdir)
-        monkeypatch.setattr(os, "replace", replace)
-        monkeypatch.setattr(builtins, "open", py_open)
-        monkeypatch.setattr(io, "open", py_open)
-
-    def check(self, path) -> None:
-        p = Path(os.fsdecode(path)).absolute()
-        if p == self.folder or self.folder in p.parents:
-            raise OSError(self.code, os.strerror(self.code), str(p))
-
-
-def _bind_read_only(folder: Path) -> bool:
-    if os.geteuid() != 0 or shutil.which("mount") is None:
-        return False
-    if subprocess.run(["mount", "--bind", str(folder), str(folder)], capture_output=True).returncode != 0:
-        return False
-    if subprocess.run(["mount", "-o", "remount,bind,ro", str(folder)], capture_output=True).returncode != 0:
-        subprocess.run(["umount", str(folder)], capture_output=True)
-        return False
-    return True
-
-
 @pytest.fixture(params=["mount", "EROFS", "ENOSPC"])
 def refused(request, monkeypatch):
     """``refuse(folder)``: make ``folder`` refuse writes the way the parameter says."""
@@ -91,15 +40,15 @@ def refused(request, monkeypatch):
     def refuse(folder: Path) -> None:
         folder.mkdir(parents=True, exist_ok=True)
         if request.param == "mount":
-            if not _bind_read_only(folder):
+            if not bind_read_only(folder):
                 pytest.skip("a read-only bind mount is refused here (not root, or no mount permission)")
             mounted.append(folder)
         else:
-            Refuse(monkeypatch, folder, getattr(errno, request.param))
+            refuse_writes(monkeypatch, folder, getattr(errno, request.param))
 
     yield refuse
     for folder in mounted:
-        subprocess.run(["umount", str(folder)], capture_output=True)
+        unmount(folder)
 
 
 def _listing(folder: Path) -> dict:
