@@ -49,8 +49,8 @@ import numpy as np
 from photomodel.alignment import similarity_transform
 from photomodel.camera import rotation_angle_deg
 from photomodel.errors import FitError, ProjectError
-from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.project import read_fitted_mesh
 from photomodel.texturing.job import stored_cylinder
 from tracking.blendshape_face import CONTROL_REGIONS, FaceModel, build_face_model, control_regions, smooth_membership
 
@@ -112,26 +112,6 @@ def model_expressions(project, names: Sequence[str] | None = None) -> list[str]:
             parts.append(f"without a texture: {', '.join(untextured)} (run `facestudio texture {where}`)")
         raise FitError(f"{where}: the face model needs every expression fitted and textured; " + "; ".join(parts))
     return names
-
-
-def _read_mesh(project, name: str) -> tuple[np.ndarray, np.ndarray]:
-
-    rel = project.expression(name).result.mesh_obj
-    if rel is None:
-        raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
-    path = project.resolve(rel)
-    if not path.is_file():
-        raise ProjectError(
-            f"expression {name!r}: the fitted mesh {rel} does not exist (looked for {path}); "
-            f"run `facestudio fit {project.path}` again"
-        )
-    try:
-        V, F = read_mesh(path)
-    except Exception as exc:  # trimesh raises many kinds on a damaged file
-        raise ProjectError(f"expression {name!r}: cannot read the fitted mesh {rel}: {exc}") from exc
-    if not np.all(np.isfinite(V)):
-        raise ProjectError(f"expression {name!r}: the fitted mesh {rel} has non-finite vertex positions")
-    return V, F
 
 
 def _read_texture(project, name: str, size: int) -> np.ndarray:
@@ -227,7 +207,7 @@ def face_model_from_project(
 
     names = model_expressions(project, names)
     mesh = load_generic_mesh()
-    meshes = [_read_mesh(project, n) for n in names]
+    meshes = [read_fitted_mesh(project, n) for n in names]
     n = len(mesh.vertices)
     for name, (V, F) in zip(names, meshes, strict=True):
         if V.shape != (n, 3) or not np.array_equal(F, mesh.faces):

@@ -43,7 +43,7 @@ import numpy as np
 
 from photomodel.errors import FitError, ProjectError
 from photomodel.exchange import files as exchange_files  # looked up at call time (tests replace it)
-from photomodel.exchange.mesh import write_mesh
+from photomodel.exchange.mesh import read_mesh, write_mesh
 from photomodel.project.datamodel import ExpressionResult, Project, RigRecord, TextureResult
 from photomodel.project.io import encode_project, target_file, write_project
 
@@ -289,6 +289,30 @@ def store_rig(
         file=_recorded(project, folder, path),
         report=copy.deepcopy(report),
     )
+
+
+def read_fitted_mesh(project: Project, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices (N, 3) mm, faces (F, 3))`` of expression ``name``'s fitted mesh as stored.
+
+    Raises FitError when no fitted mesh is recorded, ProjectError naming the file when it is
+    missing, unreadable or holds non-finite positions."""
+    result = project.expression(name).result
+    rel = None if result is None else result.mesh_obj
+    if rel is None:
+        raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
+    path = project.resolve(rel)
+    if not path.is_file():
+        raise ProjectError(
+            f"expression {name!r}: the fitted mesh {rel} does not exist (looked for {path}); "
+            f"run `facestudio fit {project.path}` again"
+        )
+    try:
+        V, F = read_mesh(path)
+    except Exception as exc:  # trimesh raises many kinds on a damaged file
+        raise ProjectError(f"expression {name!r}: cannot read the fitted mesh {rel}: {exc}") from exc
+    if not np.all(np.isfinite(V)):
+        raise ProjectError(f"expression {name!r}: the fitted mesh {rel} has non-finite vertex positions")
+    return V, F
 
 
 def load_rig_shapes(project: Project) -> tuple[list[str], np.ndarray]:

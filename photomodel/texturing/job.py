@@ -35,13 +35,13 @@ from photomodel.camera import Camera
 from photomodel.errors import Cancelled, FitError, PhotoError, ProjectError
 from photomodel.exchange.files import encode_png
 from photomodel.exchange.gltf import encode_glb
-from photomodel.exchange.mesh import read_mesh
 from photomodel.exchange.obj import encode_textured_obj
 from photomodel.exchange.ply import encode_colored_ply
 from photomodel.exchange.uv import merge_uv_seams
 from photomodel.landmarks.segment import face_pixels
 from photomodel.photos.reading import MAX_WORKING_SIDE, read_photo
 from photomodel.project.io import default_filename
+from photomodel.project.results import read_fitted_mesh
 from photomodel.texturing.cylindrical import (
     CylinderMap,
     CylindricalTexture,
@@ -177,18 +177,7 @@ def load_texture_inputs(
     if result is None:
         raise FitError(f"expression {name!r} has not been fitted yet")
     if vertices is None or faces is None:
-        if result.mesh_obj is None:
-            raise FitError(f"expression {name!r} has no fitted mesh recorded: run `facestudio fit {project.path}`")
-        mesh_path = project.resolve(result.mesh_obj)
-        if not mesh_path.is_file():
-            raise ProjectError(
-                f"expression {name!r}: the fitted mesh {result.mesh_obj} does not exist "
-                f"(looked for {mesh_path}); run `facestudio fit {project.path}` again"
-            )
-        try:
-            vertices, faces = read_mesh(mesh_path)
-        except Exception as exc:  # trimesh raises many kinds on a damaged file
-            raise ProjectError(f"expression {name!r}: cannot read the fitted mesh {result.mesh_obj}: {exc}") from exc
+        vertices, faces = read_fitted_mesh(project, name)
     ids, cameras, photos = _read_photos(project, name, [p.id for p in expr.photos if p.id in result.cameras], max_side)
     if not cameras:
         raise FitError(f"expression {name!r}: no photo has a recovered camera; run `facestudio fit` first")
