@@ -38,7 +38,15 @@ from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.intake import default_features
 from photomodel.photos.stills import StillsError, new_project_from_video
 from photomodel.photos.video import VideoFrames
-from photomodel.project import FILE_SUFFIX, load_project, record_fit, save_project, save_results, store_rig
+from photomodel.project import (
+    FILE_SUFFIX,
+    load_project,
+    read_fitted_mesh,
+    record_fit,
+    save_project,
+    save_results,
+    store_rig,
+)
 from photomodel.rig.build import RigBuilder
 from photomodel.texturing.job import encode_texture_outputs, texture_expression
 from tracking.detected_pose import LOST_PX, detected_features, landmark_error_px
@@ -320,9 +328,7 @@ def _fit_stage(run: _Run, project) -> tuple[list[str], str, np.ndarray]:
     neutral = names[0] if "neutral" not in names else "neutral"
     report = project.expression(neutral).result.report or {}
     result.fit_rms_px = float(report.get("rms_px", np.nan))
-    from photomodel.exchange.mesh import read_mesh  # noqa: PLC0415
-
-    vertices, _ = read_mesh(project.resolve(project.expression(neutral).result.mesh_obj))
+    vertices, _ = read_fitted_mesh(project, neutral)
     result.depth_ratio = depth_ratio(vertices, mesh)
     run.end("fit")
     return names, neutral, vertices

@@ -20,9 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from photomodel.camera import rodrigues
-from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.project import load_project, save_project, store_rig
+from photomodel.project import load_project, read_fitted_mesh, save_project, store_rig
 from photomodel.rendering.renderer import get_renderer
 from photomodel.rig.build import RigBuilder
 from tracking.blendshape_face import FaceModel
@@ -74,7 +73,7 @@ def rigged_sample_project(folder: str | Path) -> Path:
     project = load_project(path)
     if project.rig is None:  # the recipe of `facestudio rig` (app/cli/rig.py) on the neutral
         neutral = model_expressions(project)[0]
-        vertices, _faces = read_mesh(project.resolve(project.expression(neutral).result.mesh_obj))
+        vertices, _faces = read_fitted_mesh(project, neutral)
         rig = RigBuilder(load_generic_mesh()).rig(vertices)
         store_rig(project, neutral=neutral, names=rig.names, deltas=rig.deltas, report=rig.report)
         save_project(project)
