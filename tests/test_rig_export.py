@@ -9,7 +9,13 @@ import pytest
 import trimesh
 
 from photomodel.errors import FaceStudioError
-from photomodel.exchange.gltf_animation import GLTF_FROM_CAMERA, Performance, encode_rigged_glb, quaternion_xyzw
+from photomodel.exchange.gltf_animation import (
+    GLTF_FROM_CAMERA,
+    Performance,
+    encode_rigged_glb,
+    quaternion_xyzw,
+    read_animated_weights,
+)
 from photomodel.exchange.livelink import BLENDSHAPE_COLUMNS, read_livelink_csv, write_livelink_csv
 from photomodel.exchange.validator import validate_glb
 from photomodel.project import load_project, load_rig_shapes, save_project, store_rig
@@ -66,6 +72,10 @@ def test_rigged_glb_reads_back_with_every_target_and_frame(tmp_path):
     assert paths == ["weights", "rotation", "translation"]
     assert g.accessors[anim.samplers[0].input].count == frames
     assert g.accessors[anim.samplers[0].output].count == frames * k
+    # the reader the auto pipeline checks its glb with gives back the weights that were written
+    read_names, read_k, W = read_animated_weights(path)
+    assert read_names == names and read_k == k
+    np.testing.assert_allclose(W, perf.weights, atol=1e-7)  # float32 storage of values in [0, 1]
     # the head pose is put in glTF's camera frame: rotation C R, translation C t (metres)
     q = read(anim.samplers[1].output, 4)
     np.testing.assert_allclose(np.abs(q), np.abs(quaternion_xyzw(GLTF_FROM_CAMERA @ perf.rotation)), atol=1e-6)

@@ -33,6 +33,8 @@ import numpy as np
 
 from photomodel.alignment import similarity_transform
 from photomodel.errors import FaceStudioError
+from photomodel.exchange.gltf_animation import read_animated_weights
+from photomodel.exchange.validator import validate_glb
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
 from photomodel.modeling.generic_mesh import load_generic_mesh
 from photomodel.photos.intake import default_features
@@ -136,30 +138,13 @@ def glb_summary(path: str | os.PathLike, arkit_names, validate: bool = True) -> 
     Khronos validator, :func:`photomodel.exchange.validator.validate_glb`; -1 when it is not
     installed) and ``arkit_channels_moving`` (ARKit targets whose animated weight varies by more
     than 0.05 over the frames)."""
-    import pygltflib as gl  # noqa: PLC0415 - read back only here
-
-    from photomodel.exchange.validator import validate_glb  # noqa: PLC0415
-
-    g = gl.GLTF2.load(str(path))
-    mesh = g.meshes[0]
-    names = list((mesh.extras or {}).get("targetNames", []))
-    k = len(mesh.primitives[0].targets or [])
-    frames, moving = 0, 0
-    if g.animations:
-        blob = g.binary_blob()
-        anim = g.animations[0]
-        chan = next(c for c in anim.channels if c.target.path == "weights")
-        sampler = anim.samplers[chan.sampler]
-        frames = g.accessors[sampler.input].count
-        acc = g.accessors[sampler.output]
-        view = g.bufferViews[acc.bufferView]
-        W = np.frombuffer(blob, np.float32, acc.count, view.byteOffset + (acc.byteOffset or 0)).reshape(frames, k)
-        arkit = [i for i, n in enumerate(names) if n in set(arkit_names)]
-        moving = int((np.ptp(W[:, arkit], axis=0) > 0.05).sum()) if arkit else 0
+    names, k, W = read_animated_weights(path)
+    arkit = [i for i, n in enumerate(names) if n in set(arkit_names)]
+    moving = int((np.ptp(W[:, arkit], axis=0) > 0.05).sum()) if arkit and len(W) else 0
     report = validate_glb(path) if validate else None
     return {
         "targets": k,
-        "frames": int(frames),
+        "frames": len(W),
         "validator_errors": -1 if report is None else int(report["issues"]["numErrors"]),
         "arkit_channels_moving": moving,
     }

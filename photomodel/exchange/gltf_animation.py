@@ -32,7 +32,14 @@ import pygltflib as gl
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.exchange.gltf import METRES_PER_MM, GlbDocument, add_face_mesh
 
-__all__ = ["Performance", "encode_rigged_glb", "write_rigged_glb", "GLTF_FROM_CAMERA", "quaternion_xyzw"]
+__all__ = [
+    "Performance",
+    "encode_rigged_glb",
+    "read_animated_weights",
+    "write_rigged_glb",
+    "GLTF_FROM_CAMERA",
+    "quaternion_xyzw",
+]
 
 #: Our camera frame (y down, looking along +z) → glTF's camera frame (y up, looking along −z).
 GLTF_FROM_CAMERA = np.diag([1.0, -1.0, -1.0])
@@ -150,6 +157,27 @@ def encode_rigged_glb(
     doc.gltf.scenes.append(gl.Scene(nodes=list(range(len(doc.gltf.nodes)))))
     doc.gltf.scene = 0
     return doc.to_bytes()
+
+
+def read_animated_weights(path) -> tuple[list[str], int, np.ndarray]:
+    """A rigged glb read back: its morph targets' names (``extras.targetNames``), their count and
+    the animated weights (frames, k) float32 of its first animation's ``weights`` channel (0 rows
+    when it has no animation)."""
+    g = gl.GLTF2.load(str(path))
+    mesh = g.meshes[0]
+    names = list((mesh.extras or {}).get("targetNames", []))
+    k = len(mesh.primitives[0].targets or [])
+    if not g.animations:
+        return names, k, np.zeros((0, k), np.float32)
+    anim = g.animations[0]
+    chan = next(c for c in anim.channels if c.target.path == "weights")
+    sampler = anim.samplers[chan.sampler]
+    frames = g.accessors[sampler.input].count
+    acc = g.accessors[sampler.output]
+    view = g.bufferViews[acc.bufferView]
+    blob = g.binary_blob()
+    W = np.frombuffer(blob, np.float32, acc.count, view.byteOffset + (acc.byteOffset or 0)).reshape(frames, k)
+    return names, k, W
 
 
 def write_rigged_glb(path, vertices, faces, deltas, names, **kw):
