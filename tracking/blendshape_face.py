@@ -122,6 +122,7 @@ class FaceModel:
     face_mask: np.ndarray
     shared: np.ndarray | None = None
     _texture_groups: list = field(default_factory=list, repr=False)
+    _geometry_ndk: tuple = field(default=(None, None), repr=False)
     _group_uv: tuple | None = field(default=None, repr=False, compare=False)
 
     # -- parameter bookkeeping --------------------------------------------------------
@@ -220,7 +221,11 @@ class FaceModel:
 
     def blend_geometry(self, vertex_weights: np.ndarray) -> np.ndarray:
         """(n, 3) mm consensus geometry ``X_i = Σ_k W_ik E_k,i``."""
-        return np.einsum("nk,knd->nd", vertex_weights, self.geometry)
+        G, E = self._geometry_ndk
+        if G is not self.geometry:  # (n, 3, m) contiguous: the product runs along the expressions (~10× faster)
+            E = np.ascontiguousarray(np.transpose(self.geometry, (1, 2, 0)))
+            self._geometry_ndk = (self.geometry, E)
+        return np.einsum("nk,ndk->nd", vertex_weights, E)
 
     def geometry_at(self, alpha: np.ndarray) -> np.ndarray:
         """(n, 3) mm consensus geometry at expression parameters ``α``."""

@@ -77,6 +77,7 @@ from threadpoolctl import ThreadpoolController
 
 from photomodel.camera import Camera, rodrigues, rotation_vector
 from photomodel.errors import FitError
+from photomodel.rendering.barycentric import interpolate
 from photomodel.rendering.renderer import get_renderer
 from tracking.blendshape_face import WEIGHT_RANGE, FaceModel, ModelRender, render_model, smooth_membership
 
@@ -114,6 +115,14 @@ MIN_PIXELS = 200
 #: Steps of a few tenths of a pixel or more: smaller ones see the rasterisation of internal
 #: occlusion edges (nose, lips) flip pixels, and the differences become noise.
 FD_STEPS = {"rotation": 1e-2, "translation": 2.0, "alpha": 0.3}
+#: The approximate Gauss–Newton matrix of the bandpassed phase (:meth:`FrameFitter._filtered_system`)
+#: sums every this-many-th covered pixel in each direction (the bandpassed Jacobian is smooth at
+#: the filter's scale, σ ≥ 1 px).
+HESSIAN_STRIDE = 2
+#: ... and is used for systems of more columns than this (the rig's 51 shapes); fewer columns (the
+#: photographed expressions) are filtered exactly, which costs little there and converges in fewer
+#: steps (measured: a 9° head movement, 8 steps: 0.19° exact, 1.07° approximated).
+APPROX_COLUMNS = 24
 #: Radius (mm) over which a rotation step is turned into image motion for the stopping test.
 HEAD_RADIUS_MM = 100.0
 #: Most channels OpenCV's filters take in one call (a Jacobian of many parameters is filtered in parts).
@@ -182,6 +191,11 @@ class TrackOptions:
     #: near neutral instead of borrowing an unrelated expression (the eyes' part of ``frown``)
     #: that the home region (the brows) does not show. See :meth:`FrameFitter._penalty`.
     coherence: float = 1.0
+    #: Gauss–Newton matrix of the bandpassed analytic Jacobian: ``"filtered"`` — every column's
+    #: image bandpassed (exact); ``"image"`` — from the bandpassed rendering's gradient, the
+    #: gradient of ε still exact (:meth:`FrameFitter._filtered_system`; beyond the paper, measured
+    #: in docs/tracking.md, "Per-frame budget").
+    filtered_hessian: str = "image"  # for systems of more than APPROX_COLUMNS columns
     #: Priors on the weights of a shared basis (the rig's ARKit shapes, :mod:`tracking.arkit_face`;
     #: beyond the paper), each in units of :attr:`penalty` like :attr:`coherence`, for what the views
     #: cannot separate (see docs/tracking.md, "Tracking in ARKit terms", for the measurements):
@@ -200,6 +214,8 @@ class TrackOptions:
         for name in ("pose_jacobian", "expression_jacobian"):
             if getattr(self, name) not in ("analytic", "fd"):
                 raise ValueError(f"{name} must be 'analytic' or 'fd', got {getattr(self, name)!r}")
+        if self.filtered_hessian not in ("filtered", "image"):
+            raise ValueError(f"filtered_hessian must be 'filtered' or 'image', got {self.filtered_hessian!r}")
 
 
 @dataclass
@@ -397,6 +413,21 @@ class Phase:
     reuse: bool = True
 
 
+class _PixelSubset:
+    """Some of a :class:`ModelRender`'s covered pixels (``sel``) seen as a render of their own
+    (what :meth:`FrameFitter._pixel_jacobian` reads), with the texture colours ``colors`` there."""
+
+    def __init__(self, render: ModelRender, sel: np.ndarray, colors: list):
+        self.image, self.box = render.image, render.box
+        self.pixels, self.X_cam, self.texture_colors = render.pixels[sel], render.X_cam[sel], colors
+        self._corners, self._bary = render.corners[sel], render.bary[sel]
+
+    def interpolate(self, values: np.ndarray) -> np.ndarray:
+        values = np.asarray(values)
+        flat = interpolate(values.reshape(len(values), -1), self._corners, self._bary)
+        return flat.reshape((len(self._bary),) + values.shape[1:])
+
+
 @dataclass
 class ExpressionSystem:
     """A frame's image term linearised with respect to ``α`` (:meth:`FrameFitter.linearise_expression`).
@@ -471,6 +502,8 @@ class FrameFitter:
         self._alpha_region = np.array(region_of, int)
         self.n_alpha = len(cols)
         self._dX_dalpha32 = self._dX_dalpha.astype(np.float32)
+        self._dX_dalpha32_flat = np.ascontiguousarray(self._dX_dalpha32.reshape(n, -1))
+        self._dX_by_axis = np.ascontiguousarray(self._dX_dalpha32.transpose(2, 0, 1))  # (3, n, A)
         # D's weights are linear in α: w_r = Q_r α_r + w* (regions 1.., rows (region, expression))
         m = model.m
         bases = model.all_bases
@@ -618,11 +651,13 @@ class FrameFitter:
         resid = np.where(bounds < 0, w, np.where(bounds > 0, w - 1.0, 0.0))
         g_w = (2 * c * resid).ravel()
         H_w = np.diag(2 * c * (bounds != 0).ravel().astype(float))
-        for r, k in np.argwhere(above):  # the pair (w_rk, w_hk): κ (w_rk − w_hk)²
-            i, j = r * m + k, (self._home[k] - 1) * m + k
-            g_w[i] += 2 * kappa * excess[r, k]
-            g_w[j] -= 2 * kappa * excess[r, k]
-            H_w[np.ix_([i, j], [i, j])] += 2 * kappa * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        r, k = np.nonzero(above)  # the pairs (w_rk, w_hk): κ (w_rk − w_hk)²
+        if len(r):
+            i, j, e = r * m + k, (self._home[k] - 1) * m + k, 2 * kappa * excess[r, k]
+            np.add.at(g_w, i, e)
+            np.add.at(g_w, j, -e)
+            for a_, b_, sign in ((i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)):
+                np.add.at(H_w, (a_, b_), sign * 2 * kappa)
         if len(self._shared_w):
             Dp, gp, Hp = self.shared_prior(w.ravel(), c)
             # in ε beside the image part, scaled like it (σ² with the robust error, :meth:`_robust`);
@@ -670,21 +705,28 @@ class FrameFitter:
             return self._jacobian_fd(frame, ev, params, filtered)
         return self._jacobian_analytic(ev, params, filtered)
 
-    def _pixel_jacobian(self, ev: _Eval, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _pixel_jacobian(
+        self, ev: _Eval, params: np.ndarray, image: np.ndarray | None = None, colors: list | None = None, at=None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Analytic derivatives of Î (RGB) at the covered pixels (Eq. 7, App. B): ``(J, rows)``,
         J (k, 3, N) float32 laid out parameter × channel × pixel (every product runs along the
         pixels), ``rows`` (N,) the pixels' flat indices in ``ev``'s crop box.
 
         Only the covered pixels: tried (measured on sequence a), extending the rows to the ring
         just outside the silhouette — where the Sobel gradient of Î (the frame outside the model)
-        sees the other half of the edge — made LM converge more slowly, not faster."""
+        sees the other half of the edge — made LM converge more slowly, not faster.
+
+        ``image`` (the crop of ``ev``'s box plus one pixel, as below) and ``colors`` (the
+        texture groups' colours at the covered pixels) replace the rendering's own — the
+        bandpassed ones for :meth:`_filtered_system`; ``at`` the interpolated geometry table of
+        an earlier call with the same ``params`` (:meth:`_alpha_table`)."""
         r = ev.render
         N = len(r.pixels)
         # image gradient (Sobel, scaled to a unit slope) at the covered pixels; the crop keeps
         # one pixel around the model so the 3×3 kernel sees the background as in the full image
         y0, y1, x0, x1 = r.box
         y0, x0, y1, x1 = max(y0 - 1, 0), max(x0 - 1, 0), min(y1 + 1, self.H), min(x1 + 1, self.W)
-        img = r.image[y0:y1, x0:x1]
+        img = r.image[y0:y1, x0:x1] if image is None else image
         py, px = np.divmod(r.pixels, self.W)
         li = (py - y0) * (x1 - x0) + (px - x0)
         gx = np.take(cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125).reshape(-1, 3), li, axis=0).T
@@ -713,11 +755,9 @@ class FrameFitter:
         if len(alpha):  # ∂m'/∂α = R Σ_k ∂W_k/∂α E_k, plus the blending term Σ_k ∂W_k/∂α Î_k (App. B.3)
             a = params[alpha] - 6
             A = len(a)
-            n = self._dX_dalpha32.shape[0]
-            dX = (self._dX_dalpha32[:, a].reshape(-1, 3) @ ev.state.R.T.astype(np.float32)).reshape(n, 3 * A)
-            table = np.concatenate([dX, self._membership32[:, self._alpha_region[a]]], axis=1)
-            at = np.ascontiguousarray(r.interpolate(table).T)  # (4A, N)
-            colors = [np.ascontiguousarray(c.T) for c in r.texture_colors]  # (3, N) each
+            if at is None:
+                at = self._alpha_table(ev, a)
+            colors = [np.ascontiguousarray(c.T) for c in (r.texture_colors if colors is None else colors)]  # (3, N)
             for i, j in enumerate(alpha):
                 Jj = J[j]
                 np.multiply(Gx, at[3 * i], out=Jj)
@@ -727,6 +767,125 @@ class FrameFitter:
                     if self._blend[a[i], g]:
                         Jj += c * (np.float32(self._blend[a[i], g]) * at[3 * A + i])
         return J, ev.local
+
+    def _alpha_table(self, ev: _Eval, a: np.ndarray) -> np.ndarray:
+        """(4A, N) float32 at ``ev``'s covered pixels: ``∂m'/∂α`` (3 rows per parameter of ``a``)
+        and the parameters' region memberships (the blending term's factor). Interpolated at the
+        pixels first and rotated there (fewer pixels than vertices)."""
+        A = len(a)
+        full = A == self.n_alpha and np.array_equal(a, np.arange(A))
+        dX = self._dX_dalpha32_flat if full else self._dX_dalpha32[:, a].reshape(len(self._dX_dalpha32), 3 * A)
+        at = ev.render.interpolate(dX)  # (N, 3A)
+        N = len(at)
+        rot = (at.reshape(N * A, 3) @ ev.state.R.T.astype(np.float32)).reshape(N, 3 * A)
+        mem = ev.render.interpolate(self._membership32[:, self._alpha_region[a]])
+        return np.ascontiguousarray(np.concatenate([rot, mem], axis=1).T)
+
+    def _filtered_system(self, ev: _Eval, params: np.ndarray) -> tuple:
+        """The bandpassed analytic system without filtering the Jacobian's columns (beyond the
+        paper; :attr:`TrackOptions.filtered_hessian` ``"image"``): ``(None, A, ("adjoint", ev))``.
+
+        The gradient stays exact (:meth:`_adjoint_gradient`, at whichever evaluation the step is
+        solved from). The Gauss–Newton matrix ``JᵀJ`` is approximated: the Jacobian is built from
+        the gradient of the *bandpassed* rendering and the bandpassed texture colours —
+        ``B(∇Î · v) ≈ ∇(BÎ) · v`` where the image motion ``v`` varies slowly over the filter's
+        reach — at every :data:`HESSIAN_STRIDE`-th covered pixel in each direction, the sum scaled
+        to all of them. LM's fixed point is the exact one (its gradient is); only the path there
+        uses the approximation. Measured in docs/tracking.md ("Per-frame budget")."""
+        r = ev.render
+        k = len(params)
+        y0, y1, x0, x1 = ev.box
+        h, w = y1 - y0, x1 - x0
+        sigmas = self.options.bandpass
+        py, px = np.divmod(r.pixels, self.W)
+        sel = np.flatnonzero((py % HESSIAN_STRIDE == 0) & (px % HESSIAN_STRIDE == 0))
+        if len(sel) < 4 * k:
+            sel = np.arange(len(py))
+        image = bandpass(r.image[y0:y1, x0:x1], sigmas)
+        colors = r.texture_colors
+        a = params[params >= 6] - 6
+        if len(a) and np.any(self._blend[a]):
+            groups = np.zeros((h * w, 3 * len(colors)), np.float32)
+            groups[ev.local] = np.concatenate(colors, axis=1)
+            flat = bandpass(groups.reshape(h, w, -1), sigmas).reshape(h * w, -1)[ev.local[sel]]
+            colors = [flat[:, 3 * g : 3 * g + 3] for g in range(len(colors))]
+        else:
+            colors = [c[sel] for c in colors]
+        sub = _PixelSubset(r, sel, colors)
+        # _pixel_jacobian takes the crop of the model's box plus one pixel: ev's box holds it
+        by0, by1, bx0, bx1 = r.box
+        cy0, cx0 = max(by0 - 1, 0) - y0, max(bx0 - 1, 0) - x0
+        cy1, cx1 = min(by1 + 1, self.H) - y0, min(bx1 + 1, self.W) - x0
+        view = _Eval(ev.state, sub, ev.weights, ev.diff, ev.eps, ev.box, ev.rms, ev.local[sel])
+        approx, _ = self._pixel_jacobian(view, params, image=image[cy0:cy1, cx0:cx1])
+        if ev.sw is not None:
+            approx *= ev.sw[ev.local[sel]]
+        Ja = approx.reshape(k, -1)
+        A = (Ja @ Ja.T).astype(float) * (len(py) / len(sel))
+        pose = np.flatnonzero(params < 6)
+        if len(pose):  # the pose block exact (6 columns filtered: cheap; the head's motion converges as before)
+            Jp = self._jacobian_analytic(ev, params[pose], True)
+            if ev.sw is not None:
+                Jp = Jp * np.repeat(ev.sw, 3)[:, None]
+            A[np.ix_(pose, pose)] = Jp.T @ Jp
+        return None, A, ("adjoint", ev)
+
+    def _adjoint_gradient(self, ev: _Eval, params: np.ndarray) -> np.ndarray:
+        """``Jᵀ s`` (k,) of the bandpassed analytic Jacobian at ``ev`` without forming ``J``: with
+        ``s = √w ⊙ r_B`` the weighted filtered residual, ``(√w ⊙ B J)ᵀ s = Jᵀ z``,
+        ``z = Bᵀ(√w ⊙ s)`` (``B`` symmetric: one 3-channel filtering), and ``J``'s columns are
+        per-pixel sums over the surface point's three vertices (Eq. 7), so ``Jᵀ z`` is summed per
+        vertex first (``np.bincount``) and then mapped through ``∂X/∂α`` — the same value as
+        the product with the full Jacobian, at a fraction of its cost."""
+        r = ev.render
+        y0, y1, x0, x1 = ev.box
+        h, w = y1 - y0, x1 - x0
+        s = ev.diff if ev.sw is None else ev.diff * ev.sw.reshape(h, w, 1)
+        z = np.take(bandpass(s, self.options.bandpass).reshape(-1, 3), ev.local, axis=0).T  # (3, N)
+        G, q = self._motion_gradients(ev)
+        sa = [np.einsum("cn,cn->n", Ga, z) for Ga in G]  # −∇Î·∂x/∂m'_axis against z, per pixel
+        g = np.zeros(len(params))
+        for j, p in enumerate(params):
+            if p < 3:
+                a_, b_ = (p + 1) % 3, (p + 2) % 3
+                g[j] = float(q[a_] @ sa[b_] - q[b_] @ sa[a_])
+            elif p < 6:
+                g[j] = float(sa[p - 3].sum())
+        alpha = np.flatnonzero(params >= 6)
+        if len(alpha):
+            a = params[alpha] - 6
+            n = self._dX_dalpha32.shape[0]
+            corners, bary = r.corners.ravel(), r.bary.astype(np.float32)
+            u = np.stack([np.bincount(corners, (bary * x[:, None]).ravel(), n) for x in sa], axis=1)
+            u = (u @ ev.state.R).astype(np.float32)  # ∂m'/∂α = R ∂X/∂α: Σ (R dX)·u = dX·(Rᵀu)
+            full = len(a) == self.n_alpha and np.array_equal(a, np.arange(len(a)))
+            ga = sum(u[:, d] @ (self._dX_by_axis[d] if full else self._dX_by_axis[d][:, a]) for d in range(3))
+            groups = np.flatnonzero(np.any(self._blend[a], axis=0))
+            for gi in groups:  # the blending term: Σ_g blend · membership · (Î_g · z)
+                t = np.einsum("nc,cn->n", r.texture_colors[gi], z)
+                ug = np.bincount(corners, (bary * t[:, None]).ravel(), n)
+                ga += self._blend[a, gi] * (ug @ self._membership32[:, self._alpha_region[a]])
+            g[alpha] = ga
+        return g
+
+    def _motion_gradients(self, ev: _Eval) -> tuple:
+        """``G`` (3 axes of (3 channels, N)): ``−∇Î · ∂x/∂m'`` at ``ev``'s covered pixels, and
+        ``q = R(m − c)`` (3 of (N,)) — the pieces of Eq. 7 (see :meth:`_pixel_jacobian`)."""
+        r = ev.render
+        y0, y1, x0, x1 = r.box
+        y0, x0, y1, x1 = max(y0 - 1, 0), max(x0 - 1, 0), min(y1 + 1, self.H), min(x1 + 1, self.W)
+        img = r.image[y0:y1, x0:x1]
+        py, px = np.divmod(r.pixels, self.W)
+        li = (py - y0) * (x1 - x0) + (px - x0)
+        gx = np.take(cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125).reshape(-1, 3), li, axis=0).T
+        gy = np.take(cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125).reshape(-1, 3), li, axis=0).T
+        X, Y, Z = np.asarray(r.X_cam, np.float32).T
+        iz = 1.0 / Z
+        fz = np.float32(-self.f) * iz
+        Gx, Gy = gx * fz, gy * fz
+        Gz = -(Gx * (X * iz) + Gy * (Y * iz))
+        t = ev.state.t.astype(np.float32)
+        return (Gx, Gy, Gz), (X - t[0], Y - t[1], Z - t[2])
 
     def _jacobian_analytic(self, ev: _Eval, params: np.ndarray, filtered: bool) -> np.ndarray:
         col, at_px = self._pixel_jacobian(ev, params)  # (k, 3, N + M)
@@ -773,9 +932,9 @@ class FrameFitter:
         frame = np.asarray(frame, np.float32)
         self._start_frame(weighted=True)
         ev = self._evaluate(frame, state, filtered)
-        Jt, JtJ, rows = self._system(frame, ev, 6 + np.arange(self.n_alpha), o.expression_jacobian, filtered)
-        r = self._residual(ev, rows)
-        return ExpressionSystem(JtJ, (Jt @ r).astype(float), len(ev.render.pixels))
+        params = 6 + np.arange(self.n_alpha)
+        system = self._system(frame, ev, params, o.expression_jacobian, filtered)
+        return ExpressionSystem(system[1], self._gradient(system, ev, params), len(ev.render.pixels))
 
     def refine(self, frame: np.ndarray, state: FrameState, phase: Phase) -> FrameState:
         """``state`` after one LM ``phase`` on ``frame`` (H, W, 3) float in [0, 1], started as a
@@ -831,6 +990,13 @@ class FrameFitter:
         (float64) and how the residual is laid out along P — ``ev`` itself for the unfiltered
         analytic Jacobian (rows at ``ev``'s covered pixels, channel-major: it vanishes elsewhere),
         else the crop box (y0, y1, x0, x1) whose pixels × channels the rows cover."""
+        if (
+            method == "analytic"
+            and filtered
+            and self.options.filtered_hessian == "image"
+            and len(params) > APPROX_COLUMNS
+        ):
+            return self._filtered_system(ev, params)
         if method == "analytic" and not filtered:
             col, at_px = self._pixel_jacobian(ev, params)
             if ev.sw is not None:  # the rows of ε's weighted residual
@@ -843,8 +1009,7 @@ class FrameFitter:
             rows = ev.box
         return Jt, (Jt @ Jt.T).astype(float), rows
 
-    @staticmethod
-    def _residual(ev: _Eval, rows) -> np.ndarray | None:
+    def _residual(self, ev: _Eval, rows) -> np.ndarray | None:
         """The residual ``I_t − Î`` of ``ev`` laid out as a Jacobian's rows (see :meth:`_system`);
         None when it cannot be: covered-pixel rows of another evaluation, or a box that does not
         hold all of ``ev``'s residual (the model moved out of it)."""
@@ -860,14 +1025,22 @@ class FrameFitter:
         r[b0 - y0 : b1 - y0, c0 - x0 : c1 - x0] = ev.diff
         return r.reshape(-1)
 
+    def _gradient(self, system: tuple, ev: _Eval, params: np.ndarray) -> np.ndarray | None:
+        """``Jᵀ(I_t − Î)`` (k,) of ``system``'s Jacobian at ``ev`` (None when ``ev``'s residual does
+        not fit its rows; see :meth:`_residual`); exact at ``ev`` for :meth:`_filtered_system`."""
+        Jt, _, rows = system
+        if rows[0] == "adjoint":
+            return self._adjoint_gradient(ev, params)
+        r = self._residual(ev, rows)
+        return None if r is None else (Jt @ r).astype(float)
+
     def _normal_equations(self, system: tuple, ev: _Eval, params: np.ndarray):
         """``(A, g)`` of Eq. (6) at ``ev`` with ``system``'s Jacobian: ``JᵀJ + H_D`` and
         ``Jᵀ(I_t − Î) − ∇D``; ``(None, None)`` when ``ev``'s residual does not fit its rows."""
-        Jt, A, rows = system
-        r = self._residual(ev, rows)
-        if r is None:
+        A = system[1]
+        g = self._gradient(system, ev, params)
+        if g is None:
             return None, None
-        g = (Jt @ r).astype(float)
         expr = params >= 6
         if np.any(expr):  # the penalty D is part of ε
             sel, ia = np.flatnonzero(expr), params[expr] - 6
