@@ -168,6 +168,11 @@ class TrackOptions:
     #: the same for the pose phase, which only has to bring the expression phase close.
     pose_tolerance_mm: float = 1.0
     decrease_tolerance: float = 1e-3
+    #: a tracked frame's phase (not one fitted in several rounds) also ends after an accepted step
+    #: that lowered ε by less than this fraction (beyond the paper): with the rig's 51 shapes, real
+    #: footage left steps of 0.3–1 mm that each lowered ε by 0.1–0.5 % — shapes the image barely
+    #: tells apart, creeping to the iteration cap (see docs/tracking.md, "Per-frame budget").
+    min_gain: float = 0.0
     #: weight in ε of the pixels where the model is not face — outside the generic mesh's face
     #: mask and the control regions (hair, ears, neck, the back of the head), with a smooth
     #: transition — and of the silhouette's surroundings
@@ -1088,6 +1093,7 @@ class FrameFitter:
             for _ in range(1 + o.max_rejections):
                 trial = self._evaluate(frame, self._step(ev.state, params, delta), filtered)
                 if trial.eps < ev.eps and len(trial.render.pixels) >= MIN_PIXELS:
+                    gain = (ev.eps - trial.eps) / max(ev.eps, 1e-30)
                     ev, lam, improved = trial, max(lam / 10.0, 1e-7), True
                     history.append(ev.eps)
                     break
@@ -1095,7 +1101,7 @@ class FrameFitter:
                 if size < 5 * o.step_tolerance_mm:
                     break
                 delta, size = self._lm_step(A, g, lam, ev, params)
-            if not improved or size < tol:
+            if not improved or size < tol or (reuse and gain < o.min_gain):
                 break
         return ev
 
