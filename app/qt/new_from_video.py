@@ -315,10 +315,10 @@ class AutoChainRunner(QObject):
         clip, folder, project, _ = self._close()
         self.result = result
         if self.window.open_project(project, ask_to_save=False):
-            g = result.glb_info
+            moving = result.glb_info.get("arkit_channels_moving", 0)
             self.window.show_status(
                 f"{clip.name}: {result.frames} frames tracked in ARKit terms in {result.total_s:.0f} s; "
-                f"{result.glb.name} ({g.get('arkit_channels_moving', 0)} ARKit channels moving) and "
+                f"{result.glb.name} ({moving} ARKit channel{'' if moving == 1 else 's'} moving) and "
                 f"{result.csv.name} in {folder}",
                 0,
             )
