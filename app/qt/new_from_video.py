@@ -71,7 +71,7 @@ def stage_label(stage: str, detail: str = "") -> str:
     """The progress dialog's text for ``stage`` (a name of :data:`STAGES`) and its step ``detail``:
     ``"2 of 6 · fit — cameras and mesh\\nneutral: solving cameras"``."""
     names = [name for name, _ in STAGES]
-    head = f"{names.index(stage) + 1} of {len(names)} · {stage} — {STAGE_TITLES[stage]}"
+    head = f"{names.index(stage) + 1} of {len(names)} · {stage} — {STAGE_TITLES.get(stage, stage)}"
     return head + (f"\n{detail}" if detail else "")
 
 
