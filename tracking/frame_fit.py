@@ -172,7 +172,7 @@ class TrackOptions:
     #: that lowered ε by less than this fraction (beyond the paper): with the rig's 51 shapes, real
     #: footage left steps of 0.3–1 mm that each lowered ε by 0.1–0.5 % — shapes the image barely
     #: tells apart, creeping to the iteration cap (see docs/tracking.md, "Per-frame budget").
-    min_gain: float = 0.0
+    min_gain: float = 0.005
     #: weight in ε of the pixels where the model is not face — outside the generic mesh's face
     #: mask and the control regions (hair, ears, neck, the back of the head), with a smooth
     #: transition — and of the silhouette's surroundings
