@@ -54,7 +54,7 @@ from threadpoolctl import threadpool_limits
 from photomodel.errors import FaceStudioError
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.project import load_project
-from tracking.face_from_project import project_face_model
+from tracking.arkit_face import tracking_face_model
 from tracking.run import SAVE_EVERY, track_video
 from tracking.track_result import load_track_results
 
@@ -283,13 +283,15 @@ _MODELS: dict = {}
 
 
 def _worker_model(project_path: Path, expressions: tuple | None):
-    """The face model of the project (:func:`tracking.face_from_project.project_face_model`), built
-    once per worker process for a project file as it is now, and its source sentence."""
+    """The face model ``track`` would use (:func:`tracking.arkit_face.tracking_face_model`: the rig's
+    ARKit shapes when the project has a rig, else the photographed expressions), built once per
+    worker process for a project file as it is now, and its source sentence."""
     key = (str(project_path), project_path.stat().st_mtime_ns, expressions)
     if key not in _MODELS:
         _MODELS.clear()
         names = None if expressions is None else list(expressions)
-        _MODELS[key] = project_face_model(load_project(project_path), names)
+        model, source, _basis = tracking_face_model(load_project(project_path), None, names)
+        _MODELS[key] = (model, source)
     return _MODELS[key]
 
 
