@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from app.studio import fitting, project_file, rig, texturing
+from app.studio.cloning import CloneJob
 from app.studio.edits import ProjectEdits
 from app.studio.events import Signal
 from app.studio.fitting import FitState, Fitting
@@ -461,6 +462,21 @@ class StudioModel(ProjectEdits):
         a worker; ``settings`` are :func:`tracking.run.track_video`'s (``correct_frame``,
         ``correct_pose`` …). :class:`ProjectError` when the project has no file yet."""
         return TrackJob.prepare(self.project.path, video, out_dir, max_frames, **settings)
+
+    # ------------------------------------------------------------------ other people (app.studio.cloning)
+    def clone_job(self, project_a: str | os.PathLike, track: str | os.PathLike, method: str, out_dir=None) -> CloneJob:
+        """A :class:`app.studio.cloning.CloneJob` putting ``track`` (results of project file ``project_a``)
+        on this project's saved face by ``method``, to run in a worker; :class:`ProjectError` when the
+        project has no file yet or A or its track is not one."""
+        return CloneJob.prepare(self.project.path, project_a, track, method, out_dir)
+
+    def add_person(self, path: str | os.PathLike) -> str | None:
+        """Refer to another project file in the project's ``people`` (format version 6; the project is
+        then modified); returns the entry, None when it was there already."""
+        entry = self.project.add_person(path)
+        if entry is not None:
+            self._touch()
+        return entry
 
     # ------------------------------------------------------------------ the file (app.studio.project_file)
     def new(self, name: str = "untitled") -> None:
