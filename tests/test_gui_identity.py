@@ -77,7 +77,7 @@ def test_identity_sliders_make_a_new_face_that_saves_as_a_project(
     window.rig_dock.raise_()
     assert not panel.sliders and window.model.identity_vertices() is None  # off until ticked
     panel.setChecked(True)  # the group's check box
-    assert len(panel.sliders) == 8 and not errors
+    assert 3 <= len(panel.sliders) == window.model.identity.modes <= 8 and not errors
 
     # all sliders at 0: the mean face, i.e. the mean of the model's people's neutrals (linear in identity)
     mean_face = np.mean([_neutral(model, w) for w in model.identity_rows], axis=0)
@@ -88,10 +88,15 @@ def test_identity_sliders_make_a_new_face_that_saves_as_a_project(
     # mode 1 to +1.5σ, mode 3 to −1σ (by the sliders): the model's face at those identity weights
     panel.sliders[0].setValue(IDENTITY_STEPS // 2)
     panel.sliders[2].setValue(-IDENTITY_STEPS // 3)
-    w = model.identity_rows.mean(axis=0)
-    sigma = model.identity_rows.std(axis=0)
-    w[0] += 0.5 * SIGMA_RANGE * sigma[0]
-    w[2] -= SIGMA_RANGE / 3 * sigma[2]
+    face = window.model.identity
+    B, sigma = face.directions, face.sigma
+    # the sliders: columns of the identity mode, the people's spread along each, the face's change largest first
+    np.testing.assert_allclose(B @ B.T, np.eye(len(B)), atol=1e-9)
+    spread = ((model.identity_rows - model.identity_rows.mean(axis=0)) @ B.T).std(axis=0)
+    np.testing.assert_allclose(spread, sigma, rtol=1e-9)
+    change = [np.linalg.norm(np.einsum("abc,b->ac", model.core, s * b)) for s, b in zip(sigma, B, strict=True)]
+    assert np.all(np.diff(change) <= 1e-9) and change[-1] > 1e-3 * change[0]
+    w = model.identity_rows.mean(axis=0) + 0.5 * SIGMA_RANGE * sigma[0] * B[0] - SIGMA_RANGE / 3 * sigma[2] * B[2]
     expected = _neutral(model, w)
     shown, caption = window.view3d.vertices()
     np.testing.assert_allclose(shown, expected, atol=1e-6)
