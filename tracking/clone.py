@@ -128,7 +128,14 @@ def map_faces(
 
 
 def weights_of_faces(model: FaceModel, faces: np.ndarray) -> np.ndarray:
-    """(f, R, m): step 3, region weights of ``model`` (B's) closest to ``faces`` (f, n, 3) over its face."""
+    """(f, R, m): step 3, region weights of ``model`` (B's) closest to ``faces`` (f, n, 3) over its face;
+    :class:`FaceStudioError` when ``model`` has no expression besides its neutral (nothing to say them in)."""
+    if model.m < 2:
+        raise FaceStudioError(
+            f"the face taking the performance has only the expression {model.names[0]!r}: its tracking results are "
+            "said in its fitted and textured expressions, so it needs at least one more (a face with only a rig "
+            "takes a performance through its rig's weights instead)"
+        )
     _names, targets = region_targets(model)
     mask = model.face_mask
     A = targets[:, mask].reshape(len(targets), -1).T
