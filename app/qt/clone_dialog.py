@@ -36,7 +36,7 @@ from PySide6.QtWidgets import (
 from app.qt.progress import close_progress, open_progress, update_progress
 from app.qt.texture_views import to_qimage
 from app.qt.workers import JobController
-from app.studio.cloning import track_results_of
+from app.studio.cloning import CloneJob, track_results_of
 from photomodel.errors import FaceStudioError
 from tracking.clone import METHODS
 
@@ -78,6 +78,7 @@ class CloneDialog(QDialog):
         self.model = window.model
         self.setWindowTitle("Clone from another project")
         self.result = None
+        self.job: CloneJob | None = None
         self.image: np.ndarray | None = None
         self.last_message = ""
         self._pixmap: QPixmap | None = None

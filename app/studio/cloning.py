@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from photomodel.errors import ProjectError
+from photomodel.errors import FaceStudioError, ProjectError
 from photomodel.project import FILE_SUFFIX
 from tracking.clone import METHODS, CloneResult, clone_track, default_clone_dir
 from tracking.track_result import load_track_results
@@ -31,7 +31,7 @@ def track_results_of(project_path: str | os.PathLike) -> list[Path]:
     for folder in sorted(p for p in results.iterdir() if p.is_dir()):
         try:
             doc = load_track_results(folder)
-        except Exception:  # an unreadable track.json is not offered (opening it names the problem)
+        except FaceStudioError:  # an unreadable track.json is not offered (opening it names the problem)
             continue
         if doc is not None and doc["frames"]:
             found.append(folder)
