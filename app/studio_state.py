@@ -37,9 +37,11 @@ from pathlib import Path
 import numpy as np
 
 from app.studio import fitting, project_file, rig, texturing
+from app.studio.cloning import CloneJob
 from app.studio.edits import ProjectEdits
 from app.studio.events import Signal
 from app.studio.fitting import FitState, Fitting
+from app.studio.identity import IdentityFace, load_identity_model, save_new_face
 from app.studio.project_file import (
     AUTOSAVE_SUFFIX,
     DEFAULT_EXPRESSION,
@@ -97,6 +99,8 @@ class StudioModel(ProjectEdits):
     rig_changed () — the rig shown (:meth:`rig`) may have changed: another project, a new fit of
         an expression, or a rig built (:meth:`set_rig`); its weights are back to 0.
     rig_weights_changed () — a rig weight moved (:meth:`set_rig_weight`, :meth:`reset_rig_weights`).
+    identity_changed () — the people model loaded, an identity slider moved, the new face shown or hidden
+    (:meth:`load_identity`, :meth:`set_identity_value`, :meth:`show_identity`).
 
     The undo history is :attr:`undo_stack` (:class:`app.studio.undo.UndoStack`, with its own
     ``index_changed`` and ``changed`` events): emptied when the project is replaced (new, open,
@@ -120,11 +124,14 @@ class StudioModel(ProjectEdits):
         self.path_changed = Signal()
         self.rig_changed = Signal()
         self.rig_weights_changed = Signal()
+        self.identity_changed = Signal()
         self.undo_stack = UndoStack()  # the edits of the project, as commands (app.studio.commands)
 
         self._rig: RigState | None = None
         self._rig_read = False
         self.rig_problem: str | None = None  # why the project's rig is not shown
+        self.identity: IdentityFace | None = None  # the people model's identity sliders, once loaded
+        self.identity_shown = False  # the new face shown in the 3D view
         self.fit_changed.connect(self._drop_rig)  # a new neutral or expression: read the rig again
         self._mesh_loader = mesh_loader
         self._mesh = None
@@ -454,6 +461,51 @@ class StudioModel(ProjectEdits):
         self._rig, self._rig_read, self.rig_problem = None, False, None
         self.rig_changed.emit()
 
+    # ------------------------------------------------------------------ new faces (app.studio.identity)
+    def load_identity(self, path: str | os.PathLike | None = None) -> IdentityFace:
+        """The people model's identity sliders (:class:`app.studio.identity.IdentityFace`), the model read
+        from ``path`` (default: its file) once; :class:`FaceStudioError` saying how to build a missing one."""
+        if self.identity is None:
+            self.identity = IdentityFace(load_identity_model(path))
+            self.identity_changed.emit()
+        return self.identity
+
+    def identity_vertices(self) -> np.ndarray | None:
+        """The new face's neutral (n, 3) mm while it is shown (:attr:`identity_shown`), else None."""
+        if self.identity is None or not self.identity_shown:
+            return None
+        return self.identity.neutral()
+
+    def show_identity(self, shown: bool) -> None:
+        """Show the new face in the 3D view (instead of the fit or the posed rig) or not."""
+        if bool(shown) != self.identity_shown:
+            self.identity_shown = bool(shown)
+            self.identity_changed.emit()
+
+    def set_identity_value(self, mode: int, value: float) -> None:
+        """Set identity slider ``mode`` (standard deviations); the face is then shown. The project is not changed."""
+        face = self.identity
+        if face is None:
+            raise FaceStudioError("the people model is not loaded")
+        changed = face.set_value(mode, value)
+        if changed or not self.identity_shown:
+            self.identity_shown = True
+            self.identity_changed.emit()
+
+    def reset_identity(self) -> None:
+        """Every identity slider back to 0: the mean face."""
+        if self.identity is not None and self.identity.reset():
+            self.identity_changed.emit()
+
+    def save_identity(self, target: str | os.PathLike) -> Path:
+        """Write the new face as a project at ``target`` (:func:`app.studio.identity.save_new_face`: its
+        neutral fitted, the model's 51 shapes as its rig, this project's texture borrowed) and return
+        the file; this project is not changed."""
+        if self.identity is None:
+            raise FaceStudioError("the people model is not loaded")
+        source = self.project if self.project.path is not None else None
+        return save_new_face(self.identity, target, self.mesh, texture_from=source)
+
     # ------------------------------------------------------------------ tracking (app.studio.tracking)
     def track_job(self, video: str | os.PathLike, out_dir=None, max_frames: int | None = None, **settings) -> TrackJob:
         """A :class:`app.studio.tracking.TrackJob` tracking ``video`` with the saved project file
@@ -461,6 +513,21 @@ class StudioModel(ProjectEdits):
         a worker; ``settings`` are :func:`tracking.run.track_video`'s (``correct_frame``,
         ``correct_pose`` …). :class:`ProjectError` when the project has no file yet."""
         return TrackJob.prepare(self.project.path, video, out_dir, max_frames, **settings)
+
+    # ------------------------------------------------------------------ other people (app.studio.cloning)
+    def clone_job(self, project_a: str | os.PathLike, track: str | os.PathLike, method: str, out_dir=None) -> CloneJob:
+        """A :class:`app.studio.cloning.CloneJob` putting ``track`` (results of project file ``project_a``)
+        on this project's saved face by ``method``, to run in a worker; :class:`ProjectError` when the
+        project has no file yet or A or its track is not one."""
+        return CloneJob.prepare(self.project.path, project_a, track, method, out_dir)
+
+    def add_person(self, path: str | os.PathLike) -> str | None:
+        """Refer to another project file in the project's ``people`` (format version 6; the project is
+        then modified); returns the entry, None when it was there already."""
+        entry = self.project.add_person(path)
+        if entry is not None:
+            self._touch()
+        return entry
 
     # ------------------------------------------------------------------ the file (app.studio.project_file)
     def new(self, name: str = "untitled") -> None:

@@ -23,7 +23,7 @@ import app.cli.new
 from photomodel.errors import NoFaceFound, PhotoError
 from photomodel.photos.exif import EXIF_IFD, TAG_FOCAL_LENGTH, TAG_FOCAL_LENGTH_35MM
 from photomodel.photos.intake import add_photos, new_project_from_photos
-from photomodel.project import Feature, load_project, save_project
+from photomodel.project import FORMAT_VERSION, Feature, load_project, save_project
 from photomodel.project.datamodel import Expression, ExpressionResult
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json"
@@ -108,7 +108,7 @@ def test_new_project_from_a_folder_with_automatic_clicks(tmp_path, folder, monke
 
     p = load_project(target)
     text = json.loads(target.read_text())
-    assert text["version"] == 5 and p.name == "me"
+    assert text["version"] == FORMAT_VERSION and p.name == "me"
     e = p.expression("neutral")
     first, none = e.photo("IMG_0001"), e.photo("IMG_0003")
     assert first.path == "photos/IMG_0001.jpg" and (first.width, first.height) == (160, 120)

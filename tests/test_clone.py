@@ -1,6 +1,7 @@
 """facestudio clone (tracking.clone): a performance cloned onto the same face comes back unchanged."""
 
 import json
+import shutil
 
 import numpy as np
 
@@ -97,3 +98,21 @@ def test_clone_onto_the_same_face_by_displacement_gives_the_weights_back(fitted_
     glb = tmp_path / "cloned.glb"
     assert facestudio(["export", str(fitted_project_copy), "--glb", str(glb), "--track", str(out)]) == 0
     assert glb.stat().st_size > 0
+
+
+def test_clone_records_the_other_person_in_the_project(fitted_project_copy, tmp_path):
+    """B's project file refers to A afterwards (format version 6, ``people``), once however often it clones."""
+    a = tmp_path / "alice" / "alice.facestudio.json"
+    shutil.copytree(fitted_project_copy.parent, a.parent)
+    (a.parent / fitted_project_copy.name).rename(a)
+    model, _ = face_model_from_project(load_project(a))
+    W = np.zeros((2, len(CONTROL_REGIONS), model.m))
+    W[:, :, 0] = 1.0
+    src = a.parent / "results" / "track_a"
+    src.mkdir(parents=True)
+    save_results(src, _track_doc(a, model, W, VideoFrames(a.parent / "video" / "james_track.mp4")), True)
+    argv = ["clone", "--from", str(a), "--track", str(src), "--to", str(fitted_project_copy), "--no-video"]
+    for _ in range(2):
+        assert facestudio([*argv, "--method", "displacement"]) == 0
+    assert load_project(fitted_project_copy).people == ["../alice/alice.facestudio.json"]
+    assert load_track_results(fitted_project_copy.parent / "results" / "track_a_from_alice")["frames"]

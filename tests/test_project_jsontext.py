@@ -18,7 +18,7 @@ def saved(tmp_path):
 def test_file_is_readable_json(saved):
     path, d = saved
     text = path.read_text()
-    assert text.startswith('{\n  "format": "facestudio-project",\n  "version": 5,')
+    assert text.startswith('{\n  "format": "facestudio-project",\n  "version": 6,')
     assert '"nose_tip": [31.5, 20.25]' in text  # a click on one line
     assert '{"name": "nose_tip", "vertex": 10, "pose": true}' in text
     assert "NaN" not in text and "Infinity" not in text

@@ -25,7 +25,7 @@ from project_samples import (
 
 from photomodel.camera import PRESET_AZIMUTH_DEG, orbit_camera
 from photomodel.errors import ProjectError
-from photomodel.project import load_project, project_schema, save_project
+from photomodel.project import FORMAT_VERSION, load_person, load_project, project_schema, save_project
 from photomodel.project.codec import project_to_dict
 from photomodel.project.validate import _validator
 
@@ -191,10 +191,10 @@ CASES = [
     ("wrong format", lambda d: d.__setitem__("format", "blender"), ["not a Face Studio project file", '"blender"']),
     (
         "newer version",
-        lambda d: d.__setitem__("version", 6),
+        lambda d: d.__setitem__("version", 7),
         [
-            "james.facestudio.json: written by a newer Face Studio (project format version 6; "
-            "this version reads up to 5)"
+            "james.facestudio.json: written by a newer Face Studio (project format version 7; "
+            "this version reads up to 6)"
         ],
     ),
     ("version zero", lambda d: d.__setitem__("version", 0), ["unknown project format version 0"]),
@@ -395,7 +395,7 @@ def test_invalid_cameras_from_is_not_saved(tmp_path):
 # format version 2: version 1 read, photo camera_group
 # ---------------------------------------------------------------------------------------
 def test_version_1_file_loads_and_is_saved_as_the_current_version(tmp_path, saved):
-    """Version 1 needs no upgrade (it has no camera groups); saving writes version 5."""
+    """Version 1 needs no upgrade (it has no camera groups); saving writes the current version."""
     _, d = saved
     d["version"] = 1
     p = load_dict(tmp_path, d)
@@ -403,7 +403,7 @@ def test_version_1_file_loads_and_is_saved_as_the_current_version(tmp_path, save
     assert all(ph.camera_group is None for e in p.expressions for ph in e.photos)
     assert p.camera_groups("neutral") == [0, 1]  # each photo a camera of its own
     again = json.loads(save_project(p, tmp_path / "v3.facestudio.json").read_text())
-    assert again["version"] == 5 and again["expressions"] == d["expressions"]
+    assert again["version"] == FORMAT_VERSION and again["expressions"] == d["expressions"]
     # the committed sample project is a version-1 file and still loads
     sample = load_project(Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "james.facestudio.json")
     assert sample.camera_groups("neutral") == [0, 1, 2, 3, 4]
@@ -447,7 +447,7 @@ def test_version_3_round_trip_of_automatic_clicks(tmp_path):
     path = save_project(p)
     d = json.loads(path.read_text())
     pd = photo_dict(d, 0, 0)
-    assert d["version"] == 5
+    assert d["version"] == FORMAT_VERSION
     # the clicks stay plain [u, v]; their origin sits beside them, in feature order
     assert pd["points"]["eye_l"] == [41.25, 12.5]
     assert list(pd["click_sources"]) == ["eye_l", "jaw_00"]
@@ -471,7 +471,7 @@ def test_version_5_round_trip_of_automatic_curves(tmp_path):
     path = save_project(p)
     d = json.loads(path.read_text())
     pd = photo_dict(d, 0, 0)
-    assert d["version"] == 5
+    assert d["version"] == FORMAT_VERSION
     assert pd["curves"]["lip_top"] == [[10.0, 40.0], [20.0, 36.5], [30.0, 40.0]]  # still a plain polyline
     assert pd["curve_sources"] == {"lip_top": "auto"}
     assert "curve_sources" not in photo_dict(d, 0, 1)  # no automatic curve: no key
@@ -501,7 +501,7 @@ def test_version_4_file_loads_and_its_curves_are_the_users(tmp_path, saved):
     path.write_text(json.dumps(d))
     p = load_project(path)
     assert all(not ph.auto_curves() for e in p.expressions for ph in e.photos)
-    assert json.loads(save_project(p).read_text())["version"] == 5
+    assert json.loads(save_project(p).read_text())["version"] == FORMAT_VERSION
 
 
 def test_version_2_file_loads_unchanged_and_its_clicks_are_the_users(tmp_path, saved):
@@ -512,7 +512,7 @@ def test_version_2_file_loads_unchanged_and_its_clicks_are_the_users(tmp_path, s
     assert all(ph.sources == {} and ph.confidence == {} for e in p.expressions for ph in e.photos)
     assert p.expression("neutral").photo("front").click_source("nose_tip") == "user"
     again = json.loads(save_project(p, tmp_path / "v3.facestudio.json").read_text())
-    assert again["version"] == 5 and again["expressions"] == d["expressions"]
+    assert again["version"] == FORMAT_VERSION and again["expressions"] == d["expressions"]
 
 
 @pytest.mark.parametrize(
@@ -543,3 +543,70 @@ def test_a_deleted_click_leaves_no_source_behind(tmp_path):
     d = json.loads(save_project(p).read_text())
     assert "click_sources" not in photo_dict(d, 0, 0)
     assert load_project(p.path) == p
+
+
+# ---------------------------------------------------------------------------------------
+# format version 6: people (other people's projects referred to), rig source "multilinear"
+# ---------------------------------------------------------------------------------------
+def test_version_5_file_loads_and_refers_to_nobody(tmp_path, saved):
+    path, d = saved
+    d["version"] = 5
+    path.write_text(json.dumps(d))
+    p = load_project(path)
+    assert p.people == [] and p == sample_project()
+    again = json.loads(save_project(p).read_text())
+    assert again["version"] == 6 and "people" not in again  # nobody referred to: no key
+
+
+def test_version_6_round_trip_keeps_the_people_relative_to_the_project(tmp_path):
+    for sub in ("bob", "alice", "elsewhere/deep"):
+        (tmp_path / sub).mkdir(parents=True)
+    b = sample_project(tmp_path / "bob")
+    alice = save_project(sample_project(tmp_path / "alice"), tmp_path / "alice" / "alice.facestudio.json")
+    assert b.add_person(alice) == "../alice/alice.facestudio.json"
+    assert b.add_person(tmp_path / "bob" / ".." / "alice" / "alice.facestudio.json") is None  # already there
+    assert b.add_person(b.path) is None  # not oneself
+    path = save_project(b)
+    d = json.loads(path.read_text())
+    assert d["version"] == 6 and d["people"] == ["../alice/alice.facestudio.json"]
+    back = load_project(path)
+    assert back.people == ["../alice/alice.facestudio.json"] and back == b
+    assert back.person_path(back.people[0]) == alice
+    assert load_person(back, back.people[0]).name == sample_project().name
+    back.check_people()  # all there: no error
+    # saved elsewhere ("save as"): the entry still reaches alice
+    moved = save_project(back, tmp_path / "elsewhere" / "deep" / "bob.facestudio.json")
+    assert json.loads(moved.read_text())["people"] == ["../../alice/alice.facestudio.json"]
+
+
+def test_a_missing_person_is_named_with_its_path_and_nothing_is_lost(tmp_path):
+    (tmp_path / "bob").mkdir()
+    b = sample_project(tmp_path / "bob")
+    b.add_person(tmp_path / "carol" / "carol.facestudio.json")  # never written
+    path = save_project(b)
+    back = load_project(path)  # the project itself opens
+    with pytest.raises(ProjectError) as ei:
+        load_person(back, "../carol/carol.facestudio.json")
+    msg = str(ei.value)
+    assert "people[0]: the referenced project ../carol/carol.facestudio.json does not exist" in msg, msg
+    assert str(tmp_path / "carol" / "carol.facestudio.json") in msg, msg
+    with pytest.raises(ProjectError, match=r"people\[0\]: the referenced project ../carol/carol.facestudio.json"):
+        back.check_people()
+    assert json.loads(save_project(back).read_text())["people"] == ["../carol/carol.facestudio.json"]
+
+
+@pytest.mark.parametrize(
+    "value, expected",
+    [
+        (["a.json"], "people[0]: expected the path of a project file (*.facestudio.json)"),
+        ([""], "people[0]: expected a file path relative to the project folder"),
+        (["a.facestudio.json", "a.facestudio.json"], "people: expected a list of distinct paths"),
+        ("a.facestudio.json", "people: expected a list of distinct paths"),
+    ],
+)
+def test_malformed_people_names_the_field(tmp_path, saved, value, expected):
+    _, d = saved
+    d["people"] = value
+    with pytest.raises(ProjectError) as ei:
+        load_dict(tmp_path, d)
+    assert expected in str(ei.value), str(ei.value)

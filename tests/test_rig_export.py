@@ -18,7 +18,7 @@ from photomodel.exchange.gltf_animation import (
 )
 from photomodel.exchange.livelink import BLENDSHAPE_COLUMNS, read_livelink_csv, write_livelink_csv
 from photomodel.exchange.validator import validate_glb
-from photomodel.project import load_project, load_rig_shapes, save_project, store_rig
+from photomodel.project import FORMAT_VERSION, load_project, load_rig_shapes, save_project, store_rig
 from photomodel.rig.ict import ARKIT_SHAPES, RIG_SHAPES
 
 
@@ -156,7 +156,7 @@ def test_project_v4_stores_the_rig_and_older_projects_open(tmp_path, project_cop
     store_rig(p, neutral="neutral", names=names, deltas=D, report={"landmark_rms_mm": 0.84})
     path = save_project(p)
     d = json.loads(path.read_text())
-    assert d["version"] == 5 and d["rig"]["file"] == "results/rig.npz" and d["rig"]["shapes"] == names
+    assert d["version"] == FORMAT_VERSION and d["rig"]["file"] == "results/rig.npz" and d["rig"]["shapes"] == names
     again = load_project(path)
     got_names, got = load_rig_shapes(again)
     assert got_names == names and np.allclose(got, D.astype(np.float32))

@@ -28,20 +28,38 @@ and the studio's tracking view take it as they take B's own tracking. Four steps
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
 from photomodel.camera import Camera
-from photomodel.errors import FaceStudioError
+from photomodel.errors import Cancelled, FaceStudioError
 from photomodel.people.mapping import ExpressionMapping, align_similarity, displacement_copy, expression_space
+from photomodel.people.model_file import MODEL_PEOPLE, model_path
+from photomodel.people.multilinear import MultilinearModel
 from photomodel.photos.video import VideoFrames
+from photomodel.project import load_project, load_rig_shapes
 from photomodel.rendering.renderer import get_renderer
+from tracking.arkit_face import model_for_results
 from tracking.blendshape_face import CONTROL_REGIONS, FaceModel, render_model
+from tracking.face_from_project import face_model_from_project
 from tracking.performance import region_targets
+from tracking.track_result import load_track_results, save_results
 
-__all__ = ["METHODS", "performance_faces", "map_faces", "weights_of_faces", "cloned_results", "side_by_side_frames"]
+__all__ = [
+    "METHODS",
+    "performance_faces",
+    "map_faces",
+    "weights_of_faces",
+    "cloned_results",
+    "side_by_side_frames",
+    "CloneResult",
+    "default_clone_dir",
+    "clone_track",
+]
 
 METHODS = ("multilinear", "mapping", "displacement", "names")
 
@@ -110,7 +128,14 @@ def map_faces(
 
 
 def weights_of_faces(model: FaceModel, faces: np.ndarray) -> np.ndarray:
-    """(f, R, m): step 3, region weights of ``model`` (B's) closest to ``faces`` (f, n, 3) over its face."""
+    """(f, R, m): step 3, region weights of ``model`` (B's) closest to ``faces`` (f, n, 3) over its face;
+    :class:`FaceStudioError` when ``model`` has no expression besides its neutral (nothing to say them in)."""
+    if model.m < 2:
+        raise FaceStudioError(
+            f"the face taking the performance has only the expression {model.names[0]!r}: its tracking results are "
+            "said in its fitted and textured expressions, so it needs at least one more (a face with only a rig "
+            "takes a performance through its rig's weights instead)"
+        )
     _names, targets = region_targets(model)
     mask = model.face_mask
     A = targets[:, mask].reshape(len(targets), -1).T
@@ -171,3 +196,100 @@ def side_by_side_frames(doc_b: dict, model_b: FaceModel, weights: np.ndarray):
         )
         image = render_model(renderer, camera, model_b, model_b.blend_geometry(vw), vw).image
         yield np.concatenate([frame, image], axis=1)
+
+
+#: Frames mapped per step of :func:`clone_track` (between progress reports and cancel checks).
+CLONE_CHUNK = 25
+
+
+@dataclass
+class CloneResult:
+    """What :func:`clone_track` wrote: B's results folder ``out_dir`` (``track.json`` + ``track.csv``),
+    its document ``doc``, B's region ``weights`` (f, R, m) and B's face model ``model_b``."""
+
+    out_dir: Path
+    doc: dict
+    weights: np.ndarray
+    model_b: FaceModel
+
+    @property
+    def frames(self) -> int:
+        return len(self.doc["frames"])
+
+
+def default_clone_dir(project_a: str | Path, track: str | Path, project_b: str | Path) -> Path:
+    """B's results folder of a clone: ``<B's folder>/results/<A's track folder>_from_<A's name>`` (absolute)."""
+    a_stem = Path(project_a).name.split(".")[0]
+    return Path(project_b).absolute().parent / "results" / f"{Path(track).name}_from_{a_stem}"
+
+
+def clone_track(
+    project_a: str | Path,
+    track: str | Path,
+    project_b: str | Path,
+    method: str,
+    out_dir: str | Path | None = None,
+    *,
+    people_model=None,
+    progress: Callable[[str, float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> CloneResult:
+    """Clone the tracked performance in ``track`` (A's results folder) of project file ``project_a``
+    onto project file ``project_b`` by ``method`` (:data:`METHODS`): steps 1–4 of the module notes,
+    B's results written to ``out_dir`` (default :func:`default_clone_dir`).
+
+    ``people_model``: the multilinear model (``multilinear``; default: the model file of
+    :mod:`photomodel.people.model_file`, :class:`FaceStudioError` when it has not been built).
+    ``progress(message, fraction)`` hears of every :data:`CLONE_CHUNK` frames; ``cancel()`` true stops
+    between them (:class:`photomodel.errors.Cancelled`, nothing written).
+    """
+
+    def report(message: str, fraction: float) -> None:
+        if cancel is not None and cancel():
+            raise Cancelled()
+        if progress is not None:
+            progress(message, fraction)
+
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    out = default_clone_dir(project_a, track, project_b) if out_dir is None else Path(out_dir).absolute()
+    report("reading the two projects and the tracked performance…", 0.0)
+    pa, pb = load_project(project_a), load_project(project_b)
+    doc_a = load_track_results(track)
+    if doc_a is None or not doc_a["frames"]:
+        raise FaceStudioError(f"{track} holds no tracked frames (track.json); track a video first")
+    report("building the two face models…", 0.02)
+    model_a = model_for_results(pa, doc_a)
+    model_b, _ = face_model_from_project(pb)
+    rigs = None
+    if method == "multilinear" and people_model is None:
+        people_model = _people_model()
+    elif method == "names":
+        rigs = (load_rig_shapes(pa), load_rig_shapes(pb))
+    frames = doc_a["frames"]
+    weights = []
+    for start in range(0, len(frames), CLONE_CHUNK):
+        report(
+            f"cloning frames {start}–{min(start + CLONE_CHUNK, len(frames)) - 1} of {len(frames)} ({method})…",
+            0.1 + 0.85 * start / len(frames),
+        )
+        faces = performance_faces(model_a, {**doc_a, "frames": frames[start : start + CLONE_CHUNK]})
+        mapped = map_faces(faces, model_a, model_b, method, people_model=people_model, rigs=rigs)
+        weights.append(weights_of_faces(model_b, mapped))
+    W = np.concatenate(weights)
+    report("writing B's tracking results…", 0.97)
+    cloned_from = {"project": str(Path(project_a).absolute()), "track": str(Path(track).absolute()), "method": method}
+    doc = cloned_results(doc_a, model_b, project_b, W, cloned_from)
+    out.mkdir(parents=True, exist_ok=True)
+    save_results(out, doc, bool(doc_a.get("complete")))
+    return CloneResult(out, doc, W, model_b)
+
+
+def _people_model():
+    """The multilinear model file (:mod:`photomodel.people.model_file`), never built here."""
+    path = model_path(MODEL_PEOPLE)
+    if not path.is_file():
+        raise FaceStudioError(
+            f"the multilinear model {path} is missing; build it: python -m photomodel.people.model_file"
+        )
+    return MultilinearModel.load(path)

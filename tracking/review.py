@@ -19,6 +19,7 @@ from photomodel.errors import FaceStudioError
 from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
 from tracking.arkit_face import model_for_results
+from tracking.blendshape_face import render_model
 from tracking.frame_fit import DIVERGED_RMS, FrameFitter
 from tracking.overlay_video import overlay_frame
 from tracking.plots import track_plots
@@ -92,6 +93,25 @@ class TrackReview:
         """``frame`` with the model at frame ``index``'s parameters rendered over it
         (:func:`tracking.overlay_video.overlay_frame`); FaceStudioError when the model cannot be built."""
         return overlay_frame(self.fitter(), frame, self.records[index])
+
+    def rendered(self, index: int) -> np.ndarray:
+        """(H, W, 3) float32: the model alone at frame ``index``'s pose and expression, rendered with its
+        textures on black (the right half of a clone's side-by-side view); FaceStudioError when the model
+        cannot be built."""
+        fitter = self.fitter()
+        model = fitter.model
+        st = state_of(self.records[index])
+        Wv = model.vertex_weights(model.region_weights(st.alpha))
+        return render_model(fitter.renderer, fitter.camera(st), model, model.blend_geometry(Wv), Wv).image
+
+    def side_by_side(self, index: int) -> np.ndarray | None:
+        """(H, 2W, 3) float32: the footage of frame ``index`` | :meth:`rendered` — for cloned results (the
+        footage is the other person's, the model this project's), as ``facestudio clone``'s video; None
+        when the footage could not be read."""
+        frame = self.footage_frame(index)
+        if frame is None:
+            return None
+        return np.concatenate([frame, np.asarray(self.rendered(index), np.float32)], axis=1)
 
     def feature_positions(self, index: int, project) -> dict[str, tuple[float, float]]:
         """{feature: (u, v)} image px: ``project``'s pose features where the tracked model puts them

@@ -5,7 +5,8 @@
 
 Writes B's tracking results (``track.json`` + ``track.csv``, the format of ``facestudio track``; default
 ``<B's folder>/results/<track folder>_from_<A>``) so that ``edit`` and ``export --glb --track`` take them,
-and ``side_by_side.mp4`` there (A's frames | B rendered with B's texture; ``--no-video`` skips it).
+and ``side_by_side.mp4`` there (A's frames | B rendered with B's texture; ``--no-video`` skips it);
+A is added to B's ``people`` (the project file's references to other projects).
 The logic is :mod:`tracking.clone` (Qt-free); ``multilinear`` needs the model file
 (``python -m photomodel.people.model_file``), ``names`` a rig in both projects (``facestudio rig``).
 Standalone module with ``add_parser(subparsers)`` / ``run(args)`` for the CLI package.
@@ -24,7 +25,7 @@ from app.cli.common import check_writable
 from photomodel.errors import FaceStudioError
 from photomodel.people.model_file import MODEL_PEOPLE, model_path
 from photomodel.people.multilinear import MultilinearModel
-from photomodel.project import load_project, load_rig_shapes
+from photomodel.project import load_project, load_rig_shapes, save_project
 from tracking.clone import METHODS, cloned_results, map_faces, performance_faces, side_by_side_frames, weights_of_faces
 from tracking.edit_video import write_video
 from tracking.face_from_project import face_model_from_project
@@ -78,6 +79,8 @@ def run(args) -> int:
     }
     doc = cloned_results(doc_a, model_b, args.to, W, cloned_from)
     files = save_results(out, doc, bool(doc_a.get("complete")))
+    if project_b.add_person(args.source) is not None:  # B refers to A (format version 6, `people`)
+        save_project(project_b)
     files = {k: str(v) for k, v in files.items()}
     if not args.no_video:  # A's frames | B rendered with B's texture
         files["video"] = str(out / "side_by_side.mp4")

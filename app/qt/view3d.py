@@ -22,7 +22,9 @@ first of the fit's checklist, :meth:`~app.studio_state.StudioModel.next_feature`
 named "next".
 While a weight of the project's rig is not 0 (the studio's rig panel, :class:`~app.qt.rig_panel.RigPanel`)
 the view shows the rig's neutral + Σ wᵢ·Δᵢ (:meth:`~app.studio_state.StudioModel.rig_vertices`), with the
-neutral's cylindrical texture when that is the expression shown, else shaded.
+neutral's cylindrical texture when that is the expression shown, else shaded. While the rig dock's
+identity sliders are in use (:class:`~app.qt.rig_panel.IdentitySliders`) the view shows the new face
+of the people model instead, shaded (:meth:`~app.studio_state.StudioModel.identity_vertices`).
 """
 
 from __future__ import annotations
@@ -97,6 +99,7 @@ class View3D(QWidget):
             model.features_changed,
             model.rig_changed,
             model.rig_weights_changed,
+            model.identity_changed,
         ):
             sig.connect(self.invalidate)
         model.active_feature_changed.connect(lambda *_: self.update())
@@ -109,6 +112,11 @@ class View3D(QWidget):
     # ------------------------------------------------------------------ what is shown
     def vertices(self) -> tuple[np.ndarray, str]:
         """The vertices shown and a caption."""
+        new_face = self.model.identity_vertices()
+        if new_face is not None:
+            values = self.model.identity.values
+            moved = [f"mode {k + 1} {v:+.1f}σ" for k, v in enumerate(values) if v]
+            return new_face, "new face (people model) — " + (", ".join(moved[:3]) or "the mean face")
         posed = self.model.rig_vertices()
         if posed is not None:
             rig = self.model.rig()
@@ -216,7 +224,9 @@ class View3D(QWidget):
         faces = self.model.mesh.faces
         vd = self.view_dependent
         texture = self.texture
-        if self.model.rig_vertices() is not None:  # the rig posed: its geometry, not the photos'
+        if self.model.identity_vertices() is not None:  # a new face: shaded, nobody's photos
+            vd = texture = None
+        elif self.model.rig_vertices() is not None:  # the rig posed: its geometry, not the photos'
             vd = None
             if self.model.rig().neutral != self.model.expression_name:
                 texture = None

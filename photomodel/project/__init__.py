@@ -1,4 +1,4 @@
-"""The project file (format version 5, reads 1 to 4) in one place, for the CLI and the studio alike.
+"""The project file (format version 6, reads 1 to 5) in one place, for the CLI and the studio alike.
 
 * :mod:`~photomodel.project.format` — the format's constants (name, version, file suffix, built-in
   mesh, click sources);
@@ -11,7 +11,8 @@
 * :mod:`~photomodel.project.validate` — format/version, JSON Schema (``schema.json``) and
   cross-reference checks;
 * :mod:`~photomodel.project.problems` — wording of errors: JSON paths, listings, "did you mean";
-* :mod:`~photomodel.project.io` — ``load_project``, ``save_project`` (atomic, ``.bak``);
+* :mod:`~photomodel.project.io` — ``load_project``, ``save_project`` (atomic, ``.bak``), ``load_person``
+  (a project of ``people``, the other projects referred to);
 * :mod:`~photomodel.project.results` — storing a fit (record + meshes) and a texture into a
   project, and saving the project with them.
 
@@ -30,7 +31,14 @@ from photomodel.project.datamodel import (
     new_project,
 )
 from photomodel.project.format import BUILTIN_MESH, FILE_SUFFIX, FORMAT_NAME, FORMAT_VERSION
-from photomodel.project.io import default_filename, encode_project, load_project, save_project, write_project
+from photomodel.project.io import (
+    default_filename,
+    encode_project,
+    load_person,
+    load_project,
+    save_project,
+    write_project,
+)
 from photomodel.project.results import (
     RIG_FILE,
     expression_result,
@@ -64,6 +72,7 @@ __all__ = [
     "default_filename",
     "encode_project",
     "expression_result",
+    "load_person",
     "load_project",
     "load_rig_shapes",
     "read_fitted_mesh",

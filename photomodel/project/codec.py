@@ -6,7 +6,8 @@ definition order (features, curves, photos) and stores paths relative to the fol
 being written ("save as" re-expresses them so they still reach the same files). Reading
 (:func:`project_from_dict`) validates the dict (:func:`photomodel.project.validate.validate`) and
 builds the objects. Optional keys (``cameras_from``, ``camera_group``, ``click_sources``,
-``curve_sources``, ``result.texture``) are omitted when unset, so files without them stay byte-identical.
+``curve_sources``, ``result.texture``, ``rig``, ``people``) are omitted when unset, so files without
+them stay byte-identical.
 """
 
 from __future__ import annotations
@@ -78,7 +79,22 @@ def project_to_dict(project: Project, target: Path | None) -> dict:
             "file": stored(rig.file),
             "report": _jsonable(rig.report),
         }
+    if project.people:  # optional (version 6): projects referring to nobody omit the key
+        d["people"] = [_person_path(p, origin, folder) for p in project.people]
     return d
+
+
+def _person_path(p: str, origin: Path | None, folder: Path | None) -> str:
+    """How a :attr:`Project.people` entry is written: relative to ``folder`` even when outside it
+    (``../alice/alice.facestudio.json``: people are usually siblings), re-expressed when saving to
+    another folder; an absolute entry stays absolute."""
+    pp = Path(p)
+    if pp.is_absolute() or origin is None or folder is None or origin == folder:
+        return pp.as_posix()
+    try:
+        return Path(os.path.relpath(os.path.normpath(origin / pp), folder)).as_posix()
+    except ValueError:  # another drive (Windows)
+        return Path(os.path.normpath(origin / pp)).as_posix()
 
 
 def _ordered(d: dict, order: dict) -> list:
@@ -232,6 +248,7 @@ def project_from_dict(d: Any, path: str | os.PathLike | None = None) -> Project:
         curves=[CurveDef(c["name"], c["vertices"]) for c in d.get("curves", [])],
         expressions=[_expression_from_dict(e) for e in d["expressions"]],
         rig=_rig_from_dict(d.get("rig")),
+        people=list(d.get("people", [])),
         path=None if path is None else Path(path).absolute(),
     )
 

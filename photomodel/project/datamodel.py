@@ -391,7 +391,9 @@ class RigRecord:
 
     Attributes
     ----------
-    source : str, where the expression shapes came from: ``"ict-facekit"``.
+    source : str, where the expression shapes came from: ``"ict-facekit"`` (``facestudio rig``:
+        ICT-FaceKit's expressions by deformation transfer) or ``"multilinear"`` (a face made with the
+        studio's identity sliders: the people model's shapes at its identity, format version 6).
     neutral : str, the expression whose fitted mesh the shapes displace.
     shapes : list[str], the shapes' names (ARKit's), in the file's order.
     file : str, the ``.npz`` with ``names`` (k,) and ``deltas`` (k, n, 3) float32 mm, relative to
@@ -418,6 +420,11 @@ class Project:
     curves : list[CurveDef]
     expressions : list[Expression]
     rig : RigRecord or None, the blend-shape rig (format version 4), absent until ``facestudio rig``.
+    people : list[str], other people's projects this one refers to (format version 6): paths of
+        ``*.facestudio.json`` files relative to :attr:`folder` (``../alice/alice.facestudio.json``),
+        e.g. those whose performances were cloned onto this face (their clones are this project's
+        results, ``results/track_*_from_*``). Use :meth:`add_person`, :meth:`person_path`,
+        :meth:`check_people`; :func:`photomodel.project.load_person` opens one.
     path : Path or None, the project file (absolute) once loaded or saved.
     """
 
@@ -427,6 +434,7 @@ class Project:
     curves: list[CurveDef] = field(default_factory=list)
     expressions: list[Expression] = field(default_factory=list)
     rig: RigRecord | None = None
+    people: list[str] = field(default_factory=list)
     path: Path | None = field(default=None, compare=False)
 
     # -- look-ups --------------------------------------------------------------------
@@ -530,6 +538,38 @@ class Project:
             "glb": f"results/{stem}.glb",
             "ply": f"results/{stem}_colors.ply",
         }
+
+    # -- other people's projects (format version 6) ------------------------------------------
+    def person_path(self, reference: str) -> Path:
+        """Absolute path of a :attr:`people` entry (relative to :attr:`folder`)."""
+        return Path(os.path.normpath(self.resolve(reference)))
+
+    def add_person(self, path: str | os.PathLike) -> str | None:
+        """Refer to the project file ``path`` (absolute, or relative to the cwd) in :attr:`people`,
+        stored relative to :attr:`folder` (``../`` allowed); returns the entry, or None when it was
+        there already (or is this project's own file). Nothing is read: a missing file is reported
+        when it is opened (:func:`photomodel.project.load_person`) or by :meth:`check_people`."""
+        target = Path(os.path.normpath(Path(path).absolute()))
+        if self.path is not None and target == Path(os.path.normpath(self.path)):
+            return None
+        if any(self.person_path(p) == target for p in self.people):
+            return None
+        try:
+            entry = Path(os.path.relpath(target, self.folder)).as_posix()
+        except ValueError:  # another drive (Windows): only an absolute path reaches it
+            entry = target.as_posix()
+        self.people.append(entry)
+        return entry
+
+    def check_people(self) -> None:
+        """Raise :class:`ProjectError` naming every :attr:`people` entry whose file is missing."""
+        problems = [
+            (f"people[{i}]", f"the referenced project {ref} does not exist (looked for {self.person_path(ref)})")
+            for i, ref in enumerate(self.people)
+            if not self.person_path(ref).is_file()
+        ]
+        if problems:
+            raise problems_error(self._source(), problems)
 
     # -- checks that need more than the file ---------------------------------------------
     def check_vertices(self, n_vertices: int) -> None:

@@ -23,7 +23,11 @@ FORMAT_NAME = "facestudio-project"
 #: * 5 — a photo may say which of its curves were drawn automatically (``curve_sources``:
 #:   curve → ``"auto"``). Upgrading: nothing to do (every curve of an older file was drawn by
 #:   hand).
-FORMAT_VERSION = 5
+#: * 6 — a project may reference other people's projects (``people``: paths of other
+#:   ``*.facestudio.json`` files, relative to this one's folder), e.g. the people whose performances
+#:   were cloned onto this face (``facestudio clone``, the studio's *Clone from another project…*).
+#:   Upgrading: nothing to do (an older project references nobody).
+FORMAT_VERSION = 6
 #: Where a click came from: the artist (``"user"``, the default) or the landmark detector.
 CLICK_SOURCES = ("user", "auto")
 FILE_SUFFIX = ".facestudio.json"

@@ -48,6 +48,22 @@ def load_project(path: str | os.PathLike) -> Project:
     return project
 
 
+def load_person(project: Project, reference: str) -> Project:
+    """The project that ``project.people`` entry ``reference`` names, loaded; :class:`ProjectError`
+    naming the entry and the path looked for when the file is missing (``project`` is unchanged:
+    the reference stays, so a project moved back into place is found again)."""
+    if reference not in project.people:
+        raise ProjectError(f"project {project.name!r} refers to no person {reference!r}")
+    path = project.person_path(reference)
+    if not path.is_file():
+        i = project.people.index(reference)
+        raise ProjectError(
+            f"{project.path.name if project.path else project.name}: people[{i}]: the referenced project "
+            f"{reference} does not exist (looked for {path}); move it back or remove the reference"
+        )
+    return load_project(path)
+
+
 def remove_orphan_temp_files(folder: Path) -> list[Path]:
     """Temporary files left in a project folder and its ``results/`` by a save that was killed
     (:func:`photomodel.exchange.files.remove_stale_temp_files`: our own names, older than ten

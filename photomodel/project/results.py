@@ -266,10 +266,12 @@ def store_rig(
     deltas: np.ndarray,
     report: dict,
     folder: Path | None = None,
+    source: str = "ict-facekit",
 ) -> None:
     """Write the rig's displacements (``results/rig.npz``: ``names`` (k,), ``deltas`` (k, n, 3)
     float32 mm) atomically and record it in ``project.rig`` (format version 4); the caller saves
-    the project file afterwards, as with :func:`store_fit_result`."""
+    the project file afterwards, as with :func:`store_fit_result`. ``source``: ``"ict-facekit"``
+    (``facestudio rig``) or ``"multilinear"`` (the people model's shapes, format version 6)."""
     names = [str(n) for n in names]
     D = np.asarray(deltas, np.float32)
     if D.ndim != 3 or D.shape[0] != len(names) or D.shape[2] != 3:
@@ -283,7 +285,7 @@ def store_rig(
     except OSError as exc:
         raise ProjectError(f"cannot write the rig file {path}: {exc}") from exc
     project.rig = RigRecord(
-        source="ict-facekit",
+        source=source,
         neutral=neutral,
         shapes=names,
         file=_recorded(project, folder, path),

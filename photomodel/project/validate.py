@@ -36,7 +36,7 @@ from jsonschema.exceptions import ValidationError, best_match
 
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import ProjectError
-from photomodel.project.format import FORMAT_NAME, FORMAT_VERSION
+from photomodel.project.format import FILE_SUFFIX, FORMAT_NAME, FORMAT_VERSION
 from photomodel.project.jsontext import check_depth
 from photomodel.project.problems import did_you_mean, fmt_key, fmt_path, listing, problems_error, short
 
@@ -59,8 +59,9 @@ def validate(d: Any, source: str) -> None:
     _check_version(d, source)
     # Older versions need no upgrade: version 2 only added the optional photo camera_group,
     # version 3 the optional click_sources, which older files' photos do not have (their clicks
-    # are all the artist's), version 4 the optional rig and version 5 the optional curve_sources
-    # (every older curve was drawn by hand). (A future change that renames or restructures a field
+    # are all the artist's), version 4 the optional rig, version 5 the optional curve_sources
+    # (every older curve was drawn by hand) and version 6 the optional people (references to other
+    # projects) and the rig source "multilinear". (A future change that renames or restructures a field
     # converts the older dict here, before the schema check.)
     _check_schema(d, source)
     problems = cross_reference_problems(d)
@@ -272,6 +273,9 @@ def cross_reference_problems(d: dict) -> list[tuple[str, str]]:
                 f"expressions: {listing(names)}{did_you_mean(rig['neutral'], names)}",
             )
         )
+    for i, ref in enumerate(d.get("people", [])):
+        if not ref.endswith(FILE_SUFFIX):
+            problems.append((f"people[{i}]", f"expected the path of a project file (*{FILE_SUFFIX}), got {short(ref)}"))
     return problems
 
 

@@ -1,6 +1,7 @@
 """The *Tracking* menu (§6.2): the first pose of a video, a video tracked in the tracking view
 (:class:`~app.qt.tracking_view.TrackingView`: the footage with the model overlaid, a frame scrubber,
-the parameter curves) and tracking results opened from a folder."""
+the parameter curves), tracking results opened from a folder, and another project's performance
+cloned onto this face (:class:`~app.qt.clone_dialog.CloneDialog`)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog, QMenu, QMenuBar, QMessageBox
 
+from app.qt.clone_dialog import CloneDialog
 from app.qt.menus import make_action
 
 
@@ -33,12 +35,20 @@ class TrackingMenu(QObject):
         self.act_open_tracking = A(
             "&Open results…", self.open_tracking_dialog, tip="show the tracking results of a folder (its track.json)"
         )
+        self.act_clone = A(
+            "&Clone from another project…",
+            lambda: self.clone_dialog(),
+            tip="another person's tracked performance on this face (facestudio clone), the two side by side",
+        )
+        self.clone_dialog_widget = None
 
     def build(self, menubar: QMenuBar) -> QMenu:
         tr = menubar.addMenu("T&racking")
         tr.addAction(self.act_first_pose)
         tr.addAction(self.act_track_video)
         tr.addAction(self.act_open_tracking)
+        tr.addSeparator()
+        tr.addAction(self.act_clone)
         return tr
 
     def connect_worker(self) -> None:
@@ -52,23 +62,43 @@ class TrackingMenu(QObject):
         self.window.tracking_dock.show()
         self.window.tracking_dock.raise_()
 
-    def track_video_dialog(self) -> bool:
-        """Choose a video file and track it in the tracking view (results in the default folder)."""
+    def _saved(self, cannot: str, what: str) -> bool:
+        """Whether the project file is saved and up to date (asking to save changes): ``what`` (tracking,
+        cloning) builds the face model from the saved fits and textures."""
         window, model = self.window, self.window.model
         if model.path is None:
-            window.show_error("Cannot track", "save the project first: tracking reads the project file")
+            window.show_error(cannot, f"save the project first: {what} reads the project file")
             return False
-        if model.modified:  # the face model is built from the saved fits and textures
+        if model.modified:
             answer = QMessageBox.question(
                 window,
-                "Save before tracking",
-                "Tracking builds the face model from the saved project (its fitted meshes and textures). "
-                "Save the changes now?",
+                f"Save before {what}",
+                f"{what.capitalize()} builds the face model from the saved project (its fitted meshes and "
+                "textures). Save the changes now?",
                 QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Cancel,
                 QMessageBox.StandardButton.Save,
             )
             if answer != QMessageBox.StandardButton.Save or not window.save():
                 return False
+        return True
+
+    def clone_dialog(self, modal: bool = True):
+        """Open :class:`~app.qt.clone_dialog.CloneDialog` on the saved project; ``modal`` runs it with
+        ``exec()``, otherwise it is shown and returned (tests). None when the project is not saved."""
+        if not self._saved("Cannot clone", "cloning"):
+            return None
+        dlg = self.clone_dialog_widget = CloneDialog(self.window)
+        if modal:
+            dlg.exec()
+        else:
+            dlg.show()
+        return dlg
+
+    def track_video_dialog(self) -> bool:
+        """Choose a video file and track it in the tracking view (results in the default folder)."""
+        window, model = self.window, self.window.model
+        if not self._saved("Cannot track", "tracking"):
+            return False
         start = str(Path(model.path).parent / "video")
         path, _ = QFileDialog.getOpenFileName(
             window, "Track video", start, "Videos (*.mp4 *.avi *.mov *.mkv *.webm);;All files (*)"
