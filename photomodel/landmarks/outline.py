@@ -18,8 +18,8 @@ import numpy as np
 __all__ = ["jaw_on_edges"]
 
 #: Search band along the outline's normal, as a share of the face's height (eye line to chin):
-#: inwards and outwards.
-SEARCH_IN = 0.06
+#: inwards and outwards (under the chin; beside the cheeks outwards :data:`SIDE_REACH` of it).
+SEARCH_IN = 0.10
 SEARCH_OUT = 0.12
 #: Beside the cheeks (iBUG 0–3 and 13–16) the band is this share of the chin's.
 SIDE_REACH = 0.25
@@ -105,16 +105,13 @@ def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray) -> np.n
     strength /= np.percentile(strength, 95) + 1e-6
     inside = (sample[..., 0] >= 0) & (sample[..., 1] >= 0) & (sample[..., 0] <= w - 1) & (sample[..., 1] <= h - 1)
     unary = -np.minimum(strength, CAP) * inside + STAY * (offsets / height) ** 2
-    # the band narrows from the chin to the ears: beside the cheeks the outline runs into hair and
-    # ears whose edges are no jaw (einstein's white hair), under the chin it is the jaw's own edge
-    reach = np.interp(
-        np.arange(len(dense)) / PER_SEGMENT,
-        [0, 3, 5, 11, 13, 16],
-        [SIDE_REACH, SIDE_REACH, 1, 1, SIDE_REACH, SIDE_REACH],
-    )
-    unary[
-        np.abs(offsets)[None, :] > reach[:, None] * np.where(offsets > 0, SEARCH_OUT, SEARCH_IN)[None, :] * height
-    ] = 1e3
+    # outwards the band narrows from the chin to the ears: beside the cheeks the outline runs into
+    # hair and ears whose edges are no jaw (einstein's white hair), under the chin it is the jaw's
+    # own edge; inwards it is the same all round (einstein's far cheek ends 5 px inside the mesh's)
+    side = [SIDE_REACH, SIDE_REACH, 1.0, 1.0, SIDE_REACH, SIDE_REACH]
+    reach = np.interp(np.arange(len(dense)) / PER_SEGMENT, [0, 3, 5, 11, 13, 16], side)
+    band = np.where(offsets > 0, SEARCH_OUT * reach[:, None], SEARCH_IN)
+    unary[np.abs(offsets)[None, :] > band * height] = 1e3
     spacing = np.maximum(np.linalg.norm(np.diff(dense, axis=0), axis=1), 1e-6)
     # Viterbi over the dense outline: offset k at sample i, a bend cost between neighbours
     k = len(offsets)
