@@ -44,8 +44,10 @@ HAND_SIZE = 224  #: input side of the hand-landmark model, pixels
 MIN_HAND_SCORE = 0.5  #: hand-presence score below which a crop holds no hand
 POINTS_CROP_SCALE = 2.0  #: the second pass's crop over the 21 points' long side
 #: Windows around the face the hand model looks in: ``(dx, dy, angle°)``, the centre moved by
-#: ``dx, dy`` face sizes from the face's (a hand over the mouth, a cheek, the chin); fingers up
-#: and, under the face, down.
+#: ``dx, dy`` face sizes from the face's (a hand over the eyes, the nose, the mouth, a cheek, the
+#: chin), all upright: the model finds a hand turned within a window, and the second pass turns
+#: its crop to the hand's own angle. A hand above the forehead or well beside the face is not
+#: looked for (it covers no face).
 WINDOWS = ((-0.35, 0.0, 0), (0.0, 0.0, 0), (0.35, 0.0, 0), (-0.35, 0.35, 0), (0.0, 0.35, 0), (0.35, 0.35, 0))
 #: A window's side over the face's.
 WINDOW_SCALE = 1.4
