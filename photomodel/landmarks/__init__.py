@@ -5,7 +5,10 @@ features it can place out, each with a confidence, plus the view preset and the 
 :func:`detect_468` gives the raw 468 face-mesh points (the landmark benchmark uses it).
 Modules: :mod:`~photomodel.landmarks.models` (the model files, fetched by package name),
 :mod:`~photomodel.landmarks.detect` (the detector run with ``cv2.dnn``),
-:mod:`~photomodel.landmarks.mapping` (468 points → named features, yaw, view).
+:mod:`~photomodel.landmarks.mapping` (468 points → named features, yaw, view),
+:mod:`~photomodel.landmarks.outline` (the jaw moved onto the photo's own edges),
+:mod:`~photomodel.landmarks.segment` (which pixels texturing may take) and
+:mod:`~photomodel.landmarks.hands` (a hand in front of the face: ``hand_mask``).
 """
 
 from __future__ import annotations
