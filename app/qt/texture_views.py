@@ -2,7 +2,10 @@
 
 * :class:`WeightMapPanel` — the extracted cylindrical texture (§5.2.2) and, one image per
   photograph, its blending weight ``g_k = F_k P_k`` in texture space (§5.2.1, the images of the
-  paper's Fig. 5(c): black 0 … white 1), for the current expression.
+  paper's Fig. 5(c): black 0 … white 1), for the current expression; under them each photo with
+  the pixels it was not allowed to give tinted red (background, clothes, below or beside the
+  jaw, a hand: :func:`photomodel.landmarks.segment.face_pixels`), for a texture extracted in
+  this session.
 * :class:`ExpressionsView` — every expression of the project rendered by our renderer
   (:mod:`photomodel.rendering.renderer`) from one camera, next to each other, with its name and
   reprojection RMS; a click on one makes it the current expression.
@@ -32,11 +35,21 @@ from photomodel.rendering.renderer import get_renderer
 
 #: Side (px) of a weight-map thumbnail.
 THUMB_PX = 150
+#: The tint of the pixels a photo was not allowed to give, and its opacity.
+LEFT_OUT_RGB, LEFT_OUT_ALPHA = (230, 40, 40), 0.55
 #: Size (px) of one expression's rendering in the side-by-side view.
 TILE_W, TILE_H = 240, 280
 #: The side-by-side camera: azimuth and elevation (degrees), distance (mm), lens (mm, 36 mm film).
 TILE_AZIMUTH_DEG, TILE_ELEVATION_DEG, TILE_DISTANCE_MM, TILE_FOCAL_MM = 20.0, 5.0, 560.0, 70.0
 BACKGROUND = (0.16, 0.16, 0.18)
+
+
+def masked_photo(photo: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8: ``photo`` (RGB) with the pixels outside ``mask`` ((H, W) bool: those it may
+    give to the texture) tinted :data:`LEFT_OUT_RGB`."""
+    out = np.asarray(photo)[..., :3].astype(np.float32).copy()
+    out[~mask] = (1.0 - LEFT_OUT_ALPHA) * out[~mask] + LEFT_OUT_ALPHA * np.array(LEFT_OUT_RGB, np.float32)
+    return (out + 0.5).astype(np.uint8)
 
 
 def to_qimage(image: np.ndarray) -> QImage:
@@ -74,6 +87,19 @@ class WeightMapPanel(QWidget):
         lay.addWidget(self.texture_label)
         lay.addWidget(QLabel("Weight maps (one per photo):"))
         lay.addWidget(self.maps, 1)
+        self.masks_caption = QLabel()
+        self.masks_caption.setWordWrap(True)
+        self.masks = QListWidget()
+        self.masks.setViewMode(QListView.ViewMode.IconMode)
+        self.masks.setIconSize(QSize(THUMB_PX, THUMB_PX))
+        self.masks.setResizeMode(QListView.ResizeMode.Adjust)
+        self.masks.setMovement(QListView.Movement.Static)
+        self.masks.setSpacing(4)
+        self.masks.setToolTip(
+            "red: pixels a photo may not give to the texture (background, clothes, below or beside the jaw, a hand)"
+        )
+        lay.addWidget(self.masks_caption)
+        lay.addWidget(self.masks, 1)
         for sig in (model.texture_changed, model.expression_changed, model.project_replaced):
             sig.connect(self.refresh)
         self.refresh()
@@ -82,12 +108,18 @@ class WeightMapPanel(QWidget):
         """How many weight maps are shown."""
         return self.maps.count()
 
+    def mask_count(self) -> int:
+        """How many photos' masks are shown."""
+        return self.masks.count()
+
     def refresh(self, *args) -> None:
         self.maps.clear()
+        self.masks.clear()
         tex = self.model.texture()
         if tex is None:
             self.caption.setText("No texture for this expression yet: Texture → Extract texture (Ctrl+T).")
             self.texture_label.clear()
+            self.masks_caption.clear()
             return
         job = tex.job
         r = job.report
@@ -110,6 +142,24 @@ class WeightMapPanel(QWidget):
             item.setData(Qt.ItemDataRole.UserRole, pid)
             item.setToolTip(f"{pid}: mean weight {float(w[job.texture.surface].mean()):.2f} on the surface")
             self.maps.addItem(item)
+        self._show_masks(job)
+
+    def _show_masks(self, job) -> None:
+        masks, photos = getattr(job, "masks", None), job.inputs.photos
+        if masks is None or photos is None:
+            self.masks_caption.setText(
+                "Masks (what each photo may give) are shown for a texture extracted in this session."
+            )
+            return
+        self.masks_caption.setText("What each photo may give (red: left out):")
+        for pid, photo, mask in zip(job.inputs.photo_ids, photos, masks, strict=True):
+            icon = QPixmap.fromImage(to_qimage(masked_photo(photo, mask))).scaled(
+                THUMB_PX, THUMB_PX, Qt.AspectRatioMode.KeepAspectRatio, Qt.TransformationMode.SmoothTransformation
+            )
+            item = QListWidgetItem(QIcon(icon), pid)
+            item.setData(Qt.ItemDataRole.UserRole, pid)
+            item.setToolTip(f"{pid}: {100.0 * float(1.0 - mask.mean()):.1f} % of the photo left out")
+            self.masks.addItem(item)
 
 
 class _Tile(QWidget):

