@@ -485,6 +485,27 @@ def _triangulation_part(tri: Triangulation, start: int, stop: int) -> Triangulat
     )
 
 
+def _target_groups(cameras, mesh_vertices, point_vertices, point_observations, curves, point_names, curve_names):
+    """The correspondences of :func:`refine_points` as ``(vertices (n,), observations (k, n, 2), names,
+    from a clicked point)`` groups: the extra points (checked), then each curve's per-vertex clicks."""
+    groups: list[tuple[np.ndarray, np.ndarray, list[str], bool]] = []
+    if point_vertices is not None:
+        pv = np.asarray(point_vertices)
+        if point_observations is None:
+            raise FitError("point_vertices given without point_observations")
+        obs = _validate_observations(cameras, point_observations)
+        if obs.shape[1] != pv.shape[0]:
+            raise FitError(f"{pv.shape[0]} point vertices but observations of {obs.shape[1]} points")
+        names = point_names or [f"point {i} (vertex {v})" for i, v in enumerate(pv.tolist())]
+        groups.append((pv, obs, list(names), True))
+    for ci, (polyline, drawn) in enumerate(curves):
+        cname = curve_names[ci] if curve_names is not None else f"curve {ci}"
+        poly = np.asarray(polyline)
+        obs = curve_observations(cameras, mesh_vertices, poly, drawn)
+        groups.append((poly, obs, [f"{cname} vertex {v}" for v in poly.tolist()], False))
+    return groups
+
+
 def refine_points(
     cameras: Sequence[Camera],
     mesh_vertices,
@@ -536,21 +557,9 @@ def refine_points(
 
     # every point and curve vertex is triangulated on its own, so one batched call serves them
     # all (a call per curve cost ~3 ms of fixed numpy overhead each: a third of a studio refit)
-    groups: list[tuple[np.ndarray, np.ndarray, list[str], bool]] = []  # (vertices, obs, names, from a point)
-    if point_vertices is not None:
-        pv = np.asarray(point_vertices)
-        if point_observations is None:
-            raise FitError("point_vertices given without point_observations")
-        obs = _validate_observations(cameras, point_observations)
-        if obs.shape[1] != pv.shape[0]:
-            raise FitError(f"{pv.shape[0]} point vertices but observations of {obs.shape[1]} points")
-        names = point_names or [f"point {i} (vertex {v})" for i, v in enumerate(pv.tolist())]
-        groups.append((pv, obs, list(names), True))
-    for ci, (polyline, drawn) in enumerate(curves):
-        cname = curve_names[ci] if curve_names is not None else f"curve {ci}"
-        poly = np.asarray(polyline)
-        obs = curve_observations(cameras, mesh_vertices, poly, drawn)
-        groups.append((poly, obs, [f"{cname} vertex {v}" for v in poly.tolist()], False))
+    groups = _target_groups(
+        cameras, mesh_vertices, point_vertices, point_observations, curves, point_names, curve_names
+    )
     if groups:
         all_vertices = np.concatenate([g[0] for g in groups])
         tri = locate(np.concatenate([g[1] for g in groups], axis=1), all_vertices)
