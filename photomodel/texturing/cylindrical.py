@@ -59,10 +59,17 @@ normalised average of the known texels around them at the coarsest scale that ha
 which keeps the texture continuous under bilinear and mipmapped sampling.
 
 Cost (2 shared cores, llvmpipe): a 1024² texture of the 8k-vertex fitted mesh from five
-1000×1000 photographs takes 1.05–1.6 s (load-dependent), about a third of it the five
-depth maps and the raster (``benchmarks/bench_texture.py``). The per-texel work runs on
-float32 with OpenCV's ``transform``/``perspectiveTransform``/``remap``, ~10× faster than
-numpy's matmul on ``(n, 3)`` arrays.
+1000×1000 photographs (~880k surface texels) took 1.05–1.6 s wall (load-dependent; ~1.0 s of
+CPU). Since 2026-12-04 it takes ~0.57–0.65 s of CPU (``benchmarks/bench_texture.py``
+``extract_s``, docs/benchmarks.md): the per-texel arithmetic — each photo's projection,
+positional certainty and depth test, the single-view blend, the raster's exact ray–plane
+points — runs in compiled loops (:mod:`photomodel.texturing.texel_kernels`, the same formulas
+in the same precision: the texture is within one level of the numpy route's, 108 dB), and the
+depth maps are read back without the colour and face targets
+(:meth:`~photomodel.rendering.renderer.Renderer.render_depth`). What remains per photo: its
+depth map (~27 ms), the texel pass (~18 ms), the feathering's distance transform (~17 ms) and
+the photo's samples (``remap``, ~10 ms); then the raster (~100 ms, half of it GL) and the hole
+filling (~25 ms).
 """
 
 from __future__ import annotations
