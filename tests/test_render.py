@@ -164,6 +164,19 @@ def test_near_far_and_behind_camera(renderer):
     assert (empty.color == 0.5).all() and (empty.face_id == -1).all()
 
 
+def test_depth_only_render_is_the_renders_depth(renderer):
+    """``render_depth`` reads back only the depth target of the same draw: equal to ``render().depth``
+    bit for bit, ``inf`` off the mesh, and nothing drawn when the mesh is clipped or behind."""
+    V, F = bumpy_mesh()
+    for cam in CAMERAS.values():
+        np.testing.assert_array_equal(renderer.render_depth(cam, V, F), renderer.render(cam, V, F).depth)
+    cam = CAMERAS["front 640x480"]
+    tri = BIG_TRIANGLE
+    assert np.isinf(renderer.render_depth(cam, tri, np.array([[0, 1, 2]]), near=10.0, far=100.0)).all()
+    assert np.isinf(renderer.render_depth(cam, tri + cam.center * 3.0, np.array([[0, 1, 2]]))).all()
+    assert np.isinf(renderer.render_depth(cam, tri, np.zeros((0, 3), int))).all()
+
+
 # ----------------------------------------------------------------------------- textures
 
 

@@ -109,3 +109,35 @@ def test_overlays_are_drawn_around_the_face_and_cached(fitted, sample_truth):
         clicks = np.array([uv for n, uv in sample_truth.clean_points["neutral"][pid].items() if n in seen])
         # every true click the photo sees lies inside the box of the drawn face (within a pixel)
         assert np.all(clicks >= lo - 1.0) and np.all(clicks <= hi + 1.0), (pid, lo, hi)
+
+
+def test_the_fit_workers_renderer_outlives_its_tasks(mesh):
+    """A QThreadPool worker runs each task under a fresh Python thread state, which empties
+    ``threading.local``: the overlay's renderer is kept per OS thread instead, not rebuilt (and its
+    OpenGL context leaked) for every fit."""
+    import threading
+
+    from PySide6.QtCore import QRunnable, QThreadPool
+
+    fitting = Fitting(mesh)
+    seen = []
+
+    class Task(QRunnable):
+        def __init__(self):
+            super().__init__()
+            self.done = threading.Event()
+
+        def run(self):
+            seen.append(fitting.thread_renderer())
+            self.done.set()
+
+    pool = QThreadPool()
+    pool.setMaxThreadCount(1)
+    pool.setExpiryTimeout(-1)  # as app.qt.workers.FitController's
+    for _ in range(3):
+        task = Task()
+        pool.start(task)
+        assert task.done.wait(30)  # not pool.waitForDone(): that ends the pool's threads
+    pool.waitForDone(30_000)
+    assert len(seen) == 3 and seen[0] is not None
+    assert all(r is seen[0] for r in seen) and not seen[0].released

@@ -9,6 +9,7 @@ workers call :meth:`Fitting.compute` on a snapshot of the project off the GUI th
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -16,6 +17,7 @@ import numpy as np
 
 from photomodel.modeling.refit import Refitter
 from photomodel.modeling.wireframe import mesh_lines, photo_overlay
+from photomodel.rendering.renderer import get_renderer
 
 
 @dataclass
@@ -79,6 +81,8 @@ class Fitting:
         self.mesh = mesh
         self._refitter: Refitter | None = None
         self._lines = None
+        self._renderers: dict = {}
+        self._renderers_lock = threading.Lock()
 
     @property
     def refitter(self) -> Refitter:
@@ -108,6 +112,31 @@ class Fitting:
         result = refitter.fit(snapshot, expression, previous=previous, progress=progress, cancel=cancel)
         return result, time.perf_counter() - t0, refitter.deformer.misses != misses
 
+    def thread_renderer(self):
+        """The calling thread's renderer, kept for this thread's next call; None without OpenGL.
+
+        :func:`photomodel.rendering.renderer.get_renderer` keeps one per Python thread state
+        (``threading.local``), but a :class:`QThreadPool` worker gets a fresh Python thread state
+        for every task it runs, so each fit would build (and leak) a new OpenGL context and
+        compile its shaders again: ~60–100 ms of every refit on llvmpipe. Keyed by the OS
+        thread instead, the fit worker's renderer lives as long as its thread (the studio's
+        pool never expires it, :class:`app.qt.workers.FitController`). The key pairs the pthread
+        id, which a new thread reuses at once, with the kernel's thread id, which it does not, so a
+        later thread never gets the context of one that ended.
+        """
+        key = (threading.get_ident(), threading.get_native_id())
+        with self._renderers_lock:
+            found = self._renderers.get(key)
+        if found is not None and not found.released:
+            return found
+        try:
+            found = get_renderer()
+        except RuntimeError:  # no OpenGL: photo_overlay says so and draws every line
+            return None
+        with self._renderers_lock:
+            self._renderers[key] = found
+        return found
+
     def overlays(self, result, photo_ids, lines) -> dict:
         """The wireframe overlays of a fit in some of its photos; safe to call from a worker thread.
 
@@ -123,7 +152,9 @@ class Fitting:
         """
         cams = dict(zip(result.photo_ids, result.cameras, strict=True))
         faces = self.mesh.faces
-        return {pid: photo_overlay(cams[pid], result.vertices, faces, lines) for pid in photo_ids if pid in cams}
+        wanted = [pid for pid in photo_ids if pid in cams]
+        renderer = self.thread_renderer() if wanted else None
+        return {pid: photo_overlay(cams[pid], result.vertices, faces, lines, renderer=renderer) for pid in wanted}
 
     def overlay(self, fit: FitState | None, photo_id: str):
         """The wireframe overlay of ``fit`` in one photo, or None (no fit, mesh or camera for it).

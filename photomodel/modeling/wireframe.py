@@ -244,7 +244,7 @@ def project_lines(
     w = max(1, int(round(camera.width * depth_scale)))
     h = max(1, int(round(camera.height * depth_scale)))
     small = Camera(camera.R, camera.t, camera.f * w / camera.width, w, h)
-    depth = renderer.render(small, vertices, faces).depth
+    depth = renderer.render_depth(small, vertices, faces)
     visible = visible_points(camera, P.mean(axis=1), depth)
     return uv, visible
 

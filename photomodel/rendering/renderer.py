@@ -528,6 +528,55 @@ class Renderer:
             color, depth, face = self._draw(fbo, Xc, F, normals, channels)
         return _resolve(color, depth, face, bg, ss, near, far)
 
+    def render_depth(
+        self, camera: Camera, vertices: np.ndarray, faces: np.ndarray, *, near: float | None = None, far=None
+    ) -> np.ndarray:
+        """``render(camera, vertices, faces, near=near, far=far).depth`` without the rest.
+
+        The same draw, but only the ``Z_cam`` target is read back: a depth map is what the
+        visibility tests (texturing, the studio's overlay) need, and reading the colour and face
+        targets too moved 6× the bytes (~2/3 of a 1000×1000 depth map's time on llvmpipe).
+
+        Returns
+        -------
+        (H, W) float32
+            ``Z_cam`` (mm) of the nearest surface at each pixel centre, ``inf`` on the background.
+        """
+        self._check_usable()
+        self._collect()
+        self._check_frame(camera, 1)
+        V, F = _check_mesh(vertices, faces)
+        Xc = camera.to_camera(V)
+        near, far, F = _clip_planes(Xc, F, near, far)
+        depth = np.zeros((camera.height, camera.width), np.float32)
+        channels = _Channels(2, 3, [np.zeros((len(V), 4), np.float32)])
+        with self.ctx:
+            fbo = self._framebuffer("render", (camera.width, camera.height))
+            self._set_state(fbo, gl_projection(camera, near, far), channels.mode, None, False)
+            fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            if len(F):
+                self._draw_only(Xc, F, channels.passes[0])
+            fbo.read_into(depth, components=1, attachment=1, dtype="f4", alignment=1)
+        depth[~(depth > 0)] = np.inf  # cleared to 0; a drawn fragment lies beyond the near plane (> 0)
+        return depth
+
+    def _draw_only(self, Xc: np.ndarray, F: np.ndarray, attributes: np.ndarray) -> None:
+        """Draw the mesh once into the bound framebuffer (the first pass of :meth:`_draw`, no read-back)."""
+        ctx, n = self.ctx, len(Xc)
+        bufs = [
+            ctx.buffer(Xc.astype(np.float32).tobytes()),
+            ctx.buffer(attributes.tobytes()),
+            ctx.buffer(np.zeros((n, 3), np.float32).tobytes()),
+            ctx.buffer(np.ascontiguousarray(F, dtype=np.int32).tobytes()),
+        ]
+        layout = [(bufs[0], "3f", "in_pos"), (bufs[1], "4f", "in_attr"), (bufs[2], "3f", "in_normal")]
+        vao = ctx.vertex_array(self._prog, layout, index_buffer=bufs[3], index_element_size=4)
+        try:
+            vao.render(self._moderngl.TRIANGLES)
+        finally:
+            for obj in (vao, *bufs):
+                obj.release()
+
     def rasterize_barycentric(self, camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> BarycentricRaster:
         """The triangle and the perspective-correct barycentric coordinates at every pixel centre
         that a mesh covers (:mod:`photomodel.rendering.barycentric`).

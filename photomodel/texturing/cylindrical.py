@@ -59,10 +59,17 @@ normalised average of the known texels around them at the coarsest scale that ha
 which keeps the texture continuous under bilinear and mipmapped sampling.
 
 Cost (2 shared cores, llvmpipe): a 1024² texture of the 8k-vertex fitted mesh from five
-1000×1000 photographs takes 1.05–1.6 s (load-dependent), about a third of it the five
-depth maps and the raster (``benchmarks/bench_texture.py``). The per-texel work runs on
-float32 with OpenCV's ``transform``/``perspectiveTransform``/``remap``, ~10× faster than
-numpy's matmul on ``(n, 3)`` arrays.
+1000×1000 photographs (~880k surface texels) took 1.05–1.6 s wall (load-dependent; ~1.0 s of
+CPU). Since 2026-12-04 it takes ~0.57–0.65 s of CPU (``benchmarks/bench_texture.py``
+``extract_s``, docs/benchmarks.md): the per-texel arithmetic — each photo's projection,
+positional certainty and depth test, the single-view blend, the raster's exact ray–plane
+points — runs in compiled loops (:mod:`photomodel.texturing.texel_kernels`, the same formulas
+in the same precision: the texture is within one level of the numpy route's, 108 dB), and the
+depth maps are read back without the colour and face targets
+(:meth:`~photomodel.rendering.renderer.Renderer.render_depth`). What remains per photo: its
+depth map (~27 ms), the texel pass (~18 ms), the feathering's distance transform (~17 ms) and
+the photo's samples (``remap``, ~10 ms); then the raster (~100 ms, half of it GL) and the hole
+filling (~25 ms).
 """
 
 from __future__ import annotations
@@ -77,17 +84,16 @@ from scipy.spatial import cKDTree
 from photomodel.camera import Camera
 from photomodel.errors import Cancelled
 from photomodel.exchange.uv import check_mesh
-from photomodel.rendering.depth import DEPTH_TOL_MM, depth_visible, project_points
+from photomodel.rendering.depth import DEPTH_TOL_MM
 from photomodel.rendering.renderer import get_renderer, vertex_normals
 from photomodel.rendering.sampling import sample_image
+from photomodel.texturing.texel_kernels import blend_single_view, cylinder_points, photo_texels
 from photomodel.texturing.visibility import render_depth
 from photomodel.texturing.weights import (
     FEATHER_WIDTH_MM,
-    apply_single_view,
     blend,
     cubic_ramp,
     feather,
-    positional_certainty,
 )
 
 __all__ = [
@@ -390,26 +396,27 @@ def rasterise_cylinder(
     res, face_index = _render_cylinder(cmap, V, F, size, attributes)
     surface = res.mask
     face_id = np.where(surface, face_index[np.maximum(res.face_id, 0)], -1)
-    uu, vv = cmap.texel_uv(size)
     rows, cols = np.nonzero(surface)
-    origin, direction = cmap.ray(np.column_stack([uu[cols], vv[rows]]))
     # the z-buffer has picked the first triangle on each texel's ray; the point itself is the
     # exact intersection of the ray with that triangle's plane (the rasterised r is linear in
-    # (θ, y) and errs by up to ~0.1 mm on surfaces the ray grazes)
+    # (θ, y) and errs by up to ~0.1 mm on surfaces the ray grazes). The ray of texel (row, col)
+    # leaves the axis point (c_x, y_row, c_z) along (sin θ_col, 0, cos θ_col), so with the plane
+    # n·p = n·a of each triangle, r = (n·a − n_x c_x − n_z c_z − n_y y_row) / (n_x sin θ_col +
+    # n_z cos θ_col): per-triangle, per-row and per-column terms, gathered per texel.
+    uu, vv = cmap.texel_uv(size)
+    p0, p1 = cmap.phi_range
+    y0, y1 = cmap.y_range
+    theta = cmap.theta_cut + p0 + uu * (p1 - p0)  # (size,) per column
+    y_row = y0 + vv * (y1 - y0)  # (size,) per row
+    cx, cz = cmap.centre
+    tri = V[F]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # (M, 3) per triangle
+    offset = np.einsum("ij,ij->i", n, tri[:, 0]) - n[:, 0] * cx - n[:, 2] * cz
     r_raster = _RASTER_Z0_MM - res.depth[rows, cols].astype(np.float64)
-    fid = face_id[rows, cols]
-    tri = V[F[fid]]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    nd = np.einsum("ij,ij->i", n, direction)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r_exact = np.einsum("ij,ij->i", n, tri[:, 0] - origin) / nd
-    use = np.isfinite(r_exact) & (np.abs(r_exact - r_raster) < 1.0)  # guard degenerate/grazing
-    r = np.where(use, r_exact, r_raster)
-    radius = np.full((size, size), np.nan, np.float32)
-    radius[rows, cols] = r
-    points = np.full((size, size, 3), np.nan, np.float32)
-    points[rows, cols] = origin + direction * r[:, None]
-    attrs = np.where(surface[..., None], res.color, 0.0).astype(np.float32)
+    radius, points = cylinder_points(
+        rows, cols, face_id[rows, cols], n, offset, np.sin(theta), np.cos(theta), y_row, r_raster, cx, cz, size
+    )
+    attrs = res.color  # the render's background is 0: attributes are 0 off the surface
     return CylinderRaster(surface=surface, points=points, radius=radius, attributes=attrs, face_id=face_id)
 
 
@@ -804,9 +811,14 @@ def _photo_weight(texels: _SurfaceTexels, cam, photo, depth, size: int, feather_
     """One photograph's blending weight ``g_k = F_k P_k`` (t,) of each surface texel and its
     colour there (t, 3) uint8 (§5.2.1); texels seen outside ``mask`` (H, W) bool are not visible."""
     idx, pts = texels.idx, texels.pts
-    uv, z = project_points(cam, pts)
-    P = positional_certainty(cam, pts, texels.nrm)  # > 0: front-facing (§5.2.1, consideration 1)
-    vis = depth_visible(cam, pts, depth, tol_mm=tol_mm, uv=uv, z=z) & (P > 0)
+    # project_points, positional_certainty and the bilinear depth_visible in one compiled pass
+    RT = np.column_stack([cam.R, cam.t])
+    M = np.zeros((4, 4))
+    M[:2] = (cam.K @ RT)[:2]
+    M[2, 3] = 1.0
+    M[3] = RT[2]
+    depth = np.ascontiguousarray(depth, dtype=np.float32)
+    uv, P, vis = photo_texels(M, RT, pts, texels.nrm, depth, float(tol_mm))
     if mask is not None:
         h, w = mask.shape
         col = np.clip(np.round(uv[:, 0]), 0, w - 1).astype(np.intp)
@@ -821,7 +833,10 @@ def _photo_weight(texels: _SurfaceTexels, cam, photo, depth, size: int, feather_
 def _blend_texels(texels: _SurfaceTexels, colors, g, size: int, fill: bool) -> tuple[np.ndarray, np.ndarray]:
     """The blended ``size × size`` texture (uint8 RGB), holes filled when ``fill``, and its coverage."""
     idx = texels.idx
-    blended, total = blend(colors, apply_single_view(g, texels.single_view))
+    if texels.single_view is None:
+        blended, total = blend(colors, g)
+    else:  # apply_single_view and blend in one compiled pass
+        blended, total = blend_single_view(g, colors, np.ascontiguousarray(texels.single_view, dtype=np.float32))
     image = np.zeros((size * size, 3), np.float32)
     image[idx] = blended
     coverage = np.zeros(size * size, bool)

@@ -50,7 +50,7 @@ def render_depth(camera: Camera, vertices: np.ndarray, faces: np.ndarray) -> np.
         ``Z_cam`` in mm of the nearest surface at each pixel centre, ``inf`` on the background.
     """
 
-    return get_renderer().render(camera, vertices, faces).depth
+    return get_renderer().render_depth(camera, vertices, faces)
 
 
 def front_facing(camera: Camera, points: np.ndarray, normals: np.ndarray, min_cos: float = 0.0) -> np.ndarray:
