@@ -62,6 +62,7 @@ clicked targets first, then the RBF deforms *that* mesh so that every click is s
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -117,6 +118,8 @@ CLICK_RIDGE = 2.0
 #: global model left, and are held nearer zero. Chosen on ICT identities held out of the prior
 #: (module notes, *Choosing the photo fit's settings*), not on the sample.
 LOCAL_AFTER_GLOBAL_RIDGE = 8.0
+#: Prior fits kept by a :class:`PriorDeformer` for its warm refits (one per constrained-vertex set).
+KEPT_SHAPES = 4
 #: Point-to-plane cut-off (mm) of the dense stage per level (coarse to fine).
 CUTOFF_MM = (10.0, 6.0, 4.0, 3.0)
 #: Modes fade to zero between these distances (mm) of a vertex to the registered ICT surface.
@@ -594,6 +597,7 @@ class PriorDeformer:
     ----------
     prior : FacePrior
     inner : callable, the RBF deformation (``deform_vertices`` or a ``CachedDeformer``).
+    refit : callable, optional: a ``CachedDeformer`` for :meth:`warm` (the studio's refits).
     coarse : FacePrior, optional: a global model fitted first (ridge :data:`CLICK_RIDGE`); ``prior``
         then starts from its shape with the ridge :data:`LOCAL_AFTER_GLOBAL_RIDGE` — coarse to fine
         with ICT's whole identity model as the coarsest level. With 68 clicks the global model
@@ -602,11 +606,14 @@ class PriorDeformer:
         0.98 → 0.95 mm), and the local patches still fit what it cannot.
     """
 
-    def __init__(self, prior: FacePrior, inner, coarse: FacePrior | None = None):
+    def __init__(self, prior: FacePrior, inner, coarse: FacePrior | None = None, refit=None):
         self.prior = prior
         self.inner = inner
         self.coarse = coarse
+        self.refit = refit
         self.last: PriorFit | None = None
+        #: the last full call's answer per recent constrained-vertex set (bytes → (N, 3)), for :meth:`warm`
+        self.shapes: OrderedDict = OrderedDict()
 
     def __call__(self, vertices, constrained, targets, **kw) -> np.ndarray:
         idx = np.asarray(constrained)
@@ -622,7 +629,27 @@ class PriorDeformer:
         fit = fit_face_prior(self.prior, V, idx, T, tangent_weight=0.0, surface_weight=1.0, ridge=ridge)
         self.last = fit
         moved = self.inner(fit.vertices, idx, T, **kw)
-        return slide_onto(fit.vertices, self.prior.faces, moved, idx, T)
+        out = slide_onto(fit.vertices, self.prior.faces, moved, idx, T)
+        if self.refit is not None:
+            key = idx.astype(np.int64).tobytes()
+            self.shapes[key] = out
+            self.shapes.move_to_end(key)
+            while len(self.shapes) > KEPT_SHAPES:
+                self.shapes.popitem(last=False)
+            self.refit(out, idx, T, **kw)  # builds the refit's cached solve on this answer now
+        return out
+
+    def warm(self, vertices, constrained, targets, **kw) -> np.ndarray:
+        """The interactive refit's deformation (:class:`photomodel.modeling.refit.Refitter` after an
+        edit): the answer of the last full call with the same constrained vertices deformed by the
+        cached RBF ``refit`` onto the (moved) targets — every click met, in milliseconds instead of
+        the prior's seconds, and with unchanged targets exactly the full call's answer; the prior
+        itself is fitted again by the next full call (the studio's *Fit*). A set not seen yet (a
+        new click), or no ``refit``, gets the full call."""
+        base = self.shapes.get(np.asarray(constrained).astype(np.int64).tobytes())
+        if base is None or self.refit is None:
+            return self(vertices, constrained, targets, **kw)
+        return self.refit(base, constrained, targets, **kw)
 
 
 def slide_onto(surface: np.ndarray, faces: np.ndarray, moved: np.ndarray, idx: np.ndarray, targets: np.ndarray):
@@ -633,19 +660,26 @@ def slide_onto(surface: np.ndarray, faces: np.ndarray, moved: np.ndarray, idx: n
     skin (the RBF's tangential moves) is kept, its bending of the surface between clicks is not;
     the targeted vertices land on their targets (snapped, as the RBF snaps them).
 
+    The normal at ``c`` is the vertex normals interpolated (smooth across edges). With the
+    triangle's own normal (before 2026-12-04) a closest point on an edge took either neighbour's,
+    and rounding-level changes of ``moved`` (1e-14 mm) moved a vertex by up to 2.6 mm: the
+    studio's fit (cached RBF) and the CLI's differed. Searching only each vertex's own two-ring
+    of triangles (against a vertex landing on another sheet, the lids, the lips) was tried and
+    measured worse (68 landmarks 0.95 → 0.99 mm): the RBF slides vertices farther than that.
+
     Returns (N, 3) float mm."""
     surf = TriangleSurface(surface, faces)
     closest, _, tri = surf.closest(moved)
-    normal = surf.face_normals[tri]
+    normal = surf.normals_at(closest, tri)
     c_t, _, tri_t = surf.closest(targets)
-    h_t = np.sum(surf.face_normals[tri_t] * (targets - c_t), axis=1)
+    h_t = np.sum(surf.normals_at(c_t, tri_t) * (targets - c_t), axis=1)
     f = RBFInterpolant.fit(c_t, np.column_stack([h_t, np.zeros((len(h_t), 2))]), smoothing=0.0)
     out = closest + normal * f(closest)[:, :1]
     out[idx] = targets
     return out
 
 
-def prior_deformer(mesh, inner) -> PriorDeformer:
+def prior_deformer(mesh, inner, refit=None) -> PriorDeformer:
     """:class:`PriorDeformer` of the built-in mesh's local prior around ``inner`` (the RBF), the
-    global model fitted first (coarse to fine)."""
-    return PriorDeformer(load_face_prior(mesh, "local"), inner, coarse=load_face_prior(mesh, "global"))
+    global model fitted first (coarse to fine); ``refit`` as for :class:`PriorDeformer`."""
+    return PriorDeformer(load_face_prior(mesh, "local"), inner, coarse=load_face_prior(mesh, "global"), refit=refit)
