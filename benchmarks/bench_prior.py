@@ -8,7 +8,8 @@ Methods (all on the generic mesh, all through the same pipeline):
 * ``rbf`` — today's fit: Pighin's RBF deformation of the generic mesh (§5.1.2–5.1.3);
 * ``global`` — a global PCA prior: ICT's 100 identity modes as one model, fitted first, the RBF
   then honouring every click (:class:`photomodel.prior.face_prior.PriorDeformer`);
-* ``local`` — the localised prior (:mod:`photomodel.prior.face_prior`), same way.
+* ``local`` — the localised prior (:mod:`photomodel.prior.face_prior`), same way, with the global
+  model fitted first as its coarsest level (as ``facestudio fit`` does).
 
 Sections (mean surface distance, mm, from the fitted mesh's face region — bench_pose's
 ``face_mask`` — to the james scan, after the similarity that maps the fit's 3D feature points
@@ -76,7 +77,11 @@ class Bench:
         self.priors = {"global": load_face_prior(self.mesh, "global"), "local": load_face_prior(self.mesh, "local")}
 
     def deformer(self, method):
-        return deform_vertices if method == "rbf" else PriorDeformer(self.priors[method], deform_vertices)
+        if method == "rbf":
+            return deform_vertices
+        if method == "global":
+            return PriorDeformer(self.priors["global"], deform_vertices)
+        return PriorDeformer(self.priors["local"], deform_vertices, coarse=self.priors["global"])  # as `fit`
 
     def score(self, result) -> float:
         s, R, t = similarity_transform(result.points_3d, self.truth.true_points(result.feature_names))

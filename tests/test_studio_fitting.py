@@ -13,6 +13,9 @@ import pytest
 
 from app.studio.fitting import FitState, Fitting, click_residuals, predicted_uv, worst_clicks
 from photomodel.alignment import align_to_truth, camera_errors
+from photomodel.modeling.fit import fit_expression
+from photomodel.modeling.rbf import deform_vertices
+from photomodel.prior.face_prior import prior_deformer
 from photomodel.project import load_project, record_fit
 
 REPO = Path(__file__).resolve().parents[1]
@@ -141,3 +144,32 @@ def test_the_fit_workers_renderer_outlives_its_tasks(mesh):
     pool.waitForDone(30_000)
     assert len(seen) == 3 and seen[0] is not None
     assert all(r is seen[0] for r in seen) and not seen[0].released
+
+
+def test_studio_fit_uses_the_face_prior_like_the_cli(fitted, mesh):
+    """The studio's fit from scratch is ``facestudio fit``'s default (the prior around the RBF);
+    a refit after an edit deforms that fit by the cached RBF, meeting every click; without the
+    prior the plain RBF fit comes back."""
+    project, fitting, state = fitted
+    cli = fit_expression(copy.deepcopy(project), "neutral", mesh, deform=prior_deformer(mesh, deform_vertices))
+    # the refitter's cached RBF equals deform_vertices to rounding (tests/test_refit.py: 1e-8 mm)
+    np.testing.assert_allclose(state.vertices, cli.vertices, atol=1e-6)
+    assert fitting.refitter.wrapped is not None and fitting.refitter.wrapped.last is not None
+
+    edited = copy.deepcopy(project)
+    photo = edited.expression("neutral").photo("front")
+    photo.points["jaw_05"] = photo.points["jaw_05"] + np.array([6.0, 0.0])
+    hits = fitting.refitter.deformer.hits
+    warm, seconds, cold = fitting.compute(edited, "neutral", previous=state.warm_start())
+    assert not cold and fitting.refitter.deformer.hits > hits  # the full fit's answers: cached solves
+    # the moved click is met: its vertex projects onto it in the front photo (the RBF snaps targets)
+    v = edited.feature("jaw_05").vertex
+    k = warm.photo_ids.index("front")
+    uv = warm.cameras[k].project(warm.vertices[v][None])[0]
+    assert np.linalg.norm(uv - photo.points["jaw_05"]) < 3.0  # the triangulated point, ~1 px from the click
+    # elsewhere the refit stays on the full fit's face: a 6 px move is ~3 mm at one vertex, and the
+    # RBF spreads it over its neighbours only (plus the one curve pass, ~0.04 mm: tests/test_refit.py)
+    assert np.linalg.norm(warm.vertices - state.vertices, axis=1).mean() < 0.2
+
+    plain = Fitting(mesh, face_prior=False).compute(copy.deepcopy(project), "neutral")[0]
+    np.testing.assert_allclose(plain.vertices, fit_expression(project, "neutral", mesh).vertices, atol=1e-6)

@@ -15,8 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from photomodel.modeling.rbf import deform_vertices
 from photomodel.modeling.refit import Refitter
 from photomodel.modeling.wireframe import mesh_lines, photo_overlay
+from photomodel.prior.face_prior import prior_deformer
 from photomodel.rendering.renderer import get_renderer
 
 
@@ -75,10 +77,16 @@ class Fitting:
     Parameters
     ----------
     mesh : photomodel.modeling.generic_mesh.GenericMesh
+    face_prior : bool
+        Fit with the localised face prior (:func:`photomodel.prior.face_prior.prior_deformer`), as
+        ``facestudio fit`` does by default (``--no-face-prior``: False). A fit from scratch runs
+        the prior (seconds); a refit after an edit deforms the last full fit's answer by the cached
+        RBF (:meth:`~photomodel.prior.face_prior.PriorDeformer.warm`, milliseconds).
     """
 
-    def __init__(self, mesh):
+    def __init__(self, mesh, face_prior: bool = True):
         self.mesh = mesh
+        self.face_prior = face_prior
         self._refitter: Refitter | None = None
         self._lines = None
         self._renderers: dict = {}
@@ -88,7 +96,11 @@ class Fitting:
     def refitter(self) -> Refitter:
         """The :class:`photomodel.modeling.refit.Refitter` shared by every fit (built on first use)."""
         if self._refitter is None:
-            self._refitter = Refitter(self.mesh)
+            # the full fit's RBF uncached (a new prior shape each time), the refits' cached
+            wrap = (
+                (lambda cached: prior_deformer(self.mesh, deform_vertices, refit=cached)) if self.face_prior else None
+            )
+            self._refitter = Refitter(self.mesh, wrap=wrap)
         return self._refitter
 
     @property

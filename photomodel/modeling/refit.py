@@ -130,12 +130,18 @@ class Refitter:
     mesh : photomodel.modeling.generic_mesh.GenericMesh
     options : FitOptions, optional
         Options of a fit from scratch; a warm refit uses them with ``curve_passes = 1``.
+    wrap : callable, optional
+        ``wrap(inner)`` → the deformation a fit uses, built around the cached RBF ``inner`` (e.g.
+        :func:`photomodel.prior.face_prior.prior_deformer`'s, as ``facestudio fit`` and the studio
+        use it; this module sits below the prior and does not import it). When the wrapped
+        deformation has a ``warm`` method (same signature), warm refits call that instead.
     """
 
-    def __init__(self, mesh, options: FitOptions | None = None):
+    def __init__(self, mesh, options: FitOptions | None = None, *, wrap: Callable | None = None):
         self.mesh = mesh
         self.options = options or FitOptions()
         self.deformer = CachedDeformer()
+        self.wrapped = None if wrap is None else wrap(self.deformer)
 
     def fit(
         self,
@@ -167,6 +173,9 @@ class Refitter:
         options = self.options
         if warm is not None and options.refine:
             options = replace(options, curve_passes=1)
+        deform = self.deformer if self.wrapped is None else self.wrapped
+        if warm is not None and hasattr(deform, "warm"):
+            deform = deform.warm
         return fit_expression(
             project,
             expression_name,
@@ -174,6 +183,6 @@ class Refitter:
             options,
             progress=progress,
             cancel=cancel,
-            deform=self.deformer,
+            deform=deform,
             curve_mesh=warm,
         )
