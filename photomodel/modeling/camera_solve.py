@@ -113,7 +113,15 @@ from photomodel.modeling.refine import triangulate
 #: OpenBLAS' threads on 2 busy cores, 13–17 ms on one).
 _THREADS = ThreadpoolController()
 
-__all__ = ["CameraSolution", "solve_cameras", "HUBER_C", "SUSPECT_P", "PRIOR_SIGMA_MM", "DEPTH_HELD"]
+__all__ = [
+    "CameraSolution",
+    "solve_cameras",
+    "person_depth_prior",
+    "HUBER_C",
+    "SUSPECT_P",
+    "PRIOR_SIGMA_MM",
+    "DEPTH_HELD",
+]
 
 #: Huber threshold of the robust polish, in units of σ̂.
 HUBER_C = 2.5
@@ -167,6 +175,8 @@ DETECTOR_SIGMA_MM = 2.7
 #: (:func:`_map_estimate`, photos with automatic clicks): the fit weighs the detector's other
 #: targets the same way.
 PERSON_PRIOR = "person prior"
+#: … and this, where the person prior held the depth only (:func:`person_depth_prior`: views close together).
+DEPTH_ONLY = "depth"
 
 
 @dataclass
@@ -609,18 +619,76 @@ def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, conf
     raise FitError(_failure_message(failures, o, v, vname, [pname[i] for i in fidx]))
 
 
-def _person_prior(prob: BundleProblem, p0: np.ndarray, depth_axis: np.ndarray) -> None:
+def _person_prior(
+    prob: BundleProblem, p0: np.ndarray, depth_axis: np.ndarray, across_sigma_mm: float = PERSON_SIGMA_MM
+) -> None:
     """Give ``prob`` the person prior: its points off the generic head's ``p0`` (after a
-    similarity) by :data:`PERSON_SIGMA_MM` across ``depth_axis`` (the points' frame) and
-    :data:`PERSON_DEPTH_SIGMA_MM` along it, against clicks of weight 1 off by
+    similarity) by ``across_sigma_mm`` (default :data:`PERSON_SIGMA_MM`) across ``depth_axis`` (the
+    points' frame) and :data:`PERSON_DEPTH_SIGMA_MM` along it, against clicks of weight 1 off by
     :data:`ONE_VIEW_CLICK_SIGMA_PX`."""
-    prob.prior, prob.beta = p0, (ONE_VIEW_CLICK_SIGMA_PX / PERSON_SIGMA_MM) ** 2
+    prob.prior, prob.beta = p0, (ONE_VIEW_CLICK_SIGMA_PX / across_sigma_mm) ** 2
     prob.depth_axis = np.asarray(depth_axis, float) / np.linalg.norm(depth_axis)
-    prob.depth_gain = (PERSON_SIGMA_MM / PERSON_DEPTH_SIGMA_MM) ** 2 - 1.0
+    prob.depth_gain = (across_sigma_mm / PERSON_DEPTH_SIGMA_MM) ** 2 - 1.0
+
+
+def person_depth_prior(
+    observations: np.ndarray,
+    solution: CameraSolution,
+    initial_cameras: Sequence[Camera],
+    points: np.ndarray,
+    confidence: np.ndarray,
+    *,
+    groups: Sequence[int] | None = None,
+    fixed_focal: bool = False,
+    names: Sequence[str] | None = None,
+    view_names: Sequence[str] | None = None,
+) -> CameraSolution:
+    """Views close together (*beyond the paper*): from :func:`solve_cameras`' ``solution`` (its
+    clicks unweighed), the most probable face and cameras when the person prior holds the face's
+    depth and the clicks hold the rest — :func:`_map_estimate` with the person prior's
+    :data:`PERSON_DEPTH_SIGMA_MM` along the generic head's front axis and only the loose
+    :data:`PRIOR_SIGMA_MM` across it (views from nearly one direction see the face's outline and
+    features across the line of sight well, its depth hardly: a detector's error between the
+    frames triangulates into depth). ``observations``, ``initial_cameras``, ``points``,
+    ``confidence`` and the keywords as :func:`solve_cameras` took them. The start label gains
+    :data:`PERSON_PRIOR` and :data:`DEPTH_ONLY`; ``solution`` comes back unchanged where the answer
+    is implausible or no automatic click was used.
+
+    Why: near-frontal views measure depth by a small baseline, and the focal length trades
+    against it (the bundle adjustment's minimum is flat along both). Measured (docs/modeling.md,
+    "Views close together") on renders of the james scan from 2–4 views 13–31° apart (a 60 mm lens,
+    1667 px): the clicks-alone fit put the focal length at 800–937 px and the mesh 1.56–1.87 mm
+    from the scan, worse than the generic head; with this 1.33–1.42 mm, the focal 1288–1397 px,
+    the depth 0.97–0.99× the generic head's. The real clip's three stills (views 18° apart): depth
+    1.33× → 0.95×, RMS 2.43 → 2.84 px. The prior across the line of sight at the person's
+    :data:`PERSON_SIGMA_MM` held the clip's features off their clicks (RMS 3.69 px)."""
+    obs = np.asarray(observations, dtype=float)
+    with _THREADS.limit(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return _map_estimate(
+            obs,
+            solution,
+            initial_cameras,
+            points,
+            groups,
+            fixed_focal,
+            confidence,
+            names,
+            view_names,
+            across_sigma_mm=PRIOR_SIGMA_MM,
+        )
 
 
 def _map_estimate(
-    obs, sol: CameraSolution, initial_cameras, points, groups, fixed_focal, confidence, names, view_names
+    obs,
+    sol: CameraSolution,
+    initial_cameras,
+    points,
+    groups,
+    fixed_focal,
+    confidence,
+    names,
+    view_names,
+    across_sigma_mm: float = PERSON_SIGMA_MM,
 ) -> CameraSolution:
     """Several photos with automatic clicks (*beyond the paper*): from the solve's answer ``sol``,
     the most probable face and cameras under the same two Gaussians as :func:`_solve_one_view` —
@@ -639,7 +707,8 @@ def _map_estimate(
     error. The cameras do not gain alike: the most turned view's camera came out 11–19° off
     instead of 7–15° where a view is at 60° (docs/modeling.md). ``sol`` is returned unchanged when
     the answer is implausible (:func:`plausibility_problem`) or no automatic click was used. Its
-    start label gains :data:`PERSON_PRIOR`."""
+    start label gains :data:`PERSON_PRIOR`. ``across_sigma_mm``: the prior across the front axis
+    (:func:`person_depth_prior` loosens it; the label then also says :data:`DEPTH_ONLY`)."""
     k, n, _ = obs.shape
     cams = list(initial_cameras)
     fidx = np.flatnonzero(np.isfinite(sol.points[:, 0]))
@@ -660,7 +729,7 @@ def _map_estimate(
     )
     st = prob.state_from_cameras(sol.cameras, m0)
     _, R, _ = similarity_transform(m0, p0)
-    _person_prior(prob, p0, R.T @ np.array([0.0, 0.0, 1.0]))
+    _person_prior(prob, p0, R.T @ np.array([0.0, 0.0, 1.0]), across_sigma_mm)
     final, its, _ = prob.solve(st, c=np.inf, max_iter=100, tol=1e-9)
     fcams = prob.cameras(final, cams)
     vname, pname = _labels(view_names, names, k, n)
@@ -676,7 +745,7 @@ def _map_estimate(
         final.m,
         used,
         sol.sigma_px,
-        f"{sol.start} + {PERSON_PRIOR}",
+        f"{sol.start} + {PERSON_PRIOR}" + (f" ({DEPTH_ONLY})" if across_sigma_mm != PERSON_SIGMA_MM else ""),
         sol.sweeps,
         sol.iterations + its,
         vname,

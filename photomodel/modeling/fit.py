@@ -59,6 +59,7 @@ from photomodel.modeling.camera_solve import (
     DETECTOR_SIGMA_MM,
     PERSON_PRIOR,
     PERSON_SIGMA_MM,
+    person_depth_prior,
     solve_cameras,
 )
 from photomodel.modeling.checklist import require_clicks
@@ -777,6 +778,18 @@ def _cameras_robust(inputs: FitInputs, generic: np.ndarray, opt: FitOptions) -> 
             sol = solve(True)
     else:
         sol = solve(weighted)
+    if _depth_from_person_prior(inputs, opt, sol.cameras, weighted):
+        sol = person_depth_prior(
+            inputs.observations,
+            sol,
+            inputs.cameras,
+            generic[inputs.feature_vertices],
+            conf,
+            groups=inputs.camera_groups,
+            fixed_focal=opt.fixed_focal,
+            names=inputs.feature_names,
+            view_names=inputs.photo_ids,
+        )
     solved = np.isfinite(sol.points[:, 0])
     pose_cols, dropped = _placed_pose_features(inputs, solved)
     pose_idx = inputs.feature_vertices[pose_cols]
@@ -815,6 +828,17 @@ def _cameras_robust(inputs: FitInputs, generic: np.ndarray, opt: FitOptions) -> 
         },
         bundle_report={"rms_px": float(sol.rms_px), "points": int(solved.sum())},
     )
+
+
+def _depth_from_person_prior(inputs: FitInputs, opt: FitOptions, cameras, weighted: bool) -> bool:
+    """Whether the person prior holds the face's depth
+    (:func:`~photomodel.modeling.camera_solve.person_depth_prior`): several photos with automatic
+    clicks, unweighed, whose solved cameras (``cameras``) look from directions less than
+    :data:`WEIGH_FROM_SPREAD_DEG` apart — views close together, which hardly measure depth — and
+    the person prior on (:attr:`FitOptions.person_prior`). Beyond the paper."""
+    if weighted or not opt.person_prior or inputs.confidence is None or len(inputs.photo_ids) < 2:
+        return False
+    return not _views_far_apart(cameras, inputs.auto.any(axis=1))
 
 
 def _placed_pose_features(inputs: FitInputs, solved: np.ndarray) -> tuple[list[int], list[str]]:
