@@ -26,6 +26,13 @@ Sections of the one JSON object (``--json``):
   percentiles over the frames.
 * ``speed`` — cloned frames per second of the mapping and the model on one core (BLAS limited to one
   thread), full mesh (every vertex) evaluated, the per-pair set-up excluded; the best of three runs.
+* ``rig`` — ``facestudio rig --method multilinear`` against ``transfer``: each held-out person's 51 shapes
+  predicted by :func:`photomodel.people.personal_rig.predict_rig` from their neutral and ``given_expressions``
+  (``--rig-given``, default 5) of their shapes (random, by name), error = mean per-vertex distance (mm,
+  face area) to their shapes by deformation transfer over the shapes not given (``multilinear_mm``,
+  ``multilinear_p95_mm`` over the people); ``neutral_only_mm`` the model from the neutral alone;
+  ``transfer_mm`` today's rig (deformation transfer of the neutral, on ``transfer_people`` of them): the
+  truth is made by that very transfer, so it is exact but for the cached shapes' float16 rounding.
 * ``real`` — the real clip's tracked performance cloned onto james through the public CLI: the clip
   made into a tracked project by :func:`tracking.auto_pipeline.run_auto` (its first ``--real-frames``
   frames, default 60; ``--real-all`` the whole clip; in ARKit terms, as ``facestudio auto`` tracks),
@@ -197,6 +204,42 @@ def cloning(model, people, pairs: int, frames_per_pair: int, seed: int = 1) -> t
 _CLI = "import sys; from app.cli import main; sys.exit(main(sys.argv[1:]))"
 
 
+def rig_section(model, people, given: int, seed: int = 2, transfer_people: int = 3) -> dict:
+    """The ``rig`` section: each held-out person's 51 shapes predicted by the multilinear model from their
+    neutral and ``given`` of their shapes (random, named), against their shapes by deformation transfer,
+    over the shapes not given; the same for today's ``facestudio rig`` (deformation transfer of the
+    neutral, on the first ``transfer_people``) and for the model from the neutral alone."""
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.people.personal_rig import predict_rig
+    from photomodel.rig.build import RigBuilder
+
+    rng = np.random.default_rng(seed)
+    names = model.expression_names[1:]
+    fm = people.face_mask
+    ml, alone, transfer = [], [], []
+    builder = RigBuilder(load_generic_mesh())
+    for p in range(len(people)):
+        P0, truth = people.neutrals[p], people.deltas[p]
+        shown = rng.choice(len(names), given, replace=False)
+        rest = np.setdiff1d(np.arange(len(names)), shown)
+        predicted = [predict_rig(model, P0, {names[s]: P0 + truth[s] for s in shown}).deltas]
+        predicted.append(predict_rig(model, P0).deltas)
+        if p < transfer_people:
+            predicted.append(builder.rig(P0).deltas)
+        errs = [float(np.linalg.norm((d - truth)[rest][:, fm], axis=2).mean()) for d in predicted]
+        for out, e in zip((ml, alone, transfer), errs, strict=False):
+            out.append(e)
+    return {
+        "multilinear_mm": round(float(np.mean(ml)), 4),
+        "multilinear_p95_mm": round(float(np.percentile(ml, 95)), 4),
+        "transfer_mm": round(float(np.mean(transfer)), 4),
+        "neutral_only_mm": round(float(np.mean(alone)), 4),
+        "given_expressions": given,
+        "people": len(people),
+        "transfer_people": len(transfer),
+    }
+
+
 def _facestudio(*argv: str) -> tuple[int, str]:
     """Exit status and stdout of ``facestudio ARGV`` run as a user runs it (a new process, this checkout)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "QT_QPA_PLATFORM": "offscreen"}
@@ -288,6 +331,7 @@ def main(argv=None) -> int:
     ap.add_argument("--frames-per-pair", type=int, default=10)
     ap.add_argument("--skip-imputation", action="store_true")
     ap.add_argument("--only", action="append", choices=SECTIONS, help="run only these sections (repeatable)")
+    ap.add_argument("--rig-given", type=int, default=5, help="shapes given to the rig prediction (photographed)")
     ap.add_argument("--real-frames", type=int, default=60, help="frames of the real clip tracked and cloned")
     ap.add_argument("--real-all", action="store_true", help="track and clone the whole real clip")
     ap.add_argument("--real-dir", type=Path, help="keep the real clip's tracked project here (a run again resumes it)")
@@ -304,6 +348,9 @@ def main(argv=None) -> int:
     log(f"model {info}")
     imp = imputation(held, args.draws) if "imputation" in only else []
     clone, speed = cloning(model, held, args.pairs, args.frames_per_pair) if "cloning" in only else ({}, {})
+    rig = rig_section(model, held, args.rig_given) if "rig" in only else {}
+    if rig:
+        log(f"rig: {rig}")
     real_out = (
         real(None if args.real_all else args.real_frames, args.real_images, log, args.real_dir)
         if "real" in only
@@ -313,6 +360,7 @@ def main(argv=None) -> int:
         "imputation": imp,
         "cloning": clone,
         "speed": speed,
+        "rig": rig,
         "real": real_out,
         "model": info,
         "expressions": len(EXPRESSIONS),
