@@ -26,8 +26,22 @@ Sections of the one JSON object (``--json``):
   percentiles over the frames.
 * ``speed`` — cloned frames per second of the mapping and the model on one core (BLAS limited to one
   thread), full mesh (every vertex) evaluated, the per-pair set-up excluded; the best of three runs.
-* ``real`` — the real clip's tracked performance cloned onto james: not run here (``frames`` and
-  ``glb_validator_errors`` null; see the report).
+* ``rig`` — ``facestudio rig --method multilinear`` against ``transfer``: each held-out person's 51 shapes
+  predicted by :func:`photomodel.people.personal_rig.predict_rig` from their neutral and ``given_expressions``
+  (``--rig-given``, default 5) of their shapes (random, by name), error = mean per-vertex distance (mm,
+  face area) to their shapes by deformation transfer over the shapes not given (``multilinear_mm``,
+  ``multilinear_p95_mm`` over the people); ``neutral_only_mm`` the model from the neutral alone;
+  ``transfer_mm`` today's rig (deformation transfer of the neutral, on ``transfer_people`` of them): the
+  truth is made by that very transfer, so it is exact but for the cached shapes' float16 rounding.
+* ``real`` — the real clip's tracked performance cloned onto james through the public CLI: the clip
+  made into a tracked project by :func:`tracking.auto_pipeline.run_auto` (its first ``--real-frames``
+  frames, default 60; ``--real-all`` the whole clip; in ARKit terms, as ``facestudio auto`` tracks),
+  then ``facestudio clone --method multilinear`` onto a copy of the fitted james sample (exit 0, the
+  side-by-side video written), ``facestudio edit`` of james's cloned track, ``facestudio export --glb
+  --track`` of it and the Khronos validator on the glb: ``frames`` cloned, ``glb_validator_errors``
+  (−1 when the validator is not installed), ``clone_exit``, ``edit_exit``, ``export_exit``,
+  ``video_frames`` (of the side-by-side video), ``seconds``. ``--real-images DIR`` writes a few
+  frames of the side-by-side video there as PNG (docs/images/ holds the ones docs/people.md shows).
 * ``model`` — the multilinear model under test: ``ranks``, ``file_mb`` (its ``.npz``).
 """
 
@@ -35,7 +49,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -55,6 +73,11 @@ from photomodel.people.model_file import load_or_build_model  # noqa: E402
 from photomodel.people.multilinear import average_displacement, impute  # noqa: E402
 
 FRACTIONS = (10, 30, 50, 70)
+#: The sections ``--only`` can choose.
+SECTIONS = ("imputation", "cloning", "rig", "real")
+ROOT = Path(__file__).resolve().parents[1]
+#: Frames of the side-by-side video ``--real-images`` writes (as fractions of its length).
+REAL_IMAGE_AT = (0.1, 0.5, 0.9)
 
 
 def imputation(people, draws: int, seed: int = 0) -> list[dict]:
@@ -177,6 +200,127 @@ def cloning(model, people, pairs: int, frames_per_pair: int, seed: int = 1) -> t
     return out, speed
 
 
+#: ``facestudio``'s entry point run by this interpreter (the console script's own code).
+_CLI = "import sys; from app.cli import main; sys.exit(main(sys.argv[1:]))"
+
+
+def rig_section(model, people, given: int, seed: int = 2, transfer_people: int = 3) -> dict:
+    """The ``rig`` section: each held-out person's 51 shapes predicted by the multilinear model from their
+    neutral and ``given`` of their shapes (random, named), against their shapes by deformation transfer,
+    over the shapes not given; the same for today's ``facestudio rig`` (deformation transfer of the
+    neutral, on the first ``transfer_people``) and for the model from the neutral alone."""
+    from photomodel.modeling.generic_mesh import load_generic_mesh
+    from photomodel.people.personal_rig import predict_rig
+    from photomodel.rig.build import RigBuilder
+
+    rng = np.random.default_rng(seed)
+    names = model.expression_names[1:]
+    fm = people.face_mask
+    ml, alone, transfer = [], [], []
+    builder = RigBuilder(load_generic_mesh())
+    for p in range(len(people)):
+        P0, truth = people.neutrals[p], people.deltas[p]
+        shown = rng.choice(len(names), given, replace=False)
+        rest = np.setdiff1d(np.arange(len(names)), shown)
+        predicted = [predict_rig(model, P0, {names[s]: P0 + truth[s] for s in shown}).deltas]
+        predicted.append(predict_rig(model, P0).deltas)
+        if p < transfer_people:
+            predicted.append(builder.rig(P0).deltas)
+        errs = [float(np.linalg.norm((d - truth)[rest][:, fm], axis=2).mean()) for d in predicted]
+        for out, e in zip((ml, alone, transfer), errs, strict=False):
+            out.append(e)
+    return {
+        "multilinear_mm": round(float(np.mean(ml)), 4),
+        "multilinear_p95_mm": round(float(np.percentile(ml, 95)), 4),
+        "transfer_mm": round(float(np.mean(transfer)), 4),
+        "neutral_only_mm": round(float(np.mean(alone)), 4),
+        "given_expressions": given,
+        "people": len(people),
+        "transfer_people": len(transfer),
+    }
+
+
+def _facestudio(*argv: str) -> tuple[int, str]:
+    """Exit status and stdout of ``facestudio ARGV`` run as a user runs it (a new process, this checkout)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "QT_QPA_PLATFORM": "offscreen"}
+    run = subprocess.run([sys.executable, "-c", _CLI, *argv], capture_output=True, text=True, env=env, check=False)
+    if run.returncode:
+        print(f"facestudio {' '.join(argv[:1])}: exit {run.returncode}\n{run.stderr[-2000:]}", file=sys.stderr)
+    return run.returncode, run.stdout
+
+
+def real(frames: int | None, images: Path | None, log, keep: Path | None = None) -> dict:
+    """The real clip's tracked performance cloned onto james (the ``real`` section; see the module notes)."""
+    from photomodel.exchange.validator import validate_glb
+    from photomodel.photos.video import VideoFrames
+    from photomodel.samples.fitted_sample import fitted_sample_project
+    from photomodel.samples.real_clip import clip_path
+    from tracking.auto_pipeline import run_auto
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        log(f"real: tracking the clip ({frames or 'all'} frames) with facestudio auto's stages")
+        res = run_auto(clip_path(), (keep or tmp) / "clip_auto", max_frames=frames, validate=False)
+        james = tmp / "james" / fitted_sample_project().name
+        shutil.copytree(fitted_sample_project().parent, james.parent)  # the cached sample stays as it is
+        cloned = tmp / "cloned"
+        log("real: facestudio clone --method multilinear onto james")
+        argv = ["clone", "--from", str(res.project), "--track", str(res.track_dir), "--to", str(james)]
+        clone_rc, out = _facestudio(*argv, "--method", "multilinear", "--out", str(cloned), "--json")
+        summary = json.loads(out) if clone_rc == 0 else {}
+        video = summary.get("files", {}).get("video")
+        video_frames = VideoFrames(video).count if video and Path(video).is_file() else 0
+        if images is not None and video_frames:
+            images.mkdir(parents=True, exist_ok=True)
+            want = {round(f * (video_frames - 1)) for f in REAL_IMAGE_AT}
+            import cv2
+
+            for i, img in VideoFrames(video).frames(0, video_frames):
+                if i in want:
+                    cv2.imwrite(
+                        str(images / f"people_real_clone_{i:03d}.png"),
+                        cv2.cvtColor((np.clip(img, 0, 1) * 255).astype(np.uint8), cv2.COLOR_RGB2BGR),
+                    )
+        doc = json.loads((cloned / "track.json").read_text()) if clone_rc == 0 else None
+        edit_rc = export_rc = -1
+        errors = -1
+        if doc is not None:
+            name = doc["model"]["expressions"][-1]
+            log(f"real: facestudio edit of james's cloned track (--scale {name}=1.5 over frames 0:4)")
+            edit_rc, _ = _facestudio(
+                "edit",
+                str(james),
+                "--track",
+                str(cloned),
+                "--scale",
+                f"{name}=1.5",
+                "--span",
+                "0:4",
+                "--out",
+                str(tmp / "edited"),
+                "--json",
+            )
+            glb = tmp / "james_cloned.glb"
+            log("real: facestudio export --glb --track, the Khronos validator")
+            export_rc, _ = _facestudio("export", str(james), "--glb", str(glb), "--track", str(cloned), "--json")
+            report = validate_glb(glb) if export_rc == 0 else None
+            if report is not None:
+                errors = int(report["issues"]["numErrors"])
+    out = {
+        "frames": len(doc["frames"]) if doc else 0,
+        "glb_validator_errors": errors,
+        "clone_exit": clone_rc,
+        "edit_exit": edit_rc,
+        "export_exit": export_rc,
+        "video_frames": video_frames,
+        "weights_residual_mm": summary.get("weights_residual_mm", -1.0),
+        "seconds": round(time.perf_counter() - t0, 1),
+    }
+    log(f"real: {out}")
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true")
@@ -186,18 +330,38 @@ def main(argv=None) -> int:
     ap.add_argument("--pairs", type=int, default=50)
     ap.add_argument("--frames-per-pair", type=int, default=10)
     ap.add_argument("--skip-imputation", action="store_true")
+    ap.add_argument("--only", action="append", choices=SECTIONS, help="run only these sections (repeatable)")
+    ap.add_argument("--rig-given", type=int, default=5, help="shapes given to the rig prediction (photographed)")
+    ap.add_argument("--real-frames", type=int, default=60, help="frames of the real clip tracked and cloned")
+    ap.add_argument("--real-all", action="store_true", help="track and clone the whole real clip")
+    ap.add_argument("--real-dir", type=Path, help="keep the real clip's tracked project here (a run again resumes it)")
+    ap.add_argument("--real-images", type=Path, help="write frames of the real clone's side-by-side video here")
     args = ap.parse_args(argv)
+    only = set(args.only or SECTIONS) - ({"imputation"} if args.skip_imputation else set())
+
+    def log(msg):
+        print(msg, file=sys.stderr, flush=True)
+
     t0 = time.perf_counter()
     held = load_people("held_out", args.people)
     model, info = load_or_build_model(args.model_people)
-    print(f"model {info}", file=sys.stderr, flush=True)
-    imp = [] if args.skip_imputation else imputation(held, args.draws)
-    clone, speed = cloning(model, held, args.pairs, args.frames_per_pair)
+    log(f"model {info}")
+    imp = imputation(held, args.draws) if "imputation" in only else []
+    clone, speed = cloning(model, held, args.pairs, args.frames_per_pair) if "cloning" in only else ({}, {})
+    rig = rig_section(model, held, args.rig_given) if "rig" in only else {}
+    if rig:
+        log(f"rig: {rig}")
+    real_out = (
+        real(None if args.real_all else args.real_frames, args.real_images, log, args.real_dir)
+        if "real" in only
+        else {}
+    )
     result = {
         "imputation": imp,
         "cloning": clone,
         "speed": speed,
-        "real": {"frames": None, "glb_validator_errors": None},
+        "rig": rig,
+        "real": real_out,
         "model": info,
         "expressions": len(EXPRESSIONS),
         "seconds": round(time.perf_counter() - t0, 1),

@@ -20,8 +20,9 @@ and the studio's tracking view take it as they take B's own tracking. Four steps
 3. **B's weights.** Each mapped face is said in B's model: per-region weights of B's expressions by least
    squares over the face against B's per-region targets ``μ_r (E_k − E_1)``
    (:func:`tracking.performance.region_targets`), the neutral's weight ``1 − Σ`` (the model's Eq. 4 form).
-4. **B's results**: A's ``track.json`` with B's project and model, each frame's pose (``R``, ``t``) kept
-   (``centre_mm`` moved to B's head centre), weights and ``α`` of B, fit statistics zeroed, and a
+4. **B's results**: A's ``track.json`` with B's project and model, each frame's rotation ``R`` and head
+   centre ``centre_mm`` kept (``t`` moved so that B's head centre is where A's was: the two heads' frames
+   have different origins), weights and ``α`` of B, fit statistics zeroed, and a
    ``cloned_from`` record (A's project, A's results folder, the method).
 """
 
@@ -65,24 +66,41 @@ METHODS = ("multilinear", "mapping", "displacement", "names")
 
 
 def _region_weights(model: FaceModel, rec: dict) -> np.ndarray:
-    """(R, m) region weights of a ``track.json`` frame record (rest: the neutral)."""
-    W = np.zeros((len(CONTROL_REGIONS), model.m))
+    """(R, m) region weights of a ``track.json`` frame record (rest: the neutral); with a shared basis
+    (a track in ARKit terms, :mod:`tracking.arkit_face`) (R + 1, m), the last row the record's ``arkit``
+    weights of the shared shapes."""
+    shared = model.shared_expressions
+    W = np.zeros((len(CONTROL_REGIONS) + (1 if model.n_shared else 0), model.m))
     W[0, 0] = 1.0
     for r, region in enumerate(CONTROL_REGIONS):
         if r:
             w = rec["weights"][region]
-            W[r] = [w[name] for name in model.names]
+            W[r] = [0.0 if s else w[name] for name, s in zip(model.names, shared, strict=True)]
+    if model.n_shared:
+        arkit = rec.get("arkit", {})
+        W[-1] = [arkit.get(name, 0.0) if s else 0.0 for name, s in zip(model.names, shared, strict=True)]
     return W
 
 
 def performance_faces(model: FaceModel, doc: dict) -> np.ndarray:
-    """(f, n, 3) mm, head frame: step 1, the tracked frames' faces of ``model`` (A's)."""
-    if list(doc["model"]["expressions"]) != list(model.names):
+    """(f, n, 3) mm, head frame: step 1, the tracked frames' faces of ``model`` (A's, as
+    :func:`tracking.arkit_face.model_for_results` rebuilds it: photographed expressions per region,
+    and the rig's shapes when the track is in ARKit terms)."""
+    shared = model.shared_expressions
+    photographed = [n for n, s in zip(model.names, shared, strict=True) if not s]
+    if list(doc["model"]["expressions"]) != photographed:
         raise FaceStudioError(
             f"the tracking was made with the expressions {doc['model']['expressions']} but the face model has "
-            f"{list(model.names)}"
+            f"{photographed}"
         )
     return np.array([model.blend_geometry(model.vertex_weights(_region_weights(model, r))) for r in doc["frames"]])
+
+
+def _expression_shapes(model: FaceModel) -> np.ndarray:
+    """(m, n, 3) mm: the model's expressions as faces (a shared shape, stored as its displacement, on the neutral)."""
+    shapes = model.geometry.copy()
+    shapes[model.shared_expressions] += model.geometry[0]
+    return shapes
 
 
 def map_faces(
@@ -105,8 +123,8 @@ def map_faces(
         if model_a.m < 2 or model_b.m < 2:
             raise FaceStudioError("the mapping needs at least two photographed expressions in each project")
         s, R, _ = align_similarity(nA, nB, mask)
-        space_a = expression_space(model_a.geometry.reshape(model_a.m, -1))
-        space_b = expression_space(model_b.geometry.reshape(model_b.m, -1))
+        space_a = expression_space(_expression_shapes(model_a).reshape(model_a.m, -1))
+        space_b = expression_space(_expression_shapes(model_b).reshape(model_b.m, -1))
         out = ExpressionMapping.between(space_a, space_b, (s, R))(X)
     elif method == "multilinear":
         pm = people_model
@@ -167,7 +185,8 @@ def cloned_results(
     doc["cloned_from"] = cloned_from
     for rec, W in zip(doc["frames"], weights, strict=True):
         R = np.array(rec["R"], float)
-        rec["centre_mm"] = (R @ model_b.centre + np.array(rec["t_mm"], float)).tolist()
+        # B's head centre where A's was (A's recorded centre_mm kept): t = c_A − R c_B
+        rec["t_mm"] = (np.array(rec["centre_mm"], float) - R @ model_b.centre).tolist()
         rec["alpha"] = model_b.alpha_of_weights(W).tolist()
         rec["weights"] = {
             region: dict(zip(model_b.names, map(float, W[r]), strict=True))

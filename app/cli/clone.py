@@ -26,6 +26,7 @@ from photomodel.errors import FaceStudioError
 from photomodel.people.model_file import MODEL_PEOPLE, model_path
 from photomodel.people.multilinear import MultilinearModel
 from photomodel.project import load_project, load_rig_shapes, save_project
+from tracking.arkit_face import model_for_results
 from tracking.clone import METHODS, cloned_results, map_faces, performance_faces, side_by_side_frames, weights_of_faces
 from tracking.edit_video import write_video
 from tracking.face_from_project import face_model_from_project
@@ -54,7 +55,7 @@ def run(args) -> int:
     doc_a = load_track_results(args.track)
     if doc_a is None or not doc_a["frames"]:
         raise FaceStudioError(f"{args.track} holds no tracked frames (track.json); run `facestudio track` first")
-    model_a, _ = face_model_from_project(project_a, doc_a["model"]["expressions"])
+    model_a = model_for_results(project_a, doc_a)  # photographed expressions, or the rig's shapes (ARKit terms)
     model_b, _ = face_model_from_project(project_b)
     faces = performance_faces(model_a, doc_a)
     people_model = rigs = None

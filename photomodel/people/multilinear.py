@@ -179,11 +179,19 @@ class MultilinearModel:
 
     def fit_identity(self, faces: np.ndarray, expressions, ridge: float = IDENTITY_RIDGE) -> np.ndarray:
         """(r2,) identity weights of a person seen in ``faces`` (k, d) mm, of the model's expressions
-        ``expressions`` (k indices into :attr:`expression_names`): linear least squares (the model
-        is linear in ``w2`` with ``w3`` fixed, seed 000 §5.1), ridge ``ridge`` × the mean squared
-        training weight towards the training people's mean identity."""
+        ``expressions`` (k indices into :attr:`expression_names`): :meth:`fit_identity_weights` with
+        those expressions' weights (rows of :attr:`expression_rows`)."""
+        return self.fit_identity_weights(faces, self.expression_rows[np.asarray(expressions, int)], ridge)
+
+    def fit_identity_weights(
+        self, faces: np.ndarray, expression_weights: np.ndarray, ridge: float = IDENTITY_RIDGE
+    ) -> np.ndarray:
+        """(r2,) identity weights of a person seen in ``faces`` (k, d) mm whose expression weights
+        ``expression_weights`` (k, r3) are known: linear least squares (the model is linear in ``w2``
+        with ``w3`` fixed, seed 000 §5.1), ridge ``ridge`` × the mean squared training weight towards
+        the training people's mean identity."""
         g = self.coordinates(np.atleast_2d(faces))  # (k, r1)
-        A = np.einsum("abc,kc->kab", self.core, self.expression_rows[np.asarray(expressions, int)])  # (k, r1, r2)
+        A = np.einsum("abc,kc->kab", self.core, np.atleast_2d(np.asarray(expression_weights, float)))  # (k, r1, r2)
         A = A.reshape(-1, A.shape[-1])
         prior = self.identity_rows.mean(axis=0)
         lam = ridge * np.sum(self.core**2) / max(len(self.identity_rows), 1)
