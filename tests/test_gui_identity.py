@@ -15,10 +15,10 @@ import pytest
 pytest.importorskip("PySide6")
 pytest.importorskip("pytestqt")
 
-from PySide6.QtCore import QSettings, Qt  # noqa: E402
+from PySide6.QtCore import Qt  # noqa: E402
 from PySide6.QtWidgets import QFileDialog  # noqa: E402
+from studio_window import close_studio, open_studio  # noqa: E402
 
-from app.qt.main_window import MainWindow  # noqa: E402
 from app.qt.rig_panel import IDENTITY_STEPS  # noqa: E402
 from app.studio.identity import SIGMA_RANGE, IdentityFace  # noqa: E402
 from photomodel.people.dataset import EXPRESSIONS  # noqa: E402
@@ -46,20 +46,9 @@ def people_model_file(tmp_path_factory, mesh):
 
 @pytest.fixture
 def window(qtbot, tmp_path, errors, fitted_project_copy):
-    w = MainWindow(
-        settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
-        autosave_interval_ms=0,
-        recovery_file=tmp_path / "untitled.recovery.facestudio.json",
-    )
-    qtbot.addWidget(w)
-    w.resize(1300, 850)
-    w.show()
-    qtbot.waitExposed(w)
-    assert w.open_project(fitted_project_copy, ask_to_save=False)
+    w = open_studio(qtbot, tmp_path, fitted_project_copy)
     yield w
-    w.fits.shutdown()
-    w.jobs.shutdown()
-    w.model.modified = False
+    close_studio(w)
 
 
 def _neutral(model: MultilinearModel, identity: np.ndarray) -> np.ndarray:

@@ -17,10 +17,10 @@ pytest.importorskip("pytestqt")
 
 import json
 
-from PySide6.QtCore import QSettings, Qt  # noqa: E402
+from PySide6.QtCore import Qt  # noqa: E402
 from PySide6.QtWidgets import QFileDialog  # noqa: E402
+from studio_window import close_studio, open_studio  # noqa: E402
 
-from app.qt.main_window import MainWindow  # noqa: E402
 from app.qt.tracking_view import MARKER_COLOR, plot_with_marker  # noqa: E402
 from photomodel.camera import rotation_angle_deg
 from photomodel.photos.video import VideoFrames
@@ -32,21 +32,9 @@ SAMPLE = Path(__file__).resolve().parents[1] / "sample_projects" / "james"
 
 @pytest.fixture
 def window(qtbot, tmp_path, errors, fitted_project_copy):
-    w = MainWindow(
-        settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat),
-        autosave_interval_ms=0,
-        recovery_file=tmp_path / "untitled.recovery.facestudio.json",
-    )
-    qtbot.addWidget(w)
-    w.resize(1300, 850)
-    w.show()
-    qtbot.waitExposed(w)
-    assert w.open_project(fitted_project_copy, ask_to_save=False)
+    w = open_studio(qtbot, tmp_path, fitted_project_copy)
     yield w
-    w.tracking_view.jobs.shutdown()
-    w.fits.shutdown()
-    w.jobs.shutdown()
-    w.model.modified = False
+    close_studio(w)
 
 
 def video_of(project: Path) -> Path:

@@ -727,28 +727,9 @@ class FrameFitter:
         an earlier call with the same ``params`` (:meth:`_alpha_table`)."""
         r = ev.render
         N = len(r.pixels)
-        # image gradient (Sobel, scaled to a unit slope) at the covered pixels; the crop keeps
-        # one pixel around the model so the 3×3 kernel sees the background as in the full image
-        y0, y1, x0, x1 = r.box
-        y0, x0, y1, x1 = max(y0 - 1, 0), max(x0 - 1, 0), min(y1 + 1, self.H), min(x1 + 1, self.W)
-        img = r.image[y0:y1, x0:x1] if image is None else image
-        py, px = np.divmod(r.pixels, self.W)
-        li = (py - y0) * (x1 - x0) + (px - x0)
-        gx = np.take(cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125).reshape(-1, 3), li, axis=0).T
-        gy = np.take(cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125).reshape(-1, 3), li, axis=0).T
-        X, Y, Z = np.asarray(r.X_cam, np.float32).T
-        iz = 1.0 / Z
-        # G (3 axes, 3 channels, N): −∇Î · ∂x/∂m' (App. B.1: u = f X/Z + c_x, v = f Y/Z + c_y);
-        # the minus sign: a surface moving by δx changes the image at a fixed pixel by −∇Î·δx
-        fz = np.float32(-self.f) * iz
-        Gx, Gy = gx * fz, gy * fz
-        Gz = Gx * (X * iz)
-        Gz += Gy * (Y * iz)
-        np.negative(Gz, out=Gz)
+        G, q = self._motion_gradients(ev, image)
+        Gx, Gy, Gz = G
         J = np.empty((len(params), 3, N), np.float32)
-        t = ev.state.t.astype(np.float32)
-        q = (X - t[0], Y - t[1], Z - t[2])  # R (m − c)
-        G = (Gx, Gy, Gz)
         for j, p in enumerate(params):
             if p < 3:  # ∂m'/∂ω_l = e_l × R(m − c): (e_l × q) · G
                 a, b = (p + 1) % 3, (p + 2) % 3
@@ -873,13 +854,18 @@ class FrameFitter:
             g[alpha] = ga
         return g
 
-    def _motion_gradients(self, ev: _Eval) -> tuple:
+    def _motion_gradients(self, ev: _Eval, image: np.ndarray | None = None) -> tuple:
         """``G`` (3 axes of (3 channels, N)): ``−∇Î · ∂x/∂m'`` at ``ev``'s covered pixels, and
-        ``q = R(m − c)`` (3 of (N,)) — the pieces of Eq. 7 (see :meth:`_pixel_jacobian`)."""
+        ``q = R(m − c)`` (3 of (N,)) — the pieces of Eq. 7 (App. B.1: u = f X/Z + c_x, v = f Y/Z +
+        c_y; the minus sign: a surface moving by δx changes the image at a fixed pixel by −∇Î·δx).
+        ``image``: the crop to take the gradient of instead of the rendering's (see
+        :meth:`_pixel_jacobian`)."""
         r = ev.render
+        # image gradient (Sobel, scaled to a unit slope) at the covered pixels; the crop keeps
+        # one pixel around the model so the 3×3 kernel sees the background as in the full image
         y0, y1, x0, x1 = r.box
         y0, x0, y1, x1 = max(y0 - 1, 0), max(x0 - 1, 0), min(y1 + 1, self.H), min(x1 + 1, self.W)
-        img = r.image[y0:y1, x0:x1]
+        img = r.image[y0:y1, x0:x1] if image is None else image
         py, px = np.divmod(r.pixels, self.W)
         li = (py - y0) * (x1 - x0) + (px - x0)
         gx = np.take(cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125).reshape(-1, 3), li, axis=0).T
@@ -888,7 +874,9 @@ class FrameFitter:
         iz = 1.0 / Z
         fz = np.float32(-self.f) * iz
         Gx, Gy = gx * fz, gy * fz
-        Gz = -(Gx * (X * iz) + Gy * (Y * iz))
+        Gz = Gx * (X * iz)
+        Gz += Gy * (Y * iz)
+        np.negative(Gz, out=Gz)
         t = ev.state.t.astype(np.float32)
         return (Gx, Gy, Gz), (X - t[0], Y - t[1], Z - t[2])
 
