@@ -24,7 +24,7 @@ def rigged(tmp_path_factory, fitted_sample):
     dst = tmp_path_factory.mktemp("rigged") / "james"
     shutil.copytree(fitted_sample.parent, dst)
     path = dst / fitted_sample.name
-    assert cmd_rig(argparse.Namespace(project=path, neutral=None, json=False)) == 0
+    assert cmd_rig(argparse.Namespace(project=path, neutral=None, json=False, method="transfer")) == 0
     return path
 
 
