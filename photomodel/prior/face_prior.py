@@ -74,6 +74,7 @@ from photomodel.alignment import similarity_transform
 from photomodel.closest_points import TriangleSurface
 from photomodel.data.cache import cached_arrays
 from photomodel.data.keys import code_key
+from photomodel.errors import FitError
 from photomodel.modeling.generic_mesh import generic_mesh_key
 from photomodel.modeling.rbf import RBFInterpolant
 from photomodel.rendering.renderer import vertex_normals
@@ -621,6 +622,16 @@ class PriorDeformer:
         V = np.asarray(vertices, float)
         if idx.ndim != 1 or T.shape != (len(idx), 3) or len(idx) < 4 or not np.all(np.isfinite(T)):
             return self.inner(vertices, constrained, targets, **kw)  # let the RBF word the error
+        try:
+            return self._prior_then_inner(V, idx, T, **kw)
+        except FitError:
+            # the prior's shape brought two constrained vertices together (measured: a one-photo
+            # fit in the studio, two centres 0.0008 mm apart asking for different values, which no
+            # interpolant meets): the RBF alone on the given vertices, as without the prior
+            return self.inner(vertices, constrained, targets, **kw)
+
+    def _prior_then_inner(self, V, idx, T, **kw) -> np.ndarray:
+        """:meth:`__call__`'s work: the prior's fit (coarse to fine), the RBF onto every target."""
         ridge = CLICK_RIDGE
         if self.coarse is not None:
             first = fit_face_prior(self.coarse, V, idx, T, tangent_weight=0.0, surface_weight=1.0, ridge=CLICK_RIDGE)
