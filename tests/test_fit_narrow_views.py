@@ -70,10 +70,12 @@ def test_views_close_together_take_the_depth_from_the_person_prior(near_frontal,
     assert PERSON_PRIOR not in alone.report["camera_solve"]["start"]
 
     # measured 2026-12-04: the clicks alone 1.11x (0.20 over the scan's 0.91x), focal 828 px (half
-    # the true 1667), 1.87 mm from the scan; with the prior 0.98x, 1397 px, 1.34 mm; the generic
-    # head 1.46 mm. Bounds with room for the detector's wobble, each one the clicks alone fail.
+    # the true 1667), 1.87 mm from the scan; with the prior (2.1 mm along the front axis) 0.98x,
+    # 1397 px, 1.34 mm; the generic head 1.46 mm. 2026-12-05, the prior's 8 mm
+    # (DEPTH_ONLY_SIGMA_MM): 1.04x (0.13 over the scan's). Bounds with room for the detector's
+    # wobble, each one the clicks alone fail.
     depth, depth_alone = depth_ratio(fit.vertices, mesh), depth_ratio(alone.vertices, mesh)
-    assert abs(depth - true_depth) < 0.12
+    assert abs(depth - true_depth) < 0.16
     assert abs(depth - true_depth) < abs(depth_alone - true_depth)
     assert abs(fit.cameras[0].f / true_focal - 1.0) < 0.3
     fit_mm, alone_mm = _scored(fit, mesh, scan, sample_truth), _scored(alone, mesh, scan, sample_truth)

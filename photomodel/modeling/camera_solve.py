@@ -166,6 +166,17 @@ ONE_VIEW_CLICK_SIGMA_PX = 1.0
 #: onto its neutral's: RMS 1.39 / 1.58 mm in x / y, 2.14 mm in z. Not measured on the sample.
 PERSON_SIGMA_MM = 1.5
 PERSON_DEPTH_SIGMA_MM = 2.1
+#: Views close together (:func:`person_depth_prior`): the prior's σ along the front axis (mm). Not
+#: the person prior's 2.1 mm: that held features off their clicks on real frames (the real clip's
+#: three stills: fit RMS 1.78 → 2.32 px, and the mouth 5.5 px off its detector position on the
+#: frame a still was taken from, so that tracking with the rig's 51 shapes drifted: 3.06 → 4.30 px
+#: against the detector over 300 frames). Measured 2026-12-05 over 2.1 / 5 / 8 / 15 mm: renders of
+#: the james scan, five sets of 2–3 views 15–30° apart, with the face prior — 1.41 / 1.35 / 1.33 /
+#: 1.33 mm from the scan mean (no prior: 2.10), fit RMS 1.13 / 1.05 / 0.93 / 0.80 px; the real
+#: clip, landmarks over its first 300 frames 4.30 / 4.14 / 3.26 / 3.56 px (no prior 3.06), depth
+#: 0.96 / 0.99 / 1.01 / 1.06× the generic head's. 8 mm: the scan's error at its lowest, the
+#: real clip's tracking near its no-prior figure.
+DEPTH_ONLY_SIGMA_MM = 8.0
 #: One photo: the landmark detector's error per axis at confidence 0.9 (mm at the face): 3 % of
 #: an outer-eye distance of ~90 mm, from its mean error of 4.1–5.7 % over 68 points on nine
 #: faces no benchmark scores (dlib's example photos, docs/landmarks.md; a mean 2-D error is ~1.25
@@ -620,15 +631,19 @@ def _solve_one_view(obs, initial_cameras, points, prior, names, view_names, conf
 
 
 def _person_prior(
-    prob: BundleProblem, p0: np.ndarray, depth_axis: np.ndarray, across_sigma_mm: float = PERSON_SIGMA_MM
+    prob: BundleProblem,
+    p0: np.ndarray,
+    depth_axis: np.ndarray,
+    across_sigma_mm: float = PERSON_SIGMA_MM,
+    depth_sigma_mm: float = PERSON_DEPTH_SIGMA_MM,
 ) -> None:
     """Give ``prob`` the person prior: its points off the generic head's ``p0`` (after a
     similarity) by ``across_sigma_mm`` (default :data:`PERSON_SIGMA_MM`) across ``depth_axis`` (the
-    points' frame) and :data:`PERSON_DEPTH_SIGMA_MM` along it, against clicks of weight 1 off by
-    :data:`ONE_VIEW_CLICK_SIGMA_PX`."""
+    points' frame) and ``depth_sigma_mm`` (default :data:`PERSON_DEPTH_SIGMA_MM`) along it,
+    against clicks of weight 1 off by :data:`ONE_VIEW_CLICK_SIGMA_PX`."""
     prob.prior, prob.beta = p0, (ONE_VIEW_CLICK_SIGMA_PX / across_sigma_mm) ** 2
     prob.depth_axis = np.asarray(depth_axis, float) / np.linalg.norm(depth_axis)
-    prob.depth_gain = (across_sigma_mm / PERSON_DEPTH_SIGMA_MM) ** 2 - 1.0
+    prob.depth_gain = (across_sigma_mm / depth_sigma_mm) ** 2 - 1.0
 
 
 def person_depth_prior(
@@ -645,8 +660,8 @@ def person_depth_prior(
 ) -> CameraSolution:
     """Views close together (*beyond the paper*): from :func:`solve_cameras`' ``solution`` (its
     clicks unweighed), the most probable face and cameras when the person prior holds the face's
-    depth and the clicks hold the rest — :func:`_map_estimate` with the person prior's
-    :data:`PERSON_DEPTH_SIGMA_MM` along the generic head's front axis and only the loose
+    depth and the clicks hold the rest — :func:`_map_estimate` with :data:`DEPTH_ONLY_SIGMA_MM`
+    along the generic head's front axis (looser than the person prior's; see there) and only the loose
     :data:`PRIOR_SIGMA_MM` across it (views from nearly one direction see the face's outline and
     features across the line of sight well, its depth hardly: a detector's error between the
     frames triangulates into depth). ``observations``, ``initial_cameras``, ``points``,
@@ -659,8 +674,8 @@ def person_depth_prior(
     "Views close together") on renders of the james scan from 2–4 views 13–31° apart (a 60 mm lens,
     1667 px): the clicks-alone fit put the focal length at 800–937 px and the mesh 1.56–1.87 mm
     from the scan, worse than the generic head; with this 1.33–1.42 mm, the focal 1288–1397 px,
-    the depth 0.97–0.99× the generic head's. The real clip's three stills (views 18° apart): depth
-    1.33× → 0.95×, RMS 2.43 → 2.84 px. The prior across the line of sight at the person's
+    the depth 0.97–0.99× the generic head's (with the person prior's 2.1 mm along the front axis;
+    :data:`DEPTH_ONLY_SIGMA_MM` since). The prior across the line of sight at the person's
     :data:`PERSON_SIGMA_MM` held the clip's features off their clicks (RMS 3.69 px)."""
     obs = np.asarray(observations, dtype=float)
     with _THREADS.limit(limits=1, user_api="blas"), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -675,6 +690,7 @@ def person_depth_prior(
             names,
             view_names,
             across_sigma_mm=PRIOR_SIGMA_MM,
+            depth_sigma_mm=DEPTH_ONLY_SIGMA_MM,
         )
 
 
@@ -689,6 +705,7 @@ def _map_estimate(
     names,
     view_names,
     across_sigma_mm: float = PERSON_SIGMA_MM,
+    depth_sigma_mm: float = PERSON_DEPTH_SIGMA_MM,
 ) -> CameraSolution:
     """Several photos with automatic clicks (*beyond the paper*): from the solve's answer ``sol``,
     the most probable face and cameras under the same two Gaussians as :func:`_solve_one_view` —
@@ -707,8 +724,8 @@ def _map_estimate(
     error. The cameras do not gain alike: the most turned view's camera came out 11–19° off
     instead of 7–15° where a view is at 60° (docs/modeling.md). ``sol`` is returned unchanged when
     the answer is implausible (:func:`plausibility_problem`) or no automatic click was used. Its
-    start label gains :data:`PERSON_PRIOR`. ``across_sigma_mm``: the prior across the front axis
-    (:func:`person_depth_prior` loosens it; the label then also says :data:`DEPTH_ONLY`)."""
+    start label gains :data:`PERSON_PRIOR`. ``across_sigma_mm``, ``depth_sigma_mm``: the prior across and
+    along the front axis (:func:`person_depth_prior` loosens both; the label then also says :data:`DEPTH_ONLY`)."""
     k, n, _ = obs.shape
     cams = list(initial_cameras)
     fidx = np.flatnonzero(np.isfinite(sol.points[:, 0]))
@@ -729,7 +746,7 @@ def _map_estimate(
     )
     st = prob.state_from_cameras(sol.cameras, m0)
     _, R, _ = similarity_transform(m0, p0)
-    _person_prior(prob, p0, R.T @ np.array([0.0, 0.0, 1.0]), across_sigma_mm)
+    _person_prior(prob, p0, R.T @ np.array([0.0, 0.0, 1.0]), across_sigma_mm, depth_sigma_mm)
     final, its, _ = prob.solve(st, c=np.inf, max_iter=100, tol=1e-9)
     fcams = prob.cameras(final, cams)
     vname, pname = _labels(view_names, names, k, n)
