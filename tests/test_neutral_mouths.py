@@ -98,3 +98,32 @@ def test_another_expressions_photos_keep_their_mouths(tmp_path, frame_files, mes
     assert all(len(_mouth(p)) == 20 for p in project.expression("smile").photos)
     assert not any("mouth shows an expression" in w for w in warnings)
     assert np.isfinite(mouth_expression(project.expression("smile").photos[1].points))
+
+
+def test_the_neutral_texture_leaves_out_the_mouth_of_expressive_frames_only(frame_files):
+    """photomodel/texturing/neutral_parts.py: with a closed mouth among the photos, the smiling and
+    talking frames' mouths (and around them) are left out of the neutral's texture, the closed
+    ones' are kept; with no neutral mouth, nothing is left out (the best the photos have)."""
+    from photomodel.landmarks.detect import detect_468
+    from photomodel.texturing.neutral_parts import expressive_mouth_masks
+
+    order = NEUTRAL_FRAMES + EXPRESSIVE_FRAMES
+    images = {i: cv2.imread(str(frame_files[i]))[:, :, ::-1].copy() for i in order}
+    points = {i: detect_468(images[i]).points for i in order}
+    masks = expressive_mouth_masks([images[i].shape for i in order], [points[i] for i in order])
+    out = dict(zip(order, masks, strict=True))
+    assert all(out[i] is None for i in NEUTRAL_FRAMES)
+    for i in EXPRESSIVE_FRAMES:
+        m = out[i]
+        assert m is not None and m.shape == images[i].shape[:2]
+        # the mouth corners and the lips' middles lie inside, the eyes, brows and the nose's
+        # bridge outside (the face mesh's 61/291 corners, 13/14 inner lips, 33/263 eye corners,
+        # 105/334 brows, 6 between the eyes; the nose tip may lie in the margin: a smile lifts
+        # the upper lip and the nostrils' wings)
+        inside = [m[int(round(points[i][k, 1])), int(round(points[i][k, 0]))] for k in (61, 291, 13, 14)]
+        outside = [m[int(round(points[i][k, 1])), int(round(points[i][k, 0]))] for k in (33, 263, 105, 334, 6)]
+        assert all(inside) and not any(outside), (i, inside, outside)
+    only_expressive = expressive_mouth_masks(
+        [images[i].shape for i in EXPRESSIVE_FRAMES], [points[i] for i in EXPRESSIVE_FRAMES]
+    )
+    assert all(m is None for m in only_expressive)

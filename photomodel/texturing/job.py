@@ -32,13 +32,15 @@ import cv2
 import numpy as np
 
 from photomodel.camera import Camera
-from photomodel.errors import Cancelled, FitError, PhotoError, ProjectError
+from photomodel.errors import Cancelled, FitError, NoFaceFound, PhotoError, ProjectError
 from photomodel.exchange.files import encode_png
 from photomodel.exchange.gltf import encode_glb
 from photomodel.exchange.obj import encode_textured_obj
 from photomodel.exchange.ply import encode_colored_ply
 from photomodel.exchange.uv import merge_uv_seams
+from photomodel.landmarks.detect import detect_468
 from photomodel.landmarks.segment import face_pixels
+from photomodel.photos.intake import NEUTRAL
 from photomodel.photos.reading import MAX_WORKING_SIDE, read_photo
 from photomodel.project.io import default_filename
 from photomodel.project.results import read_fitted_mesh
@@ -51,6 +53,7 @@ from photomodel.texturing.cylindrical import (
     seam_render_mesh,
     single_view_weights,
 )
+from photomodel.texturing.neutral_parts import expressive_mouth_masks
 
 __all__ = [
     "TEXTURE_SIZES",
@@ -227,6 +230,26 @@ def _read_photos(project, name: str, photo_ids, max_side: int = MAX_WORKING_SIDE
     return ids, cameras, photos
 
 
+def _face_points(image: np.ndarray):
+    """The face mesh's 468 points of a photo, or None when no face is found."""
+    try:
+        return detect_468(image).points
+    except NoFaceFound:
+        return None
+
+
+def _photo_masks(inputs: TextureInputs) -> list[np.ndarray]:
+    """The pixels each photo may give: its face and head (:func:`face_pixels`), and for the
+    neutral, not the mouth of a photo whose mouth shows an expression another photo's does not
+    (:func:`photomodel.texturing.neutral_parts.expressive_mouth_masks`)."""
+    points = [_face_points(p) for p in inputs.photos]
+    masks = [face_pixels(p, pts) for p, pts in zip(inputs.photos, points, strict=True)]
+    if inputs.expression != NEUTRAL:
+        return masks
+    mouths = expressive_mouth_masks([p.shape for p in inputs.photos], points)
+    return [m if out is None else m & ~out for m, out in zip(masks, mouths, strict=True)]
+
+
 def extract_texture(
     inputs: TextureInputs,
     size: int = 1024,
@@ -265,7 +288,7 @@ def extract_texture(
     V = inputs.vertices
     t0 = time.perf_counter()
     single = single_view_weights(V, face_mask) if face_mask is not None and len(face_mask) == len(V) else None
-    masks = [face_pixels(p) for p in inputs.photos] if mask_photos else None
+    masks = _photo_masks(inputs) if mask_photos else None
     tex = cylindrical_texture(
         V,
         inputs.faces,
