@@ -40,6 +40,7 @@ from photomodel.project import load_project  # noqa: E402
 from photomodel.samples.real_clip import clip_path  # noqa: E402
 from tracking.arkit_face import arkit_face_model  # noqa: E402
 from tracking.auto_pipeline import run_auto  # noqa: E402
+from tracking.detected_pose import Redetector  # noqa: E402
 from tracking.frame_fit import FrameFitter, FrameState, TrackOptions, track_frames  # noqa: E402
 from tracking.synthetic_sequences.arkit_sequence import (  # noqa: E402
     arkit_truth,
@@ -58,13 +59,16 @@ def _num(v):
     return None if v is None or not np.isfinite(v) else round(float(v), 4)
 
 
-def arkit_section(frames: int, log) -> dict:
+def arkit_section(frames: int, log, options: dict | None = None) -> dict:
     """Track renders of the rigged sample with known ARKit weights (see the module notes)."""
     with tempfile.TemporaryDirectory() as tmp:
         path = rigged_sample_project(tmp)
-        model, _ = arkit_face_model(load_project(path))
+        project = load_project(path)
+        model, _ = arkit_face_model(project)
     truth = arkit_truth(model.names[1:], model.centre, frames=frames)
-    fitter = FrameFitter(model, truth.focal_px, truth.width, truth.height, TrackOptions())
+    fitter = FrameFitter(model, truth.focal_px, truth.width, truth.height, TrackOptions(**(options or {})))
+    # the detector's landmarks near each prediction, as `facestudio track` fits them
+    watch = Redetector(project, truth.focal_px, 0)
     log(f"arkit: rendering {frames} frames of the rigged sample")
     images = [render_arkit_frame(model, truth, i) for i in range(frames)]
     first = FrameState(truth.R[0], truth.t[0] + truth.R[0] @ model.centre, np.zeros(model.n_params))
@@ -74,7 +78,10 @@ def arkit_section(frames: int, log) -> dict:
         if (i + 1) % 20 == 0:
             log(f"arkit: tracked {i + 1} of {frames} frames")
 
-    results = track_frames(fitter, images, first, callback=told)
+    def marks(i, start):
+        return watch.landmark_term(images[i], fitter, fitter, start)
+
+    results = track_frames(fitter, images, first, callback=told, landmarks=marks if fitter.options.landmarks else None)
     seconds = time.perf_counter() - t0
     idx = [model.names.index(n) for n in truth.names]
     moves = np.linalg.norm(model.geometry[idx], axis=2).max(1) >= MOVING_MM

@@ -11,7 +11,9 @@ face area.
 Sections of the one JSON object (``--json``):
 
 * ``imputation`` — seed 000 §4.4: ``missing_pct`` of the held-out people's (person, expression) cells
-  hidden at random (never the neutral: a person is known by it), ``--draws`` draws each;
+  hidden at random (never the neutral: a person is known by it), ``--draws`` draws each, imputed
+  together with the ``--model-people`` complete people (every cell known; seed 000 §4.3 imputes
+  the missing cells of one data tensor of all the people);
   ``rel_err_pct`` = ‖imputed − true‖_F / ‖true − mean face‖_F over the hidden cells (all draws),
   :func:`photomodel.people.multilinear.impute`; ``baseline_pct`` the same for seed 000's average
   displacement (:func:`photomodel.people.multilinear.average_displacement`) in the same draws.
@@ -80,10 +82,14 @@ ROOT = Path(__file__).resolve().parents[1]
 REAL_IMAGE_AT = (0.1, 0.5, 0.9)
 
 
-def imputation(people, draws: int, seed: int = 0) -> list[dict]:
+def imputation(people, draws: int, seed: int = 0, complete=None) -> list[dict]:
+    """Seed 000 §4.4 on ``people`` (see the module notes); ``complete``: people whose every cell
+    is known (the model's people), imputed together with them as in seed 000 §4.3 — the error is
+    over ``people``'s hidden cells only."""
     fm = np.repeat(people.face_mask, 3)
     T = people.tensor()[fm]
     mean = T.mean(axis=(1, 2))[:, None]
+    full = None if complete is None else complete.tensor()[fm]
     rng = np.random.default_rng(seed)
     out = []
     for pct in FRACTIONS:
@@ -93,7 +99,11 @@ def imputation(people, draws: int, seed: int = 0) -> list[dict]:
             cells = rng.choice(T.shape[1] * (T.shape[2] - 1), round(pct / 100 * T.shape[1] * (T.shape[2] - 1)), False)
             known[:, 1:].flat[cells] = False  # noqa: PD011 — numpy flat index
             hidden = ~known
-            filled = impute(T, known)
+            if full is None:
+                filled = impute(T, known)
+            else:  # the complete people beside them: every cell known
+                both = np.concatenate([known, np.ones(full.shape[1:], bool)])
+                filled = impute(np.concatenate([T, full], axis=1), both)[:, : T.shape[1]]
             base = average_displacement(T, known)
             num += np.sum((filled[:, hidden] - T[:, hidden]) ** 2)
             num_b += np.sum((base[:, hidden] - T[:, hidden]) ** 2)
@@ -346,7 +356,7 @@ def main(argv=None) -> int:
     held = load_people("held_out", args.people)
     model, info = load_or_build_model(args.model_people)
     log(f"model {info}")
-    imp = imputation(held, args.draws) if "imputation" in only else []
+    imp = imputation(held, args.draws, complete=load_people("model", args.model_people)) if "imputation" in only else []
     clone, speed = cloning(model, held, args.pairs, args.frames_per_pair) if "cloning" in only else ({}, {})
     rig = rig_section(model, held, args.rig_given) if "rig" in only else {}
     if rig:

@@ -182,19 +182,43 @@ class Redetector:
         face region's box, turned by its eye line) finds the features within :data:`LOST_PX` of
         the tracked ones; False when it cannot tell (no eye corners in the project, the model out
         of view, no face in the crop, the features further): the full detector decides then."""
-        if self._eyes is None or result.diverged:
+        if result.diverged:
             return False
-        model, state = fitter.model, result.state
+        seen = self.near_landmarks(frame, fitter, result.state)
+        return seen is not None and landmark_error_px(self.landmarks(fitter, result.state), seen) <= LOST_PX
+
+    def landmark_term(self, frame: np.ndarray, fitter, work, state):
+        """The detector's pose features near ``state`` (:meth:`near_landmarks`, on the full
+        ``frame`` with ``fitter``'s camera) as the landmark term of ``work`` — ``fitter`` itself or
+        the fitter of the frames reduced by an integer factor (pixel centres mapped,
+        ``x' = (x + ½)/k − ½``) — (:meth:`tracking.frame_fit.FrameFitter.landmark_term`); None when
+        none is found."""
+        seen = self.near_landmarks(frame, fitter, state)
+        if not seen:
+            return None
+        at = [i for i, n in enumerate(self.names) if n in seen]
+        k = fitter.W / work.W
+        uv = (np.array([seen[self.names[i]] for i in at], float) + 0.5) / k - 0.5
+        return work.landmark_term(np.asarray(self.vertices)[at], uv)
+
+    def near_landmarks(self, frame: np.ndarray, fitter, state) -> dict[str, list[float]] | None:
+        """The pose features found by one face-mesh pass on the crop where the model at ``state``
+        sees the face (its face region's box, turned by its eye line; MediaPipe's tracking mode,
+        ~10 ms): ``{feature: [u, v]}`` px of ``frame`` (those with confidence ≥
+        :data:`MIN_CONFIDENCE`); None when it cannot tell (no eye corners in the project, the
+        model out of view, no face in the crop)."""
+        if self._eyes is None:
+            return None
+        model = fitter.model
         X = model.geometry_at(state.alpha)
         cam = fitter.camera(state)
         uv = cam.project(X[model.face_mask])
         eyes = cam.project(X[self._eyes])
         if not (np.all(np.isfinite(uv)) and np.all(np.isfinite(eyes))):
-            return False
+            return None
         d = eyes[1] - eyes[0]
         box, angle = (*uv.min(0), *uv.max(0)), float(np.arctan2(d[1], d[0]))
         placed = place_landmarks_near(frame_uint8(frame), self.names, box, angle)
         if placed is None:
-            return False
-        seen = {n: p for n, p in placed.points.items() if placed.confidence.get(n, 0.0) >= MIN_CONFIDENCE}
-        return landmark_error_px(self.landmarks(fitter, state), seen) <= LOST_PX
+            return None
+        return {n: p for n, p in placed.points.items() if placed.confidence.get(n, 0.0) >= MIN_CONFIDENCE}

@@ -80,6 +80,7 @@ from photomodel.errors import FitError
 from photomodel.rendering.barycentric import interpolate
 from photomodel.rendering.renderer import get_renderer
 from tracking.blendshape_face import WEIGHT_RANGE, FaceModel, ModelRender, render_model, smooth_membership
+from tracking.landmark_term import LandmarkTerm
 
 __all__ = [
     "DEFAULT_JACOBIANS",
@@ -214,6 +215,16 @@ class TrackOptions:
     sparsity: float = 1e-3
     symmetry: float = 2e-4
     smoothness: float = 1e-3
+    #: weight κ of the detector's landmarks in ε when a frame is fitted with them (beyond the
+    #: paper; :mod:`tracking.landmark_term`): every landmark an outlier costs κ × what every
+    #: pixel an outlier costs. 0: analysis by synthesis alone. Used with the robust error only;
+    #: ``facestudio track`` fits every tracked frame with them (``--landmark-weight``). Measured
+    #: (docs/tracking.md, "The detector's landmarks in ε"): the real clip's mouth on wide smiles
+    #: follows; on renders with known weights the ARKit weight error 0.003 → 0.007.
+    landmarks: float = 0.05
+    #: the Geman–McClure scale τ (px) of the landmark term: a detection further than a few τ
+    #: from the model's feature (a landmark under a hand) pulls next to nothing.
+    landmark_scale_px: float = 3.0
 
     def __post_init__(self):
         for name in ("pose_jacobian", "expression_jacobian"):
@@ -461,6 +472,7 @@ class _Eval:
     local: np.ndarray  # (N,) flat indices of the covered pixels in the crop
     sw: np.ndarray | None = None  # (h·w,) float32 √ of the pixels' weights in ε (None: all 1)
     pixel_rms: np.ndarray | None = None  # (N,) float32 unfiltered RMS over RGB of each covered pixel
+    mark_c: float = 0.0  # c_L of the landmark term in ε (0: none; tracking.landmark_term)
 
 
 class FrameFitter:
@@ -526,6 +538,8 @@ class FrameFitter:
         self._shared_pairs = mirrored_pairs([model.names[k] for k in shared])
         self._anchor: np.ndarray | None = None
         self._prior_scale = 1.0
+        self._marks: LandmarkTerm | None = None  # the frame's landmarks (fit(landmarks=...))
+        self._mark_c: dict[bool, float] = {}  # c_L per phase (filtered or not) of the frame
         # per-vertex weight of the pixels in ε (TrackOptions.outside_weight): 1 on the face,
         # ``outside_weight`` elsewhere, across a transition as wide as the regions' (smoothed)
         o = float(self.options.outside_weight)
@@ -573,7 +587,39 @@ class FrameFitter:
             diff = diff * robust.reshape(y1 - y0, x1 - x0, 1)
             sw = robust if sw is None else sw * robust
         eps = image_eps + self._penalty(weights, render)[0]
-        return _Eval(state, render, weights, diff, eps, box, rms, local, sw, pixel_rms)
+        c_mark = self._mark_weight(filtered, robust is not None, len(render.pixels))
+        if c_mark:
+            eps += c_mark * self._marks.value(state)
+        return _Eval(state, render, weights, diff, eps, box, rms, local, sw, pixel_rms, c_mark)
+
+    def landmark_term(self, vertices, uv) -> LandmarkTerm:
+        """The landmark term (:mod:`tracking.landmark_term`) of the model's vertices ``vertices``
+        (k,) detected at ``uv`` (k, 2) px in this fitter's frames."""
+        v = np.asarray(vertices, np.int64)
+        X0 = self.model.geometry_at(np.zeros(self.n_alpha))[v]
+        principal = self.camera(FrameState(np.eye(3), np.zeros(3), np.zeros(self.n_alpha))).principal_point
+        uv = np.asarray(uv, float).reshape(-1, 2)
+        return LandmarkTerm(
+            X0,
+            self._dX_dalpha[v],
+            uv,
+            np.asarray(self.model.centre, float),
+            self.f,
+            principal,
+            float(self.options.landmark_scale_px),
+        )
+
+    def _mark_weight(self, filtered: bool, robust: bool, pixels: int) -> float:
+        """``c_L`` of the landmark term in this phase of the frame (0 without landmarks, without
+        the robust error, or with :attr:`TrackOptions.landmarks` 0): κ σ² N / k, fixed at the
+        phase's first evaluation so that ε stays one function within it."""
+        if self._marks is None or not robust or not self.options.landmarks or not len(self._marks.uv):
+            return 0.0
+        c = self._mark_c.get(filtered)
+        if c is None:
+            c = self.options.landmarks * self._prior_scale * max(pixels, 1) / len(self._marks.uv)
+            self._mark_c[filtered] = c
+        return c
 
     def _robust(self, diff: np.ndarray, local: np.ndarray, filtered: bool) -> tuple[float, np.ndarray | None]:
         """The image part of ε and the √ of the pixels' robust weights (h·w,) float32 (None: plain ε).
@@ -940,6 +986,7 @@ class FrameFitter:
         """Forget the robust scale of the previous frame (:meth:`_robust`); ``weighted``: ε weighs
         the face (:attr:`TrackOptions.outside_weight`) and uses the robust error."""
         self._sigma2 = {}
+        self._mark_c = {}
         self._weighted = weighted
 
     # -- LM ---------------------------------------------------------------------------
@@ -1041,6 +1088,10 @@ class FrameFitter:
             A = A.copy()
             g[sel] -= gD[ia]
             A[np.ix_(sel, sel)] += hD[np.ix_(ia, ia)]
+        if ev.mark_c:  # the landmark term is part of ε
+            hL, gL = self._marks.gauss_newton(ev.state)
+            A = A + ev.mark_c * hL[np.ix_(params, params)]
+            g = g - ev.mark_c * gL[params]
         return A, g
 
     def _lm(self, frame, state: FrameState, phase: Phase, history: list, render=None) -> _Eval:
@@ -1134,8 +1185,10 @@ class FrameFitter:
         delta *= self._feasible_fraction(state, params, delta)
         return delta, self._step_size(params, delta)
 
-    def fit(self, frame: np.ndarray, initial: FrameState) -> FrameResult:
-        """Fit one frame (H, W, 3) float in [0, 1] from ``initial``: pose, then expression.
+    def fit(self, frame: np.ndarray, initial: FrameState, landmarks: LandmarkTerm | None = None) -> FrameResult:
+        """Fit one frame (H, W, 3) float in [0, 1] from ``initial``: pose, then expression;
+        ``landmarks`` (:meth:`landmark_term`) adds the detector's landmarks to ε
+        (:attr:`TrackOptions.landmarks`).
 
         A tracked frame (``options.rounds == 1``, starting from :func:`predict`) uses two economies:
         the pose phase ends at :attr:`TrackOptions.pose_tolerance_mm` (it only has to bring the
@@ -1145,8 +1198,12 @@ class FrameFitter:
         has a long shallow valley where steps stay small (0.3–0.5 mm) for many iterations before
         they grow; measured from 2°/9 mm and a neutral face, either economy ended the fit there at
         2.8 mm geometry error, instead of 0.01 mm."""
-        with _single_threaded_blas():
-            return self._fit(frame, initial)
+        self._marks = landmarks
+        try:
+            with _single_threaded_blas():
+                return self._fit(frame, initial)
+        finally:
+            self._marks = None
 
     def _fit(self, frame: np.ndarray, initial: FrameState) -> FrameResult:
         frame = np.asarray(frame, np.float32)
@@ -1238,6 +1295,7 @@ def track_frames(
     previous: list | None = None,
     first_rounds: int = 3,
     callback=None,
+    landmarks=None,
 ) -> list[FrameResult]:
     """Track a sequence: the first frame from ``first`` (with ``first_rounds`` pose/expression
     rounds), each later one from :func:`predict` of the two previous results.
@@ -1249,12 +1307,15 @@ def track_frames(
     first : FrameState, the user's (or :func:`pose_from_clicks`') pose of the first frame.
     previous : list of FrameState, optional, results of frames before these (resuming).
     callback : callable ``(index, FrameResult) -> bool | None``; True stops.
+    landmarks : callable ``(index, predicted FrameState) -> LandmarkTerm | None``, optional: the
+        detector's landmarks of a tracked frame (:meth:`FrameFitter.fit`).
     """
     states = list(previous or [])
     out = []
     for i, frame in enumerate(frames):
         if states:
-            res = fitter.fit(frame, predict(states[-2:]))
+            start = predict(states[-2:])
+            res = fitter.fit(frame, start, None if landmarks is None else landmarks(i, start))
         else:
             rounds = fitter.options.rounds
             fitter.options.rounds = max(first_rounds, rounds)

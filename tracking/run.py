@@ -515,7 +515,13 @@ def _fit_frame(
         (res,) = track_frames(work, [small], pose.state)
         watch.last_diverged = bool(res.diverged)
         return res, starts[i][0], []
-    (res,) = track_frames(work, [small], run.first.state, previous=states)
+    marks = None
+    if work.options.landmarks:
+
+        def marks(_, start):  # the detector near where the prediction sees the face
+            return watch.landmark_term(frame, fitter, work, start)
+
+    (res,) = track_frames(work, [small], run.first.state, previous=states, landmarks=marks)
     spec = watch.restart_spec(i, frame, fitter, res)
     if spec is None:
         return res, "predicted", states

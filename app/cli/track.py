@@ -10,13 +10,16 @@ continues); a second one stops at once.
 from __future__ import annotations
 
 import json
+import math
 import signal
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from app.cli.common import add_json_flag, check_expression_names, check_writable, column_width, expression_names
 from app.cli.progress import command_progress
 from photomodel.errors import FaceStudioError
+from tracking.frame_fit import TrackOptions
 from tracking.run import track_video
 from tracking.track_result import default_out_dir, load_track_results
 
@@ -33,6 +36,10 @@ def check_args(args) -> None:
         raise FaceStudioError(
             "--correct FRAME and --pose FILE go together: the frame to correct and its pose "
             "(clicks of frame FRAME in the first-pose format)"
+        )
+    if not (args.landmark_weight >= 0 and math.isfinite(args.landmark_weight)):
+        raise FaceStudioError(
+            f"--landmark-weight {args.landmark_weight}: give a number of 0 or more (0: the image alone)"
         )
     if not Path(args.video).exists():
         raise FaceStudioError(f"{args.video} does not exist (give a video file or a folder of frames)")
@@ -66,6 +73,7 @@ def run(args) -> int:
                 correct_frame=args.correct,
                 correct_pose=args.pose,
                 overlay=not args.no_overlay,
+                options=replace(TrackOptions(), landmarks=args.landmark_weight),
                 progress=lambda done, total: show.counter(Path(args.video).name, done, total),
                 cancel=lambda: bool(stop),
             )
@@ -198,4 +206,12 @@ def add_parser(sub) -> None:
         help="frame FRAME's pose for --correct: JSON like the first-pose file (clicks of that frame, or R/t_mm)",
     )
     k.add_argument("--no-overlay", action="store_true", help="do not write the overlay video")
+    k.add_argument(
+        "--landmark-weight",
+        type=float,
+        default=TrackOptions().landmarks,
+        metavar="K",
+        help="weight of the landmark detector's features in each frame's fit, against the whole image's "
+        f"(default {TrackOptions().landmarks}; 0: the image alone, as the paper)",
+    )
     add_json_flag(k)
