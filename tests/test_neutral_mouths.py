@@ -13,8 +13,8 @@ import cv2
 import numpy as np
 import pytest
 
-from photomodel.landmarks.mapping import ibug_index
 from app.cli.fit import format_report
+from photomodel.landmarks.mapping import ibug_index
 from photomodel.modeling.fit import expression_not_misclicks, fit_expression
 from photomodel.modeling.generic_mesh import IBUG68_NAMES
 from photomodel.photos.intake import (
