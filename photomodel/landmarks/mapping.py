@@ -298,7 +298,8 @@ def ibug68_from_mesh(
     moved = far_jaw_to_outline(points, uv, yaw_deg) & placed
     confidence[moved] = np.minimum(confidence[moved], OUTLINE_CONFIDENCE)
     if image is not None and placed[:17].all():
-        uv[:17] = jaw_on_edges(image, points, uv[:17])
+        far = (_SIDE[:17] != 0) & (-_SIDE[:17] * yaw_deg > 0)
+        uv[:17] = jaw_on_edges(image, points, uv[:17], far)
     uv[~placed] = np.nan
     return uv, confidence
 

