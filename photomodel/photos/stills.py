@@ -91,11 +91,11 @@ __all__ = [
     "FrameLook",
     "StillsError",
     "choose_stills",
+    "hands_over_lips",
     "look_at_clip",
     "look_at_frame",
-    "new_project_from_video",
-    "hands_over_lips",
     "look_for_hands",
+    "new_project_from_video",
     "occlusion_scores",
     "remove_stills",
     "stills_folder",
@@ -316,11 +316,14 @@ def look_for_hands(
     wanted = {lk.frame: lk for lk in looks}
     if not wanted:
         return
+    order = sorted(wanted)
+    if video.is_folder:  # a folder's frames are read one by one; a video's are decoded in order
+        source = (next(video.frames(i, i + 1)) for i in order)
+    else:
+        source = ((i, rgb) for i, rgb in video.frames(order[0], order[-1] + 1) if i in wanted)
     done = 0
-    for i, rgb in video.frames(0, max(wanted) + 1):
-        lk = wanted.get(i)
-        if lk is None:
-            continue
+    for i, rgb in source:
+        lk = wanted[i]
         lk.hand_over_lips = hands_over_lips(frame_uint8(rgb), lk)
         done += 1
         if progress is not None:
