@@ -133,18 +133,24 @@ def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray, far: np
     band = np.where(offsets > 0, SEARCH_OUT * reach[:, None], inward[:, None])
     unary[np.abs(offsets)[None, :] > band * height] = 1e3
     spacing = np.maximum(np.linalg.norm(np.diff(dense, axis=0), axis=1), 1e-6)
-    # Viterbi over the dense outline: offset k at sample i, a bend cost between neighbours
-    k = len(offsets)
+    moved = dense + offsets[_best_path(unary, offsets, spacing)][:, None] * normal
+    return moved[at]
+
+
+def _best_path(unary: np.ndarray, offsets: np.ndarray, spacing: np.ndarray) -> np.ndarray:
+    """(n,) int: the offset index per sample of least total cost — ``unary`` (n, k) plus
+    :data:`BEND` per pixel of change of offset per pixel of ``spacing`` (n − 1,) between
+    neighbours — solved exactly by Viterbi over the dense outline."""
+    n, k = unary.shape
     jump = np.abs(offsets[:, None] - offsets[None, :])  # (k, k)
     cost = unary[0].copy()
-    back = np.zeros((len(dense), k), np.int64)
-    for i in range(1, len(dense)):
+    back = np.zeros((n, k), np.int64)
+    for i in range(1, n):
         total = cost[:, None] + BEND * jump / spacing[i - 1]
         back[i] = np.argmin(total, axis=0)
         cost = total[back[i], np.arange(k)] + unary[i]
-    path = np.empty(len(dense), np.int64)
+    path = np.empty(n, np.int64)
     path[-1] = int(np.argmin(cost))
-    for i in range(len(dense) - 1, 0, -1):
+    for i in range(n - 1, 0, -1):
         path[i - 1] = back[i, path[i]]
-    moved = dense + offsets[path][:, None] * normal
-    return moved[at]
+    return path
