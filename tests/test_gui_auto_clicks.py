@@ -84,6 +84,7 @@ def test_a_neutral_fitted_to_smiles_says_so_in_the_fit_summary(qtbot, studio_win
     shown = model.fit().report["expressive_photos"]
     assert "front" in shown
     lines = [studio_window.panel.worst.item(i).text() for i in range(studio_window.panel.worst.count())]
+    assert lines[0].startswith("⚠ expression not fitted: ") and "front" in lines[0]  # first, where it is seen
     assert any(line.endswith("mouth_r  @ front  (the expression, not used)") for line in lines), lines
     assert not any(
         "mouth_" in line and "(suspect" in line and line.split("@ ")[1].split()[0] in shown for line in lines

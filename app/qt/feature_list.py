@@ -397,8 +397,14 @@ class FeaturePanel(QWidget):
             )
         )
         note = expression_note(rep)
-        if note:  # the neutral fitted to an expressive face: said where the fit is read, not only at intake
-            self.summary.setText(self.summary.text() + "".join(f"<br><b>⚠</b> {html.escape(n)}" for n in note))
+        if note:  # the neutral fitted to an expressive face: said first, where the fit is read
+            said = "".join(f"<b>⚠</b> {html.escape(n, quote=False)}<br>" for n in note)
+            self.summary.setText(said + self.summary.text())
+            item = QListWidgetItem(f"⚠ expression not fitted: {', '.join(rep['expressive_photos'])} show one")
+            item.setData(_NAME_ROLE, (next(iter(rep["expressive_photos"])), ""))
+            item.setForeground(QBrush(QColor(200, 120, 0)))
+            item.setToolTip("\n".join(note))
+            self.worst.addItem(item)
         for v in rep.get("views", []):
             rms = "–" if v.get("rms_px") is None else f"{v['rms_px']:.2f}"
             item = QTreeWidgetItem([v["photo"], rms, str(v.get("points", "")), f"{v.get('focal_mm', 0):.0f} mm"])
