@@ -51,6 +51,11 @@ a figure an item cannot give is left out, never null; further keys per item say 
 * ``james`` (``"photos"``) — the sample's five neutral photos with automatic landmarks only
   (front, three-quarters, profiles): ``rms_all_px``, ``suspect_pct``, ``weighed``.
 
+``--draws N``: each portrait also fitted from N copies scaled 0.75–1.25×, turned ±8° and framed
+otherwise (:func:`jittered`, seeded), and its item gives the worst of each bar's figure over itself
+and them (``outside_texels_pct_worst``, ``chin_err_pct_worst``, ``rms_all_px_worst``,
+``suspect_pct_worst``, ``draws``): one photo per face hides how near a bar it stands.
+
 Bars (issue 39): outside ≤ 1 %, chin ≤ 3 %, a single portrait's RMS over all its clicks ≤ 3 px,
 suspects ≤ 5 % (no misclick in these photos), 0 false occluded frames, stills ≥ 7.5° apart,
 weighed only where the solved cameras are ≥ 40° apart. Small: about two minutes on two cores.
