@@ -44,6 +44,8 @@ LIGHTER_OUTSIDE = 0.3
 #: Edge strengths (over their 95th percentile along the jaw) are capped here: two clear edges
 #: count the same, the shape and the pull decide between them.
 CAP = 1.0
+#: A Gaussian's half width at half its height, in standard deviations (√(2 ln 2)).
+HALF_WIDTH = float(np.sqrt(2.0 * np.log(2.0)))
 #: Cost of an offset, per face height, squared (a weak pull to the detector's line).
 STAY = 4.0
 
@@ -133,8 +135,43 @@ def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray, far: np
     band = np.where(offsets > 0, SEARCH_OUT * reach[:, None], inward[:, None])
     unary[np.abs(offsets)[None, :] > band * height] = 1e3
     spacing = np.maximum(np.linalg.norm(np.diff(dense, axis=0), axis=1), 1e-6)
-    moved = dense + offsets[_best_path(unary, offsets, spacing)][:, None] * normal
+    path = _best_path(unary, offsets, spacing)
+    under_chin = (reach - SIDE_REACH) / (1.0 - SIDE_REACH)
+    moved = dense + _edge_offsets(strength, offsets, path, under_chin, sigma)[:, None] * normal
     return moved[at]
+
+
+def _edge_offsets(
+    strength: np.ndarray, offsets: np.ndarray, path: np.ndarray, under_chin: np.ndarray, sigma: float
+) -> np.ndarray:
+    """(n,) px: where on each sample's chosen edge the outline lies. Under the chin (``under_chin``
+    1; 0 beside the cheeks) the face's underside turns away and its shading runs out over pixels:
+    the face ends at the outer end of that edge (:func:`_outer_end`), less the half width at half
+    height that this search's own blur (``sigma`` px) gives a sharp step (a drawn edge stays
+    where it is). Beside the cheeks the line also cuts the texture (:func:`photomodel.landmarks.
+    segment.beside_jaw`), where a pixel too far out is the backdrop's: it stays on the edge's
+    middle, the strength's peak."""
+    peak = offsets[path].astype(float)
+    beyond = np.maximum(_outer_end(strength, offsets, path) - peak - HALF_WIDTH * sigma, 0.0)
+    return peak + under_chin * beyond
+
+
+def _outer_end(strength: np.ndarray, offsets: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """(n,) px: each sample's offset moved from its edge's peak (``path``) outwards to where the
+    edge's strength falls to half the peak (linearly between samples): the face ends at the
+    outer end of its blurred edge, not in its middle."""
+    n, k = strength.shape
+    out = offsets[path].astype(float)
+    for i in range(n):
+        j, peak = path[i], strength[i, path[i]]
+        while j + 1 < k and strength[i, j + 1] >= 0.5 * peak:
+            j += 1
+        if j + 1 < k:
+            a, b = strength[i, j], strength[i, j + 1]
+            out[i] = offsets[j] + (offsets[j + 1] - offsets[j]) * (a - 0.5 * peak) / max(a - b, 1e-12)
+        else:
+            out[i] = offsets[j]
+    return out
 
 
 def _best_path(unary: np.ndarray, offsets: np.ndarray, spacing: np.ndarray) -> np.ndarray:
