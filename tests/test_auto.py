@@ -32,6 +32,8 @@ def test_auto_makes_a_project_the_studio_opens_and_an_animated_glb(tmp_path, cap
     assert report["resumed_stages"] == ["stills", "fit", "texture", "rig"]
     assert set(report["stages"]) == {f"{name}_s" for name, _ in STAGES}
     assert report["frames"] == 3 and report["fit_rms_px"] < 5.0
+    # the fit's word on stills that all show an expression (none, or that one), read back on resuming
+    assert all(note.startswith("expression not fitted") for note in report["notes"])
     assert 0.6 < report["depth_ratio"] < 1.4
     glb = report["glb"]
     assert glb["targets"] == glb["expected_targets"] >= 40 and glb["frames"] == glb["expected_frames"] == 3

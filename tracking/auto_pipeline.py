@@ -37,6 +37,7 @@ from photomodel.exchange.gltf_animation import read_animated_weights
 from photomodel.exchange.validator import validate_glb
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order
 from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.modeling.mouth import expression_note
 from photomodel.photos.intake import default_features
 from photomodel.photos.stills import StillsError, new_project_from_video
 from photomodel.photos.video import VideoFrames
@@ -95,6 +96,9 @@ class AutoResult:
     #: (frames,) px each tracked frame's landmark error against the detector (NaN: no face found,
     #: or the frame was fitted again from the detector's pose).
     landmark_errors: np.ndarray | None = None
+    #: What the neutral's fit says the user should know (:func:`photomodel.modeling.mouth.expression_note`:
+    #: stills that all show an expression, so the neutral is fitted as that expression).
+    notes: list = field(default_factory=list)
 
     def as_dict(self) -> dict:
         return {
@@ -112,6 +116,7 @@ class AutoResult:
             "track_dir": str(self.track_dir),
             "csv": None if self.csv is None else str(self.csv),
             "resumed_stages": list(self.skipped),
+            "notes": list(self.notes),
         }
 
 
@@ -319,6 +324,7 @@ def _fit_stage(run: _Run, project) -> tuple[list[str], str, np.ndarray]:
     neutral = names[0] if "neutral" not in names else "neutral"
     report = project.expression(neutral).result.report or {}
     result.fit_rms_px = float(report.get("rms_px", np.nan))
+    result.notes = expression_note(report)
     vertices, _ = read_fitted_mesh(project, neutral)
     result.depth_ratio = depth_ratio(vertices, mesh)
     run.end("fit")

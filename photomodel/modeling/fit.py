@@ -63,6 +63,8 @@ from photomodel.modeling.camera_solve import (
     solve_cameras,
 )
 from photomodel.modeling.checklist import require_clicks
+from photomodel.modeling.generic_mesh import ibug_index
+from photomodel.modeling.mouth import MOVES_WITH_EXPRESSION, NEUTRAL, expressive_photos, mouth_scores
 from photomodel.modeling.pose import PoseResult, recover_poses, reprojection_residuals
 from photomodel.modeling.rbf import deform_vertices
 from photomodel.modeling.refine import refine_points, triangulate
@@ -133,7 +135,9 @@ class FitResult:
     pose : PoseResult of the pose-recovery stage (in the fixed gauge); with ``cameras_from``,
         the triangulation of the pose features with the fixed cameras (0 sweeps).
     report : dict, reprojection report (JSON-serialisable); ``report["cameras_from"]`` names
-        the expression whose cameras were reused (None when they were recovered).
+        the expression whose cameras were reused (None when they were recovered);
+        ``report["expressive_photos"]`` and ``report["expression_clicks"]``: see
+        :func:`expression_not_misclicks`.
     cameras_from : str or None, the expression whose fitted cameras this fit reused.
     """
 
@@ -1078,17 +1082,41 @@ def _report(inputs: FitInputs, stage: _CameraStage, refined: _Refinement, names:
         inputs.photo_ids, stage.cameras, stage.pose, obs, names, refined.points, inputs.pose_names
     )
     left_out = inputs.photos_left_out
+    expressive, suspects, moved = expression_not_misclicks(inputs, stage.suspects)
+    neutral = len(mouth_scores(inputs.photo_ids, inputs.feature_names, inputs.observations, inputs.auto)) - len(
+        expressive
+    )
     report.update(
         dropped=[f"photo {i!r}: {why}" for i, why in left_out.items()] + stage.dropped + refined.dropped,
         photos_left_out=dict(left_out),
         bundle=stage.bundle_report,
-        suspect_clicks=stage.suspects,
+        suspect_clicks=suspects,
+        expressive_photos=expressive,
+        neutral_mouth_photos=neutral if inputs.expression == NEUTRAL else 0,
+        expression_clicks=moved,
         camera_solve=stage.camera_report,
         curves=refined.curve_report,
         cameras_from=inputs.cameras_from,
         auto_clicks_left_out=int(inputs.unsure().sum()),
     )
     return report
+
+
+def expression_not_misclicks(inputs: FitInputs, suspects: list[dict]) -> tuple[dict, list[dict], list[dict]]:
+    """The :data:`~photomodel.modeling.mouth.NEUTRAL` expression's photos whose automatic mouth
+    clicks show an expression (:func:`~photomodel.modeling.mouth.expressive_photos`: kept by the
+    intake where no photo's mouth is neutral, so the face is fitted as that expression), and the
+    suspects split into misclicks and the clicks of those photos that move with the expression
+    (:data:`~photomodel.modeling.mouth.MOVES_WITH_EXPRESSION`): those disagree with the other
+    photos because the face changed, not because the click is wrong, and are not called suspect.
+    Both kinds stay out of the fit. Other expressions show their expression: nothing is moved."""
+    if inputs.expression != NEUTRAL:
+        return {}, suspects, []
+    expressive = expressive_photos(
+        mouth_scores(inputs.photo_ids, inputs.feature_names, inputs.observations, inputs.auto)
+    )
+    moves = [s for s in suspects if s["photo"] in expressive and ibug_index(s["feature"]) in MOVES_WITH_EXPRESSION]
+    return expressive, [s for s in suspects if s not in moves], moves
 
 
 def build_report(photo_ids, cameras, pose, project, expression_name, names, points_3d) -> dict:

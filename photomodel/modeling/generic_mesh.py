@@ -93,6 +93,17 @@ FEATURE_ALIASES = {
     "chin": 8,
 }
 
+
+def ibug_index(name: str) -> int | None:
+    """iBUG-68 index of a feature name (``jaw_03``, ``eye_r_outer`` …); None if it is not one."""
+    if name in FEATURE_ALIASES:
+        return FEATURE_ALIASES[name]
+    try:
+        return IBUG68_NAMES.index(name)
+    except ValueError:
+        return None
+
+
 #: The default set of features clicked for pose recovery (§5.1.1): well spread, easy
 #: to find in every view.
 INITIAL_FEATURES = (

