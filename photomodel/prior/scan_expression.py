@@ -46,8 +46,9 @@ class ScanExpressionFit:
     ----------
     expression : str, the expression it is for.
     vertices : (N, 3) float mm, the fitted mesh in the expression's frame.
-    result : ExpressionResult, the expression's new result (its cameras kept, ``points_3d`` the
-        fitted mesh's feature vertices, the report with a ``scan_fit`` entry; no mesh files yet).
+    result : ExpressionResult, the expression's new result (its cameras kept when laid onto its
+        photo fit, ``template``; ``points_3d`` the fitted mesh's feature vertices, the report with
+        a ``scan_fit`` entry; no mesh files yet).
     report : dict, the scan fit's report (``scan``, ``unit``, ``face_inliers``, ``seconds`` …).
     """
 
@@ -128,7 +129,8 @@ def fit_scan_as_expression(
     vertices = fit.vertices @ (s * R).T + t
     report = {"scan": str(Path(scan_path)), **fit.report}
     result = ExpressionResult(
-        cameras=dict(old.cameras) if old is not None else {},
+        # the cameras are the photo fit's frame: kept only when the result was laid onto that fit
+        cameras=dict(old.cameras) if old is not None and template is not None else {},
         points_3d={f.name: vertices[f.vertex] for f in project.features},
         report=(dict(old.report) if old is not None else {}) | {"scan_fit": report},
     )
