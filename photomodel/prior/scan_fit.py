@@ -221,6 +221,7 @@ def align_template(
     scan: ScanData,
     reference: np.ndarray | None = None,
     cancel=None,
+    progress=None,
 ) -> tuple[tuple, float]:
     """The similarity template → scan (both mm) that puts the template's face best on the scan,
     from many starts (module notes, step 2), and the fraction of face vertices within
@@ -235,6 +236,7 @@ def align_template(
         0.93× the generic head's size) is first scaled to it, so that the starts, which hold the
         scale, compare like with like.
     cancel : callable, polled between starts (:class:`photomodel.errors.Cancelled`).
+    progress : callable ``(fraction)``, optional, told after each start.
 
     Notes
     -----
@@ -260,9 +262,12 @@ def align_template(
     along = (src - src.mean(0)) @ look
     front, deep = np.max(along), np.max(along) - np.min(along)
     found = []
-    for R0 in _starts():
+    starts = _starts()
+    for k, R0 in enumerate(starts):
         if cancel is not None and cancel():
             raise Cancelled()
+        if progress is not None:
+            progress(k / len(starts))
         # where the face looks: its centre over the scan's front cap that way, as deep as the face
         # is, and its front at the cap's front (strays aside)
         u = R0 @ look
@@ -418,7 +423,8 @@ def fit_scan(
     if landmarks is None:
         step("finding the face on the scan", 0.15)
         T = mesh.vertices if template is None else np.asarray(template, float)
-        sim, inl = align_template(T, mesh.faces, face, scan, reference=mesh.vertices, cancel=cancel)
+        told = None if progress is None else (lambda f: progress("finding the face on the scan", 0.15 + 0.3 * f))
+        sim, inl = align_template(T, mesh.faces, face, scan, reference=mesh.vertices, cancel=cancel, progress=told)
         if inl < MIN_FACE_INLIERS:
             raise ScanError(
                 f"no face found on the scan: at best {inl:.0%} of the face region lies within "
