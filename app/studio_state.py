@@ -350,6 +350,36 @@ class StudioModel(ProjectEdits):
         self._touch()
         self.fit_changed.emit(expression)
 
+    def scan_fit_job(self, path: str | os.PathLike, expression: str | None = None):
+        """A job ``(progress=, cancel=) → ScanExpressionFit`` for a worker: the scan file ``path``
+        fitted as an expression's fit (default: the first, the neutral), as ``facestudio fit-scan``
+        does (:func:`app.studio.fitting.scan_fit_job`); the project and the expression's fit are
+        read now. Store its result with :class:`app.studio.commands.ScanFitCommand`."""
+        name = expression or (self.project.expressions[0].name if self.project.expressions else None)
+        if name is None:
+            raise ProjectError("the project has no expression to fit the scan to; add one first")
+        return fitting.scan_fit_job(self.project, self._expr(name).name, self.fits.get(name), self.mesh, path)
+
+    def replace_fit(self, expression: str, fit: FitState | None, result, texture: TextureState | None = None):
+        """Make ``fit`` the expression's fit, ``result`` its project result and ``texture`` its
+        texture (None: none); returns what it replaced, ``(fit, result, texture)`` — the edit
+        primitive of :class:`app.studio.commands.ScanFitCommand` and its undo."""
+        e = self._expr(expression)
+        old = self.fits.get(expression), e.result, self.textures.get(expression)
+        if fit is None:
+            self.fits.pop(expression, None)
+        else:
+            self.fits[expression] = fit
+        e.result = result
+        if texture is None:
+            self.textures.pop(expression, None)
+        else:
+            self.textures[expression] = texture
+        self._touch()
+        self.fit_changed.emit(expression)
+        self.texture_changed.emit(expression)
+        return old
+
     def _drop_fit(self, expression: str) -> None:
         # a fit is of a set of photos; adding or removing one invalidates it
         if self.fits.pop(expression, None) is not None:

@@ -26,4 +26,5 @@ def close_studio(w: MainWindow) -> None:
     w.tracking_view.jobs.shutdown()
     w.fits.shutdown()
     w.jobs.shutdown()
+    w.scan_jobs.shutdown()
     w.model.modified = False

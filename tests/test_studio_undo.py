@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from app.studio.commands import AddExpressionCommand, SetHiddenCommand, SetPointCommand
+from app.studio.commands import AddExpressionCommand, ScanFitCommand, SetHiddenCommand, SetPointCommand
 from app.studio.undo import UndoCommand, UndoStack
 from app.studio_state import StudioModel
 
@@ -96,3 +96,24 @@ def test_a_command_that_fails_is_not_kept():
     with pytest.raises(ValueError):
         stack.push(Fails("fails"))
     assert len(stack) == 0 and not stack.can_undo and stack.is_clean
+
+
+def test_a_scans_fit_is_undone_to_no_fit_and_redone(model):
+    """ScanFitCommand (*Fit → Add scan…*) on a project without a fit: undo leaves none, redo the scan's
+    again; the clicks are never touched (the fit itself is tests/test_gui_fit_scan.py's)."""
+    from photomodel.prior.scan_expression import ScanExpressionFit
+    from photomodel.project.datamodel import ExpressionResult
+
+    V = model.mesh.vertices + 1.0
+    made = ScanExpressionFit(
+        "neutral", V, ExpressionResult(report={"scan_fit": {"unit": "m"}}), {"scan": "head.ply", "unit": "m"}
+    )
+    clicks = {p.id: dict(p.points) for p in model.photos}
+    model.undo_stack.push(ScanFitCommand(model, made))
+    assert model.fit("neutral").from_scan and model.project.expression("neutral").result is made.result
+    assert model.undo_stack.undo_text == "Fit neutral to head.ply" and model.modified
+    model.undo_stack.undo()
+    assert model.fit("neutral") is None and model.project.expression("neutral").result is None
+    model.undo_stack.redo()
+    np.testing.assert_array_equal(model.fit("neutral").vertices, V)
+    assert {p.id: dict(p.points) for p in model.photos} == clicks

@@ -11,7 +11,8 @@ used, else the generic head's. Units: ``--unit``, else from the landmarks' scale
 size (a head is ~0.3 m across). The result is moved into the frame of the expression's photo fit
 (the similarity of the two meshes' face regions: the cameras stay valid, so texturing from the
 photos works), or the generic head's frame when the expression has no fit, and stored as the
-expression's fit (mesh files + project). A scan with no face in it: exit status 2, nothing written.
+expression's fit (mesh files + project): :func:`photomodel.prior.scan_expression.fit_scan_as_expression`,
+which the studio's *Fit → Add scan…* runs too. A scan with no face in it: exit status 2, nothing written.
 """
 
 from __future__ import annotations
@@ -23,14 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from app.cli.common import check_writable
-from photomodel.alignment import similarity_transform
 from photomodel.errors import ProjectError
 from photomodel.exchange.mesh import read_mesh
 from photomodel.modeling.generic_mesh import load_generic_mesh
-from photomodel.prior.face_prior import load_face_prior
-from photomodel.prior.scan_fit import UNITS, fit_scan, read_scan
+from photomodel.prior.scan_expression import fit_scan_as_expression
+from photomodel.prior.scan_fit import UNITS
 from photomodel.project import load_project
-from photomodel.project.datamodel import ExpressionResult
 from photomodel.project.results import save_results
 
 __all__ = ["add_parser", "run"]
@@ -73,36 +72,25 @@ def run(args) -> int:
     template = None
     if expression.result is not None and expression.result.mesh_obj:
         template = read_mesh(project.resolve(expression.result.mesh_obj))[0]
-    points, _faces, normals = read_scan(args.scan)
-    landmarks = _read_landmarks(args.landmarks) if args.landmarks else None
-    fit = fit_scan(
-        lambda: load_face_prior(mesh, "local"),
+    made = fit_scan_as_expression(
+        project,
+        name,
+        args.scan,
         mesh,
-        points,
-        normals,
-        landmarks=landmarks,
         template=template,
+        landmarks=_read_landmarks(args.landmarks) if args.landmarks else None,
         unit_mm=UNITS[args.unit] if args.unit else None,
     )
-    face = mesh.face_mask
-    frame = mesh.vertices if template is None else template
-    s, R, t = similarity_transform(fit.vertices[face], frame[face])
-    vertices = fit.vertices @ (s * R).T + t
-    report = {"scan": str(Path(args.scan)), **fit.report}
-    old = expression.result
-    expression.result = ExpressionResult(
-        cameras=dict(old.cameras) if old is not None else {},
-        points_3d={f.name: vertices[f.vertex] for f in project.features},
-        report=(dict(old.report) if old is not None else {}) | {"scan_fit": report},
-    )
-    save_results(project, fits={name: vertices}, faces=mesh.faces)
+    expression.result = made.result
+    save_results(project, fits={name: made.vertices}, faces=mesh.faces)
+    report = made.report
     out = {"project": str(Path(args.project)), "expression": name, **report}
     if args.json:
         print(json.dumps(out, indent=1))
     else:
         print(
-            f"{name}: fitted to {args.scan} (unit {fit.report['unit']}, {fit.report['face_inliers']:.0%} of the face "
-            f"on the scan, {fit.report['seconds']:.1f} s); stored as the expression's fit",
+            f"{name}: fitted to {args.scan} (unit {report['unit']}, {report['face_inliers']:.0%} of the face "
+            f"on the scan, {report['seconds']:.1f} s); stored as the expression's fit",
             file=sys.stdout,
         )
     return 0

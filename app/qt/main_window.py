@@ -96,6 +96,7 @@ class MainWindow(QMainWindow):
         self.fits = FitController(self.model, self)
         self.jobs = JobController(self.model, self)  # Texture → Extract texture
         self.rig_jobs = JobController(self.model, self)  # Rig → Build rig
+        self.scan_jobs = JobController(self.model, self)  # Fit → Add scan…
         self.importer = PhotoImporter(self)  # New from photos…, photos added with automatic landmarks
         self.blocking_dialogs = True  # run_studio: False on a headless platform (offscreen, minimal)
         self.unexpected_errors: list[str] = []  # report_unexpected: "Type: message" of each
@@ -435,6 +436,7 @@ class MainWindow(QMainWindow):
         self.fits.shutdown()
         self.jobs.shutdown()
         self.rig_jobs.shutdown()
+        self.scan_jobs.shutdown()
         self.importer.shutdown()
         self.tracking_view.jobs.shutdown()
         self.tracking_view.edit_panel.jobs.shutdown()  # an export of edited frames

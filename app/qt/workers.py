@@ -167,12 +167,14 @@ class FitController(QObject):
         return self.task is not None
 
     def auto_refit_possible(self, expression: str | None = None) -> bool:
-        """Whether an edit would trigger a refit now: enabled, fitted before, fast enough."""
+        """Whether an edit would trigger a refit now: enabled, fitted before (from the photos, not a
+        scan: :attr:`app.studio.fitting.FitState.from_scan`), fast enough."""
         name = expression or self.model.expression_name
+        fit = self.model.fit(name) if name is not None else None
         return (
             self.auto_refit
-            and name is not None
-            and self.model.fit(name) is not None
+            and fit is not None
+            and not fit.from_scan  # a refit from the clicks would replace the scan's shape
             and (self.last_warm_s is None or self.last_warm_s < AUTO_REFIT_MAX_S)
         )
 

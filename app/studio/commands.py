@@ -2,16 +2,19 @@
 
 Each command calls the model's edit primitives in ``redo`` and restores what they returned in
 ``undo``, so the model's undo stack (:class:`~app.studio.undo.UndoStack`, ``model.undo_stack``,
-undone and redone by the Edit menu) covers every change of the
-clicks, curves, photos, features and expressions. A click on a generic-mesh feature that the
+undone and redone by the Edit menu) covers every change of the clicks, curves, photos, features
+and expressions, and a scan's fit (*Fit → Add scan…*). A click on a generic-mesh feature that the
 project does not define yet adds the definition in the same command (and undo removes it).
 Commands name their photo and feature, never hold widgets, and are pushed by the views.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from app.studio.fitting import FitState
 from app.studio.undo import UndoCommand
 from app.studio_state import StudioModel
 from photomodel.project import CurveDef, Expression, Feature, Photo
@@ -248,3 +251,19 @@ class AddExpressionCommand(UndoCommand):
         self.model.remove_expression(self.name)
         if self.previous is not None:
             self.model.set_expression(self.previous)
+
+
+class ScanFitCommand(UndoCommand):
+    """Make a scan's fit (:meth:`app.studio_state.StudioModel.scan_fit_job`'s result) an expression's
+    fit; undo puts back the fit, result and texture it replaced. The clicks and curves are not touched."""
+
+    def __init__(self, model: StudioModel, made):
+        super().__init__(f"Fit {made.expression} to {Path(made.report.get('scan', 'the scan')).name}")
+        self.model, self.made = model, made
+        self.saved = None
+
+    def redo(self):
+        self.saved = self.model.replace_fit(self.made.expression, FitState.of_scan(self.made), self.made.result)
+
+    def undo(self):
+        self.model.replace_fit(self.made.expression, *self.saved)

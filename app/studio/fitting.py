@@ -3,12 +3,14 @@
 :class:`Fitting` runs the fits of one :class:`app.studio_state.StudioModel` (a warm-startable
 :class:`photomodel.modeling.refit.Refitter`, shared by every fit) and draws their overlays
 (:func:`photomodel.modeling.wireframe.photo_overlay`); :class:`FitState` is one expression's fit as
-the studio holds it; :func:`click_residuals` measures the clicks against a fit. No Qt: the studio's
+the studio holds it; :func:`click_residuals` measures the clicks against a fit; :func:`scan_fit_job` fits a scan as an
+expression's fit (*Fit → Add scan…*). No Qt: the studio's
 workers call :meth:`Fitting.compute` on a snapshot of the project off the GUI thread.
 """
 
 from __future__ import annotations
 
+import copy
 import threading
 import time
 from dataclasses import dataclass, field
@@ -19,6 +21,7 @@ from photomodel.modeling.rbf import deform_vertices
 from photomodel.modeling.refit import Refitter
 from photomodel.modeling.wireframe import mesh_lines, photo_overlay
 from photomodel.prior.face_prior import prior_deformer
+from photomodel.prior.scan_expression import fit_scan_as_expression
 from photomodel.rendering.renderer import get_renderer
 
 
@@ -65,6 +68,18 @@ class FitState:
             saved=False,
             overlays=dict(overlays or {}),
         )
+
+    @classmethod
+    def of_scan(cls, made) -> FitState:
+        """The state of a scan fit (:class:`photomodel.prior.scan_expression.ScanExpressionFit`)."""
+        r = made.result
+        return cls(r.cameras, r.points_3d, np.asarray(made.vertices), r.report, None, made.report.get("seconds"))
+
+    @property
+    def from_scan(self) -> bool:
+        """Whether this is a scan's fit (*Fit → Add scan…*, ``facestudio fit-scan``): a refit from
+        the clicks would replace the scan's shape, so edits do not refit it automatically."""
+        return "scan_fit" in self.report
 
     def warm_start(self):
         """What the next refit starts from: the in-memory result, else the fitted vertices (or None)."""
@@ -184,6 +199,23 @@ class Fitting:
         return found
 
 
+def scan_fit_job(project, expression: str, fit: FitState | None, mesh, path):
+    """A job ``(progress=, cancel=) → ScanExpressionFit`` for a worker: the scan file ``path`` fitted
+    as ``expression``'s fit as ``facestudio fit-scan`` does
+    (:func:`photomodel.prior.scan_expression.fit_scan_as_expression`), in the frame of the
+    expression's current ``fit`` and with its shape as the template. Reads a copy of ``project``
+    and the fit's vertices now (on the calling thread)."""
+    snapshot = copy.deepcopy(project)
+    template = None if fit is None or fit.vertices is None else np.array(fit.vertices)
+
+    def job(progress=None, cancel=None):
+        return fit_scan_as_expression(
+            snapshot, expression, path, mesh, template=template, progress=progress, cancel=cancel
+        )
+
+    return job
+
+
 def click_residuals(fit: FitState | None, photos) -> dict[str, dict[str, float]]:
     """Reprojection error (px) of every click with a fitted 3D point: photo id → feature → px.
 
@@ -231,4 +263,4 @@ def predicted_uv(fit: FitState | None, photo_id: str, feature: str, vertex: int 
     return fit.cameras[photo_id].project(X[None])[0]
 
 
-__all__ = ["FitState", "Fitting", "click_residuals", "predicted_uv", "worst_clicks"]
+__all__ = ["FitState", "Fitting", "click_residuals", "predicted_uv", "scan_fit_job", "worst_clicks"]

@@ -1,6 +1,7 @@
 """The *Fit* menu: fit the current expression from scratch in the worker
-(:class:`~app.qt.workers.FitController`) behind a cancellable progress dialog, and the automatic
-refit after each edit; the status bar's fit label says how the last fit went."""
+(:class:`~app.qt.workers.FitController`) behind a cancellable progress dialog, the automatic
+refit after each edit, and *Add scan…* (:mod:`app.qt.menus.fit_scan`); the status bar's fit label
+says how the last fit went."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QApplication, QLabel, QMenu, QMenuBar, QProgressDialog
 
 from app.qt.menus import make_action
+from app.qt.menus.fit_scan import AddScan
 from app.qt.progress import close_progress, update_progress
 
 
@@ -33,11 +35,15 @@ class FitMenu(QObject):
             checked=True,
             tip="refit after every edit while a refit takes less than 0.3 s",
         )
+        self.scan = AddScan(window)
+        self.act_add_scan = self.scan.act_add_scan
 
     def build(self, menubar: QMenuBar) -> QMenu:
         fm = menubar.addMenu("F&it")
         fm.addAction(self.act_fit)
         fm.addAction(self.act_auto)
+        fm.addSeparator()
+        fm.addAction(self.act_add_scan)
         return fm
 
     def connect_worker(self) -> None:
@@ -47,6 +53,7 @@ class FitMenu(QObject):
         self.fits.finished.connect(self._on_fit_finished)
         self.fits.failed.connect(self._on_fit_failed)
         self.fits.cancelled.connect(self._on_fit_cancelled)
+        self.scan.connect_worker()
 
     def set_auto_refit(self, on: bool):
         self.fits.auto_refit = on
@@ -103,6 +110,8 @@ class FitMenu(QObject):
         fit = model.fit()
         if fit is None:
             self.fit_label.setText("not fitted")
+        elif fit.from_scan:
+            self.fit_label.setText(f"fitted to a scan ({fit.report['scan_fit'].get('unit', '?')})")
         else:
             t = "" if fit.elapsed_s is None else f" ({fit.elapsed_s * 1000:.0f} ms)"
             self.fit_label.setText(f"RMS {fit.report.get('rms_px', float('nan')):.2f} px{t}")
