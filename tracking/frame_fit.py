@@ -225,6 +225,11 @@ class TrackOptions:
     #: the Geman–McClure scale τ (px) of the landmark term: a detection further than a few τ
     #: from the model's feature (a landmark under a hand) pulls next to nothing.
     landmark_scale_px: float = 3.0
+    #: a tracked frame takes the landmark term only where the prediction's features are on
+    #: average further than this (px, in the fitted frame) from the detector's: where the
+    #: prediction already agrees, the image alone holds the frame and the term's extra LM steps
+    #: are not spent (0: every frame).
+    landmark_gate_px: float = 0.0
 
     def __post_init__(self):
         for name in ("pose_jacobian", "expression_jacobian"):

@@ -519,7 +519,11 @@ def _fit_frame(
     if work.options.landmarks:
 
         def marks(_, start):  # the detector near where the prediction sees the face
-            return watch.landmark_term(frame, fitter, work, start)
+            term = watch.landmark_term(frame, fitter, work, start)
+            gate = work.options.landmark_gate_px
+            if term is None or (gate > 0 and np.linalg.norm(term.residuals(start), axis=1).mean() < gate):
+                return None
+            return term
 
     (res,) = track_frames(work, [small], run.first.state, previous=states, landmarks=marks)
     spec = watch.restart_spec(i, frame, fitter, res)
