@@ -52,7 +52,8 @@ from photomodel.project import (
 )
 from photomodel.rig.build import RigBuilder
 from photomodel.texturing.job import encode_texture_outputs, texture_expression
-from tracking.detected_pose import LOST_PX, detected_features, landmark_error_px
+from tracking.detected_pose import LOST_PX, landmark_error_px, pose_features
+from tracking.landmark_checks import LandmarkChecks
 from tracking.performance import export_track
 from tracking.run import track_video
 from tracking.track_result import load_track_results
@@ -369,35 +370,41 @@ def _rig_stage(run: _Run, project, neutral: str, vertices: np.ndarray) -> None:
 
 def _track_stage(run: _Run, max_frames: int | None) -> None:
     """5. Track the clip in ARKit terms (continuing a saved track; skipped when it is complete),
-    then the landmark figures. A cancel stops here with KeyboardInterrupt, the frames done saved."""
+    then the landmark figures — whose detections are found while the clip is tracked
+    (:class:`tracking.landmark_checks.LandmarkChecks`). A cancel stops here with
+    KeyboardInterrupt, the frames done saved."""
     result, video, track_dir, tell = run.result, run.video, run.track_dir, run.tell
     run.begin("track")
     done = load_track_results(track_dir) if track_dir.is_dir() else None
     total = video.count if max_frames is None else min(max_frames, video.count or max_frames)
     tracked = 0 if done is None else len(done["frames"])
-    if done is not None and (done.get("complete") or (total is not None and tracked >= total)):
-        result.skipped.append("track")
-        records = done["frames"]
-        track_fps = 0.0
-    else:
-        tr = track_video(
-            run.project_path,
-            run.clip,
-            track_dir,
-            basis="arkit",
-            max_frames=max_frames,
-            progress=lambda n, tot: tell("track", n / tot if tot else 0.0, f"frame {n} of {tot or '?'}"),
-            cancel=run.cancel,
-        )
-        records, track_fps = tr.frames, tr.fps
-        if tr.cancelled:
-            run.end("track")
-            result.frames, result.track_fps = len(records), track_fps
-            result.total_s = time.perf_counter() - run.t_all
-            raise KeyboardInterrupt
-    result.frames, result.track_fps = len(records), track_fps
-    tell("track", 0.97, "landmark error against the detector")
-    _landmark_figures(result, video, records)
+    checks = LandmarkChecks(run.clip, pose_features(load_project(run.project_path)), LANDMARK_EVERY, total)
+    try:
+        if done is not None and (done.get("complete") or (total is not None and tracked >= total)):
+            result.skipped.append("track")
+            records = done["frames"]
+            track_fps = 0.0
+        else:
+            tr = track_video(
+                run.project_path,
+                run.clip,
+                track_dir,
+                basis="arkit",
+                max_frames=max_frames,
+                progress=lambda n, tot: tell("track", n / tot if tot else 0.0, f"frame {n} of {tot or '?'}"),
+                cancel=run.cancel,
+            )
+            records, track_fps = tr.frames, tr.fps
+            if tr.cancelled:
+                run.end("track")
+                result.frames, result.track_fps = len(records), track_fps
+                result.total_s = time.perf_counter() - run.t_all
+                raise KeyboardInterrupt
+        result.frames, result.track_fps = len(records), track_fps
+        tell("track", 0.97, "landmark error against the detector")
+        _landmark_figures(result, checks.detections(len(records)), records)
+    finally:
+        checks.stop()
     run.end("track")
 
 
@@ -426,24 +433,21 @@ def _stop_if(cancel) -> None:
         raise KeyboardInterrupt
 
 
-def _landmark_figures(result: AutoResult, video: VideoFrames, records: list[dict]) -> None:
-    """The tracked frames' landmark error against the detector (every :data:`LANDMARK_EVERY`-th
-    frame): mean over the frames fitted from the prediction where the detector finds the face, and
-    the lost / recovered counts."""
+def _landmark_figures(result: AutoResult, detections: dict[int, dict | None], records: list[dict]) -> None:
+    """The tracked frames' landmark error against the detector's features ``detections`` ({i:
+    features or None (no face)} of every :data:`LANDMARK_EVERY`-th frame): mean over the frames
+    fitted from the prediction where the detector finds the face, and the lost / recovered counts."""
     if not records:
         return
     names = list(records[0].get("landmarks_xy") or [])
     if not names:
         return
-    err, found, checked = [], [], []
-    for i, frame in video.frames(0, len(records)):
-        if i % LANDMARK_EVERY:
-            continue
-        det = detected_features(frame, names)
-        checked.append(i)
-        found.append(det is not None)
-        err.append(landmark_error_px(records[i]["landmarks_xy"], det) if det else np.nan)
-    err, found = np.array(err, float), np.array(found, bool)
+    checked = [i for i in sorted(detections) if i < len(records)]
+    found = np.array([detections[i] is not None for i in checked], bool)
+    err = np.array(
+        [landmark_error_px(records[i]["landmarks_xy"], detections[i]) if detections[i] else np.nan for i in checked],
+        float,
+    )
     kept = np.array([records[i].get("start") == "predicted" for i in checked], bool) & found
     result.landmark_errors = np.full(len(records), np.nan)
     result.landmark_errors[checked] = np.where(kept, err, np.nan)
