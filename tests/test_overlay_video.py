@@ -118,3 +118,29 @@ def test_closed_eyes_and_shading_on_real_footage_are_not_tinted(tmp_path, prior)
     # 3× it — falls, and the frown around her right eye on frames 7, 11 and 12 (which the model's
     # photographed expressions do not make; it is there, untinted, before too) crosses it
     assert max(shares) < 0.09, np.round(shares, 3)
+
+
+def test_threads_write_the_frames_one_thread_writes(straight, tmp_path):
+    """The overlay drawn by two threads (each its own renderer) is frame for frame the one drawn
+    by one: same frames, same order (the threads' timing must not reorder or change them)."""
+    from photomodel.photos.video import VideoFrames
+    from tracking.overlay_video import write_overlay_video
+    from tracking.review import TrackReview
+
+    review = TrackReview.open(straight.out_dir)
+    video = VideoFrames(review.doc["video"]["path"])
+    fitter = review.fitter()
+    outs = []
+    for workers in (1, 2):
+        path = tmp_path / f"overlay_{workers}.mp4"
+        write_overlay_video(path, video, fitter, review.records, workers=workers)
+        cap = cv2.VideoCapture(str(path))
+        frames = []
+        while (read := cap.read())[0]:
+            frames.append(read[1].astype(int))
+        cap.release()
+        outs.append(frames)
+    assert len(outs[0]) == len(outs[1]) == FRAMES
+    for a, b in zip(*outs, strict=True):
+        # the same pixels through the same encoder: equal up to the codec's rounding
+        assert abs(a - b).mean() < 0.5
