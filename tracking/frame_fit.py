@@ -93,6 +93,7 @@ __all__ = [
     "predict",
     "nearest_rotation",
     "track_frames",
+    "single_threaded_blas",
     "pose_from_clicks",
     "bandpass",
     "home_regions",
@@ -1205,7 +1206,7 @@ class FrameFitter:
         2.8 mm geometry error, instead of 0.01 mm."""
         self._marks = landmarks
         try:
-            with _single_threaded_blas():
+            with single_threaded_blas():
                 return self._fit(frame, initial)
         finally:
             self._marks = None
@@ -1280,12 +1281,16 @@ class FrameFitter:
 _BLAS_CONTROLLER: list = []
 
 
-def _single_threaded_blas():
-    """A context limiting BLAS to one thread (:mod:`threadpoolctl`, when installed).
+def single_threaded_blas():
+    """A context limiting BLAS to one thread (:mod:`threadpoolctl`, when installed): every BLAS
+    loaded when first called — numpy's, scipy's and the one OpenCV's wheel brings for ``cv2.dnn``.
 
     The products here are small (10 × 10⁵): a second BLAS thread gains little, and its
     spin-waiting takes a core from the software rasteriser and numpy — measured on the 2-core
-    machine, 3.3 instead of 2.0 frames/s."""
+    machine, 3.3 instead of 2.0 frames/s. :func:`tracking.run.track_video` holds it over its whole
+    loop, not frame by frame: each restore to two threads woke OpenBLAS's thread server, which
+    then spun between the frames — 38 s of CPU for 25 s of tracking, 26 s with the limit held
+    (2026-12-05, 120 frames of the real clip, wall time the same)."""
     if not _BLAS_CONTROLLER:
         _BLAS_CONTROLLER.append(ThreadpoolController())
     ctl = _BLAS_CONTROLLER[0]
@@ -1317,19 +1322,20 @@ def track_frames(
     """
     states = list(previous or [])
     out = []
-    for i, frame in enumerate(frames):
-        if states:
-            start = predict(states[-2:])
-            res = fitter.fit(frame, start, None if landmarks is None else landmarks(i, start))
-        else:
-            rounds = fitter.options.rounds
-            fitter.options.rounds = max(first_rounds, rounds)
-            try:
-                res = fitter.fit(frame, first)
-            finally:
-                fitter.options.rounds = rounds
-        states.append(res.state)
-        out.append(res)
-        if callback is not None and callback(i, res):
-            break
+    with single_threaded_blas():  # held over the loop (see single_threaded_blas)
+        for i, frame in enumerate(frames):
+            if states:
+                start = predict(states[-2:])
+                res = fitter.fit(frame, start, None if landmarks is None else landmarks(i, start))
+            else:
+                rounds = fitter.options.rounds
+                fitter.options.rounds = max(first_rounds, rounds)
+                try:
+                    res = fitter.fit(frame, first)
+                finally:
+                    fitter.options.rounds = rounds
+            states.append(res.state)
+            out.append(res)
+            if callback is not None and callback(i, res):
+                break
     return out

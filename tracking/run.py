@@ -76,7 +76,7 @@ from tracking.first_pose import (
     read_pose_spec,
     spec_focal,
 )
-from tracking.frame_fit import DIVERGED_RMS, FrameFitter, TrackOptions, track_frames
+from tracking.frame_fit import DIVERGED_RMS, FrameFitter, TrackOptions, single_threaded_blas, track_frames
 from tracking.overlay_video import write_overlay_video
 from tracking.plots import track_plots
 from tracking.track_result import (
@@ -450,33 +450,35 @@ def _fit_frames(
         watch.last_diverged = bool(records[start - 1]["diverged"])
     cancelled, ended, seconds = False, False, 0.0
     unsaved, since_save, save_cost = 0, 0.0, 0.0
-    try:
-        for i, frame in run.video.frames(start, limit):
-            t0 = time.perf_counter()
-            res, kind, states = _fit_frame(run, fitter, watch, i, frame, starts, states)
-            dt = time.perf_counter() - t0
-            seconds += dt
-            records.append(frame_record(i, res, run.model, dt, kind))
-            records[-1]["landmarks_xy"] = watch.landmarks(fitter, res.state)
-            states = (states + [res.state])[-2:]
-            unsaved += 1
-            since_save += dt
-            # every save_every frames, but writing the whole file (it grows with the clip) may take
-            # at most 1/SAVE_OVERHEAD of the fitting time: quadratic in the clip's length otherwise
-            if unsaved >= save_every and since_save >= SAVE_OVERHEAD * save_cost:
-                t_save = time.perf_counter()
-                save_results(run.out, doc, False)
-                save_cost, unsaved, since_save = time.perf_counter() - t_save, 0, 0.0
-            if progress is not None:
-                progress(i + 1, total)
-            if cancel is not None and cancel():
-                cancelled = True
-                break
-        else:
-            ended = True
-    except KeyboardInterrupt:
-        save_results(run.out, doc, False)
-        raise
+    # BLAS single-threaded over the whole loop, not frame by frame (see single_threaded_blas)
+    with single_threaded_blas():
+        try:
+            for i, frame in run.video.frames(start, limit):
+                t0 = time.perf_counter()
+                res, kind, states = _fit_frame(run, fitter, watch, i, frame, starts, states)
+                dt = time.perf_counter() - t0
+                seconds += dt
+                records.append(frame_record(i, res, run.model, dt, kind))
+                records[-1]["landmarks_xy"] = watch.landmarks(fitter, res.state)
+                states = (states + [res.state])[-2:]
+                unsaved += 1
+                since_save += dt
+                # every save_every frames, but writing the whole file (it grows with the clip) may take
+                # at most 1/SAVE_OVERHEAD of the fitting time: quadratic in the clip's length otherwise
+                if unsaved >= save_every and since_save >= SAVE_OVERHEAD * save_cost:
+                    t_save = time.perf_counter()
+                    save_results(run.out, doc, False)
+                    save_cost, unsaved, since_save = time.perf_counter() - t_save, 0, 0.0
+                if progress is not None:
+                    progress(i + 1, total)
+                if cancel is not None and cancel():
+                    cancelled = True
+                    break
+            else:
+                ended = True
+        except KeyboardInterrupt:
+            save_results(run.out, doc, False)
+            raise
     return ended, cancelled, seconds
 
 
