@@ -134,13 +134,46 @@ def test_threads_write_the_frames_one_thread_writes(straight, tmp_path):
     for workers in (1, 2):
         path = tmp_path / f"overlay_{workers}.mp4"
         write_overlay_video(path, video, fitter, review.records, workers=workers)
-        cap = cv2.VideoCapture(str(path))
-        frames = []
-        while (read := cap.read())[0]:
-            frames.append(read[1].astype(int))
-        cap.release()
-        outs.append(frames)
+        outs.append(_frames_of(path))
     assert len(outs[0]) == len(outs[1]) == FRAMES
     for a, b in zip(*outs, strict=True):
         # the same pixels through the same encoder: equal up to the codec's rounding
         assert abs(a - b).mean() < 0.5
+
+
+def _frames_of(path):
+    cap = cv2.VideoCapture(str(path))
+    frames = []
+    while (read := cap.read())[0]:
+        frames.append(read[1].astype(int))
+    cap.release()
+    return frames
+
+
+def test_stream_writes_what_the_writer_writes_and_abort_keeps_the_old_file(straight, tmp_path):
+    """tracking/overlay_stream.py: the overlay drawn while frames arrive is the one drawn after
+    them; an aborted stream leaves the file at its path as it was (no half-written overlay)."""
+    from photomodel.photos.video import VideoFrames
+    from tracking.overlay_stream import OverlayStream
+    from tracking.overlay_video import write_overlay_video
+    from tracking.review import TrackReview
+
+    review = TrackReview.open(straight.out_dir)
+    video = VideoFrames(review.doc["video"]["path"])
+    fitter = review.fitter()
+    write_overlay_video(tmp_path / "after.mp4", video, fitter, review.records)
+    stream = OverlayStream(tmp_path / "streamed.mp4", video, fitter)
+    for rec in review.records:
+        stream.add(rec)
+    last = stream.finish()
+    assert last is not None and last.shape == (300, 300, 3)
+    after, streamed = _frames_of(tmp_path / "after.mp4"), _frames_of(tmp_path / "streamed.mp4")
+    assert len(after) == len(streamed) == FRAMES
+    for a, b in zip(after, streamed, strict=True):
+        assert abs(a - b).mean() < 0.5  # the same pixels through the same encoder
+    old = (tmp_path / "streamed.mp4").read_bytes()
+    stream = OverlayStream(tmp_path / "streamed.mp4", video, fitter)
+    stream.add(review.records[0])
+    stream.abort()
+    assert (tmp_path / "streamed.mp4").read_bytes() == old
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporary left

@@ -77,7 +77,7 @@ from tracking.first_pose import (
     spec_focal,
 )
 from tracking.frame_fit import DIVERGED_RMS, FrameFitter, TrackOptions, single_threaded_blas, track_frames
-from tracking.overlay_video import write_overlay_video
+from tracking.overlay_stream import OverlayStream
 from tracking.plots import track_plots
 from tracking.track_result import (
     continue_results,
@@ -229,8 +229,16 @@ def track_video(
     start = len(doc["frames"])
     starts = _fit_starts(run, doc, start)
     fitter = _start_fitter(run, doc)
-    ended, cancelled, seconds = _fit_frames(run, doc, fitter, starts, start, save_every, progress, cancel)
-    files = _write_outputs(run, doc, fitter, ended, plots, overlay)
+    # the overlay video drawn while the clip is tracked (tracking.overlay_stream)
+    stream = OverlayStream(run.out / "overlay.mp4", run.video, fitter) if overlay else None
+    try:
+        for rec in doc["frames"] if stream is not None else ():  # tracked before (resumed, corrected)
+            stream.add(rec)
+        ended, cancelled, seconds = _fit_frames(run, doc, fitter, starts, start, save_every, progress, cancel, stream)
+        files = _write_outputs(run, doc, ended, plots, stream)
+    finally:
+        if stream is not None:
+            stream.abort()  # nothing after finish(); else the half-drawn overlay is dropped
     return _track_result(run, doc, start, ended, cancelled, seconds, files, correct_frame)
 
 
@@ -432,11 +440,12 @@ def _fit_starts(run: _Run, doc: dict, start: int) -> dict[int, tuple[str, FirstP
 
 
 def _fit_frames(
-    run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: int, save_every: int, progress, cancel
+    run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: int, save_every: int, progress, cancel, stream
 ) -> tuple[bool, bool, float]:
     """Fit frames ``start`` .. (to the end or the frame limit) into ``doc["frames"]``, saving every
-    ``save_every`` frames and on Ctrl-C (re-raised). Returns (ended: the loop ran out of frames,
-    cancelled, seconds of fitting)."""
+    ``save_every`` frames and on Ctrl-C (re-raised), each new record handed to ``stream`` (an
+    :class:`~tracking.overlay_stream.OverlayStream`, or None). Returns (ended: the loop ran out of
+    frames, cancelled, seconds of fitting)."""
     records = doc["frames"]
     count, limit = run.video.count, run.max_frames
     total = count if limit is None else (limit if count is None else min(limit, count))
@@ -460,6 +469,8 @@ def _fit_frames(
                 seconds += dt
                 records.append(frame_record(i, res, run.model, dt, kind))
                 records[-1]["landmarks_xy"] = watch.landmarks(fitter, res.state)
+                if stream is not None:
+                    stream.add(records[-1])
                 states = (states + [res.state])[-2:]
                 unsaved += 1
                 since_save += dt
@@ -537,11 +548,10 @@ def _fit_frame(
     return again, "detected", []
 
 
-def _write_outputs(
-    run: _Run, doc: dict, fitter: FrameFitter, ended: bool, plots: bool, overlay: bool
-) -> dict[str, Path]:
+def _write_outputs(run: _Run, doc: dict, ended: bool, plots: bool, stream) -> dict[str, Path]:
     """The final ``track.json``/``track.csv`` (``complete`` when the whole video is tracked), the
-    plots, and the overlay video once the loop ``ended``; returns {name: path} of the files written."""
+    plots, and the overlay video of ``stream`` once the loop ``ended`` (else it is dropped);
+    returns {name: path} of the files written."""
     records = doc["frames"]
     # a finished loop stopped at the frame limit or at the end of the video
     n, count, limit = len(records), run.video.count, run.max_frames
@@ -553,8 +563,8 @@ def _write_outputs(
         regions = doc["model"]["regions_with_parameters"]
         for name, img in track_plots(records, regions, list(run.model.names), DIVERGED_RMS).items():
             files[name.removesuffix(".png")] = atomic_write_bytes(run.out / name, encode_png(img))
-    if overlay and ended and records:
-        last = write_overlay_video(run.out / "overlay.mp4", run.video, fitter, records)
+    if stream is not None and ended and records:
+        last = stream.finish()
         files["overlay"] = run.out / "overlay.mp4"
         if last is not None:
             files["overlay_last"] = atomic_write_bytes(run.out / "overlay_last.png", encode_png(last))
