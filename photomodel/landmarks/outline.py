@@ -129,31 +129,12 @@ def jaw_edges(
     normal[flip] *= -1
     step = max(height / 150.0, 0.5)
     offsets = np.arange(-SEARCH_IN * height, SEARCH_OUT * height + step, step)
-    # only the jaw's surroundings are looked at (a 1920×1080 photo's face, not the photo)
     sample = dense[:, None, :] + offsets[None, :, None] * normal[:, None, :]  # (n, k, 2)
-    pad = 4.0 * max(BLUR * height, 0.8) + 2
-    h, w = image.shape[:2]
-    x0, y0 = (np.floor(np.maximum(sample.reshape(-1, 2).min(axis=0) - pad, 0))).astype(int)
-    x1, y1 = (np.ceil(np.minimum(sample.reshape(-1, 2).max(axis=0) + pad, [w - 1, h - 1]))).astype(int)
-    if x1 <= x0 + 2 or y1 <= y0 + 2:
-        return jaw.copy(), none
-    lab = cv2.cvtColor(np.ascontiguousarray(image[y0 : y1 + 1, x0 : x1 + 1]), cv2.COLOR_RGB2LAB).astype(np.float32)
-    lab[..., 0] *= 100.0 / 255.0  # L* in its own units, as a* and b*: a change of hue counts as much
     sigma = max(BLUR * height, 0.8)
-    lab = cv2.GaussianBlur(lab, (0, 0), sigma)
-    gx = cv2.Sobel(lab, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-    gy = cv2.Sobel(lab, cv2.CV_32F, 0, 1, ksize=3) / 8.0
-    mx = (sample[..., 0] - x0).astype(np.float32)
-    my = (sample[..., 1] - y0).astype(np.float32)
-    sx = cv2.remap(gx, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    sy = cv2.remap(gy, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    along = sx * normal[:, None, None, 0] + sy * normal[:, None, None, 1]  # (n, k, 3)
-    # the jaw's edge is the face's lit skin over the shadow under it, the neck or the backdrop: a
-    # step to a lighter outside (a white collar, a lit neck under a shaded chin) counts for less
-    light = along[..., 0]
-    light = np.where(light > 0, LIGHTER_OUTSIDE * light, light)
-    strength = np.sqrt(light**2 + along[..., 1] ** 2 + along[..., 2] ** 2)
-    strength /= np.percentile(strength, 95) + 1e-6
+    strength = _edge_strength(image, sample, normal, sigma)
+    if strength is None:
+        return jaw.copy(), none
+    h, w = image.shape[:2]
     inside = (sample[..., 0] >= 0) & (sample[..., 1] >= 0) & (sample[..., 0] <= w - 1) & (sample[..., 1] <= h - 1)
     unary = -np.minimum(strength, CAP) * inside + PULL * np.abs(offsets / height)
     # outwards the band narrows from the chin to the ears: beside the cheeks the outline runs into
@@ -175,6 +156,37 @@ def jaw_edges(
     moved = dense + _edge_offsets(strength, offsets, path, under_chin, sigma)[:, None] * normal
     shown = np.minimum(strength[np.arange(len(dense)), path], CAP) * inside[np.arange(len(dense)), path]
     return moved[at], shown[at]
+
+
+def _edge_strength(image: np.ndarray, sample: np.ndarray, normal: np.ndarray, sigma: float) -> np.ndarray | None:
+    """(n, k) float: the CIELAB gradient along each sample's outline ``normal`` (n, 2) at the
+    points ``sample`` (n, k, 2) px of ``image`` blurred by ``sigma`` px, a step to a lighter outside
+    weighed :data:`LIGHTER_OUTSIDE`, over its 95th percentile; None where the samples leave no
+    image to look at."""
+    # only the jaw's surroundings are looked at (a 1920×1080 photo's face, not the photo)
+    pad = 4.0 * sigma + 2
+    h, w = image.shape[:2]
+    x0, y0 = (np.floor(np.maximum(sample.reshape(-1, 2).min(axis=0) - pad, 0))).astype(int)
+    x1, y1 = (np.ceil(np.minimum(sample.reshape(-1, 2).max(axis=0) + pad, [w - 1, h - 1]))).astype(int)
+    if x1 <= x0 + 2 or y1 <= y0 + 2:
+        return None
+    lab = cv2.cvtColor(np.ascontiguousarray(image[y0 : y1 + 1, x0 : x1 + 1]), cv2.COLOR_RGB2LAB).astype(np.float32)
+    lab[..., 0] *= 100.0 / 255.0  # L* in its own units, as a* and b*: a change of hue counts as much
+    lab = cv2.GaussianBlur(lab, (0, 0), sigma)
+    gx = cv2.Sobel(lab, cv2.CV_32F, 1, 0, ksize=3) / 8.0
+    gy = cv2.Sobel(lab, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+    mx = (sample[..., 0] - x0).astype(np.float32)
+    my = (sample[..., 1] - y0).astype(np.float32)
+    sx = cv2.remap(gx, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    sy = cv2.remap(gy, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    along = sx * normal[:, None, None, 0] + sy * normal[:, None, None, 1]  # (n, k, 3)
+    # the jaw's edge is the face's lit skin over the shadow under it, the neck or the backdrop: a
+    # step to a lighter outside (a white collar, a lit neck under a shaded chin) counts for less
+    light = along[..., 0]
+    light = np.where(light > 0, LIGHTER_OUTSIDE * light, light)
+    strength = np.sqrt(light**2 + along[..., 1] ** 2 + along[..., 2] ** 2)
+    strength /= np.percentile(strength, 95) + 1e-6
+    return strength
 
 
 def _edge_offsets(
