@@ -215,7 +215,7 @@ class TrackOptions:
     #: No effect on a model without a shared basis.
     sparsity: float = 1e-3
     symmetry: float = 2e-4
-    smoothness: float = 1e-3
+    smoothness: float = 1e-2  # 1e-3 until 2026-12-05: docs/tracking.md, "The smoothness prior on real footage"
     #: weight κ of the detector's landmarks in ε when a frame is fitted with them (beyond the
     #: paper; :mod:`tracking.landmark_term`): every landmark an outlier costs κ × what every
     #: pixel an outlier costs. 0: analysis by synthesis alone. Used with the robust error only;
