@@ -1,7 +1,7 @@
 """Several people: imputation of missing expressions, cloning a performance between people, speed.
 
     .venv/bin/python benchmarks/bench_people.py [--json] [--people 30] [--model-people 100]
-        [--draws 3] [--pairs 50] [--frames-per-pair 10]
+        [--draws 3] [--pairs 50] [--frames-per-pair 10] [--seed 1]
 
 Data (:mod:`photomodel.people.dataset`): ``--model-people`` ICT identities build the multilinear model
 under test; ``--people`` *other* ICT identities (held out) are the benchmark's people. Truth: each
@@ -21,11 +21,13 @@ Sections of the one JSON object (``--json``):
   of the 51, plus the neutral, as if photographed); ``frames`` random ARKit-like mixes (3–8 active
   shapes, weights U(0.2, 1)) on A, cloned to B; error = mean per-vertex distance (mm, face area) to B's
   truth (the same mix of B's shapes). ``displacement_mm``: A's displacement, similarity-aligned, on B's
-  neutral; ``mapping_mm``: seed 001 (Eq. 3–4, ±3σ) between A's and B's own expression spaces;
-  ``multilinear_mm``: the model — A's and B's identity weights fitted to their own sets, A's frame's
-  expression weights solved with A's identity, B's displacement from them added to B's neutral;
+  neutral; ``mapping_mm``: seed 001 (Eq. 3–4, ±3σ) between A's and B's own expression spaces, each
+  about the person's neutral (seed 001 §5's reference expression, :mod:`photomodel.people.mapping`);
+  ``multilinear_mm``: the model — A's and B's rigs predicted from their own sets (photographed shapes
+  kept), A's frames said in A's rig by least squares, the weights put on B's rig
+  (:mod:`photomodel.people.rig_clone`);
   ``mapping_floor_mm``: B's truth projected onto B's own expression space. ``*_p95_mm``: 95th
-  percentiles over the frames.
+  percentiles over the frames. ``--seed`` draws other sets, pairs and mixes (default 1, the reported draw).
 * ``speed`` — cloned frames per second of the mapping and the model on one core (BLAS limited to one
   thread; CPU time, so a shared machine's load does not count), full mesh (every vertex) evaluated, the
   per-pair set-up excluded; the best of three runs.
