@@ -61,3 +61,30 @@ def test_displacement_copy_turns_the_displacement_with_the_heads():
     np.testing.assert_allclose(out[0], (target + 1.1 * disp @ R.T).ravel(), atol=1e-9)
     with pytest.raises(ValueError):
         expression_space(np.zeros((1, 9)))
+
+
+def test_spaces_about_the_neutrals_map_a_shared_expression_between_different_sets():
+    # one face, photographed in two different sets: a frame of a shape both sets hold must come back
+    # exactly when both spaces are taken about the neutral (seed 001 §5's reference expression); about
+    # the means, the two sets' mean expressions differ and their difference lands on every frame
+    rng = np.random.default_rng(3)
+    n = 30
+    neutral = rng.standard_normal((n, 3)) * 30
+    deltas = rng.standard_normal((8, n, 3))
+    A, B = _person(neutral, deltas, [0, 1, 2, 3]), _person(neutral, deltas, [0, 1, 4])
+    frame = (neutral + 0.5 * deltas[1]).ravel()[None]  # within 3σ of both sets (σ about the neutral ~ 0.5–0.7)
+    about_neutral = ExpressionMapping.between(expression_space(A, 0), expression_space(B, 0))(frame)
+    np.testing.assert_allclose(about_neutral, frame, atol=1e-9)
+    about_mean = ExpressionMapping.between(expression_space(A), expression_space(B))(frame)
+    assert np.abs(about_mean - frame).max() > 0.1  # the mean expressions' difference (shapes are ~1 mm)
+
+
+def test_a_space_about_a_reference_spans_the_same_shapes():
+    rng = np.random.default_rng(4)
+    X = rng.standard_normal((5, 12))
+    mean, ref = expression_space(X), expression_space(X, reference=0)
+    np.testing.assert_allclose(ref.mean, X[0])
+    y = rng.standard_normal((3, 12))
+    np.testing.assert_allclose(ref.project(y), mean.project(y), atol=1e-9)  # the same affine span
+    with pytest.raises(ValueError, match="reference 5"):
+        expression_space(X, reference=5)

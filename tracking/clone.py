@@ -11,10 +11,11 @@ and the studio's tracking view take it as they take B's own tracking. Four steps
    ``displacement`` — A's displacement from A's neutral, similarity-aligned, on B's neutral
    (:func:`photomodel.people.mapping.displacement_copy`);
    ``mapping`` — seed 001: A's and B's own expression spaces are the PCA of their photographed
-   expressions (their models' ``E_k``), mapped by Eq. 3–4 with ±3σ limits (:mod:`photomodel.people.mapping`);
+   expressions (their models' ``E_k``, about their neutrals), mapped by Eq. 3–4 with ±3σ limits
+   (:mod:`photomodel.people.mapping`);
    ``multilinear`` — seed 000's model (:mod:`photomodel.people.model_file`, built beforehand): both
-   people's identity weights fitted to their neutrals, each frame's expression weights solved with A's
-   identity and B's displacement from them added to B's neutral;
+   people's ARKit rigs predicted from their neutrals and other expressions, each frame said in A's rig
+   and the same weights put on B's (:mod:`photomodel.people.rig_clone`);
    ``names`` — both projects have an ARKit rig (``facestudio rig``): A's faces said in A's rig weights
    (bounded least squares over the face), the same weights on B's rig.
 3. **B's weights.** Each mapped face is said in B's model: per-region weights of B's expressions by least
@@ -41,6 +42,7 @@ from photomodel.errors import Cancelled, FaceStudioError
 from photomodel.people.mapping import ExpressionMapping, align_similarity, displacement_copy, expression_space
 from photomodel.people.model_file import MODEL_PEOPLE, model_path
 from photomodel.people.multilinear import MultilinearModel
+from photomodel.people.rig_clone import RigClone
 from photomodel.photos.video import VideoFrames
 from photomodel.project import load_project, load_rig_shapes
 from photomodel.rendering.renderer import get_renderer
@@ -123,17 +125,15 @@ def map_faces(
         if model_a.m < 2 or model_b.m < 2:
             raise FaceStudioError("the mapping needs at least two photographed expressions in each project")
         s, R, _ = align_similarity(nA, nB, mask)
-        space_a = expression_space(_expression_shapes(model_a).reshape(model_a.m, -1))
-        space_b = expression_space(_expression_shapes(model_b).reshape(model_b.m, -1))
+        # about each person's neutral (expression 0), not the mean of their own sets (seed 001 §5)
+        space_a = expression_space(_expression_shapes(model_a).reshape(model_a.m, -1), reference=0)
+        space_b = expression_space(_expression_shapes(model_b).reshape(model_b.m, -1), reference=0)
         out = ExpressionMapping.between(space_a, space_b, (s, R))(X)
     elif method == "multilinear":
         pm = people_model
         if pm is None or pm.mean.shape != (3 * n,):
             raise FaceStudioError("the multilinear model is missing or of another mesh; build it first")
-        CA = pm.expression_space(pm.fit_identity(nA.ravel()[None], [0]))
-        CB = pm.expression_space(pm.fit_identity(nB.ravel()[None], [0]))
-        g = (X - nA.ravel()) @ pm.vertex_basis
-        out = nB.ravel() + (g @ (CB @ np.linalg.pinv(CA)).T) @ pm.vertex_basis.T
+        out = rig_clone(pm, model_a, model_b, mask)(X)
     else:
         (names_a, da), (names_b, db) = rigs
         if list(names_a) != list(names_b):
@@ -143,6 +143,19 @@ def map_faces(
         W = np.array([lsq_linear(A, d, bounds=(0.0, 1.0)).x for d in disp])
         out = nB.ravel() + W @ db.reshape(len(db), -1)
     return np.asarray(out).reshape(f, n, 3)
+
+
+def rig_clone(people_model, model_a: FaceModel, model_b: FaceModel, mask: np.ndarray) -> RigClone:
+    """The ``multilinear`` map of A onto B (:class:`photomodel.people.rig_clone.RigClone`): each person's rig
+    predicted by ``people_model`` from their neutral and their model's other expressions (an ARKit name, a
+    rig's shape or a photographed one, is that shape; any other name a mix the model solves for)."""
+
+    def expressions(model: FaceModel) -> dict:
+        shapes = _expression_shapes(model)
+        return {name: shapes[e] for e, name in enumerate(model.names) if e}
+
+    nA, nB = model_a.geometry[0], model_b.geometry[0]
+    return RigClone.between(people_model, nA, expressions(model_a), nB, expressions(model_b), mask)
 
 
 def weights_of_faces(model: FaceModel, faces: np.ndarray) -> np.ndarray:

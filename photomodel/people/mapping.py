@@ -26,6 +26,14 @@ are first brought into the target's head frame by the similarity (Umeyama, :func
 similarity_transform`) of the source's neutral onto the target's over the face, so that "same dimension
 Euclidean space" holds; :func:`displacement_copy` is the baseline the seed compares against (§4):
 the source's displacement from its neutral, aligned the same way, added to the target's neutral.
+
+**The base** (seed 001 §3 assumes the two bases are similar expressions; §5 allows any reference
+expression): :func:`expression_space` takes the mean by default (Eq. 1) or a reference shape; the
+studio and the benchmark take each person's **neutral**. The seed's people are filmed in similar
+performances, whose means converge (its Fig. 2); ours are photographed in different expression sets,
+whose means are different expressions, and mapping about them added the difference of the two sets'
+mean expressions to every frame (measured, 2026-12-05, on 3 × 50 pairs of the model's people, not the
+benchmark's: mapping / its floor 1.15–1.29× about the means, 1.02–1.15× about the neutrals).
 """
 
 from __future__ import annotations
@@ -76,12 +84,24 @@ class ExpressionSpace:
         return self.mean + self.parameters(shapes) @ self.basis.T
 
 
-def expression_space(shapes: np.ndarray) -> ExpressionSpace:
-    """The PCA of a person's own expressions ``shapes`` (k, d) mm (all components of nonzero variance)."""
+def expression_space(shapes: np.ndarray, reference: int | None = None) -> ExpressionSpace:
+    """The PCA of a person's own expressions ``shapes`` (k, d) mm (all components of nonzero variance).
+
+    ``reference``: None, the base ``s̄`` is the shapes' mean (seed 001 Eq. 1); an index, the base is that
+    shape (seed 001 §5: "no reason the base vectors need be their respective means"; the reference
+    expression, with the basis and the variances ``γ`` taken about it). The space (the affine span of the
+    shapes) is the same either way; the base is what Eq. 3 maps parameters about, so two people's bases must
+    be the same expression (§3): with different expression sets their means are different expressions,
+    their neutrals are not.
+    """
     X = np.asarray(shapes, float)
     if X.ndim != 2 or len(X) < 2:
         raise ValueError(f"an expression space needs at least two shapes (k, d), got {X.shape}")
-    mean = X.mean(axis=0)
+    if reference is not None and not -len(X) <= reference < len(X):
+        raise ValueError(f"reference {reference} is not one of the {len(X)} shapes")
+    mean = X.mean(axis=0) if reference is None else X[reference].copy()
+    # γ: the shapes' mean squared parameter about the base (k − 1 degrees of freedom: the mean, or the
+    # reference whose parameters are zero)
     _, sv, Vt = np.linalg.svd(X - mean, full_matrices=False)
     var = sv**2 / (len(X) - 1)
     keep = var > MIN_VARIANCE * max(var[0], 1e-300)

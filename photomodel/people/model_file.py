@@ -6,8 +6,10 @@ builds the model of :mod:`photomodel.people.multilinear` from ``--people`` ICT i
 :mod:`photomodel.people.dataset` (their set ``"model"``; built and cached first if needed) and writes it
 (default ``cache_dir()/people-multilinear-<people>-<versions>.npz``). Ranks :data:`MODEL_RANKS`: the
 vertex mode truncated to 600 components, the identity and expression modes kept whole (100 and 52
-knobs). Measured on the held-out cloning benchmark: 30 people and 300 vertex components gave 0.24 mm,
-100 people and 300 gave 0.216 mm, 100 and 600 gave 0.200 mm (displacement copy 0.257 mm). Size: the
+knobs). Measured on the held-out cloning benchmark (the seed's route in the model's coordinates, before
+:mod:`photomodel.people.rig_clone`, which gives 0.073 mm with this model): 30 people and 300 vertex
+components gave 0.24 mm, 100 people and 300 gave 0.216 mm, 100 and 600 gave 0.200 mm (displacement
+copy 0.257 mm). Size: the
 vertex basis dominates, ``3n × 600`` float32 (56 MB) + the core ``600 × 100 × 52`` (12 MB): about
 68 MB for the generic mesh's 8101 vertices. Building it: ~15 min of rigs for 100 people (cached), then
 ~4 min. It is never rebuilt at run time by the studio; the benchmark builds it when the file is missing.
