@@ -206,3 +206,15 @@ def studio_run_loop(monkeypatch, project_copy):
         monkeypatch.setattr(QApplication, "exec", staticmethod(exec_))
 
     return use
+
+
+@pytest.fixture(scope="module")
+def people():
+    """A model of 30 ICT people (vertex rank 300) and 4 held-out people (tests/test_personal_rig.py,
+    tests/test_rig_clone.py)."""
+    from photomodel.people.dataset import EXPRESSIONS, load_people
+    from photomodel.people.multilinear import build_model
+
+    data = load_people("model", 30)
+    model = build_model(data.tensor(), (300, None, None), EXPRESSIONS, data.names)
+    return model, load_people("held_out", 30).subset(range(4))

@@ -7,20 +7,11 @@ import numpy as np
 import pytest
 
 from app.cli import main as facestudio
-from photomodel.people.dataset import EXPRESSIONS, load_people
-from photomodel.people.multilinear import build_model
+from photomodel.people.dataset import load_people
 from photomodel.people.personal_rig import predict_rig
 from photomodel.project import load_project, load_rig_shapes
 
 pytestmark = pytest.mark.slow  # the 30 model people are cached after the first run (~5 min of rigs)
-
-
-@pytest.fixture(scope="module")
-def people():
-    """A model of 30 ICT people (vertex rank 300) and 4 held-out people."""
-    data = load_people("model", 30)
-    model = build_model(data.tensor(), (300, None, None), EXPRESSIONS, data.names)
-    return model, load_people("held_out", 30).subset(range(4))
 
 
 def _shape_error(deltas, truth, shapes, mask):

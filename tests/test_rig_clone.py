@@ -4,20 +4,11 @@ predicted by the multilinear model, against the mix of B's own shapes by deforma
 import numpy as np
 import pytest
 
-from photomodel.people.dataset import EXPRESSIONS, load_people
+from photomodel.people.dataset import EXPRESSIONS
 from photomodel.people.mapping import displacement_copy
-from photomodel.people.multilinear import build_model
 from photomodel.people.rig_clone import RigClone
 
 pytestmark = pytest.mark.slow  # the 30 model people are cached after the first run (~5 min of rigs)
-
-
-@pytest.fixture(scope="module")
-def people():
-    """A model of 30 ICT people (vertex rank 300) and 4 held-out people."""
-    data = load_people("model", 30)
-    model = build_model(data.tensor(), (300, None, None), EXPRESSIONS, data.names)
-    return model, load_people("held_out", 30).subset(range(4))
 
 
 def _mixes(rng, frames, k=51):
