@@ -146,3 +146,17 @@ def test_one_pass_near_a_known_face_and_none_where_there_is_none(truth):
         err = np.linalg.norm(face.points[MESH_OF_IBUG68[FEATURE_ALIASES[name]], :2] - clean[name])
         assert err < 0.05 * eye_px, name
     assert detect_468_near(np.full((300, 400, 3), 128, np.uint8), (100, 50, 300, 250), 0.0) is None
+
+
+def test_threads_detecting_at_once_find_what_one_finds():
+    # each thread runs its own copy of the networks (photomodel.landmarks.nets): four threads
+    # detecting different photos at the same time give each photo's points as one thread alone
+    # does (equal to float32 rounding: the same network, the same input)
+    from concurrent.futures import ThreadPoolExecutor
+
+    photos = [_photo(pid) for pid in ("front", "three_quarter_left", "three_quarter_right", "front")]
+    alone = [detect_468(p).points for p in photos]
+    with ThreadPoolExecutor(4) as pool:
+        together = list(pool.map(lambda p: detect_468(p).points, photos * 2))
+    for a, b in zip(alone * 2, together, strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-3)

@@ -5,9 +5,9 @@
 on every :data:`tracking.auto_pipeline.LANDMARK_EVERY`-th frame. Those detections do not depend on
 the track, so :class:`LandmarkChecks` finds them while the clip is tracked: the tracker keeps about
 1.5 of two cores busy (the software rasteriser's threads and numpy), and the checks fill the rest
-— they took 9 s of ``auto``'s 132 s on the real clip after tracking (2026-12-05). The face mesh's
-forward passes are serialised by :mod:`photomodel.landmarks.detect`'s lock, so the thread and
-the tracker's own detector passes share the networks safely.
+— they took 9 s of ``auto``'s 132 s on the real clip after tracking (2026-12-05). Each thread
+runs its own copy of the networks (:mod:`photomodel.landmarks.nets`), so the thread and the
+tracker's own detector passes do not wait for each other.
 """
 
 from __future__ import annotations

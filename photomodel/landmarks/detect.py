@@ -59,9 +59,8 @@ presence score), so both nets are read with it. Inputs are NCHW float32.
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass
-from functools import cache, lru_cache
+from functools import lru_cache
 from pathlib import Path
 
 import cv2
@@ -70,6 +69,7 @@ import numpy as np
 from photomodel.errors import NoFaceFound
 from photomodel.landmarks.mirror import MIRROR_468
 from photomodel.landmarks.models import DETECTION_MODEL, LANDMARK_MODEL, model_dir
+from photomodel.landmarks.nets import run_net, thread_net
 
 DETECT_SIZE = 128  #: input side of the face detector, pixels
 MESH_SIZE = 192  #: input side of the face-mesh model, pixels
@@ -95,8 +95,6 @@ SHIFT_AVERAGE = (
     (0.0, 0.04),
     (0.0, -0.04),
 )
-
-_lock = threading.Lock()  # cv2.dnn nets are not safe to run from several threads at once
 
 
 @dataclass
@@ -132,19 +130,12 @@ class Face468:
 # ----------------------------------------------------------------------------- the nets
 
 
-@cache
 def _nets(folder: Path) -> tuple[cv2.dnn.Net, cv2.dnn.Net]:
-    engine = cv2.dnn.ENGINE_CLASSIC  # the default engine returns only the first output
-    detector = cv2.dnn.readNetFromTFLite(str(folder / DETECTION_MODEL), engine=engine)
-    mesh = cv2.dnn.readNetFromTFLite(str(folder / LANDMARK_MODEL), engine=engine)
-    return detector, mesh
+    """This thread's face detector and face mesh (:func:`photomodel.landmarks.nets.thread_net`)."""
+    return thread_net(folder / DETECTION_MODEL), thread_net(folder / LANDMARK_MODEL)
 
 
-def _run(net: cv2.dnn.Net, image: np.ndarray, names: list[str]) -> list[np.ndarray]:
-    """Outputs ``names`` of ``net`` for one (s, s, 3) float32 image (NHWC → NCHW)."""
-    with _lock:
-        net.setInput(np.ascontiguousarray(image.transpose(2, 0, 1)[None]))
-        return net.forward(names)
+_run = run_net
 
 
 # ----------------------------------------------------------------------------- crops

@@ -27,16 +27,13 @@ with ``cv2.dnn`` like the face mesh:
 
 from __future__ import annotations
 
-import threading
-from functools import cache
-from pathlib import Path
-
 import cv2
 import numpy as np
 
 from photomodel.errors import NoFaceFound
 from photomodel.landmarks.detect import crop_image, crop_matrix, detect_468, to_photo
 from photomodel.landmarks.models import HAND_MODEL, model_dir
+from photomodel.landmarks.nets import run_net, thread_net
 
 __all__ = ["MIN_HAND_SCORE", "hand_mask", "hand_points", "mask_of_hand"]
 
@@ -61,21 +58,11 @@ FINGERS = ((0, 1, 2, 3, 4), (5, 6, 7, 8), (9, 10, 11, 12), (13, 14, 15, 16), (17
 #: The palm's outline: the wrist, the thumb's base and the four knuckles.
 PALM = (0, 1, 5, 9, 13, 17)
 
-_lock = threading.Lock()
-
-
-@cache
-def _net(folder: Path) -> cv2.dnn.Net:
-    # the default engine returns only the first output
-    return cv2.dnn.readNetFromTFLite(str(folder / HAND_MODEL), engine=cv2.dnn.ENGINE_CLASSIC)
-
 
 def _run(net: cv2.dnn.Net, image: np.ndarray) -> dict[str, np.ndarray]:
-    """All outputs of ``net`` by name for one (s, s, 3) float32 image (NHWC → NCHW)."""
+    """All outputs of ``net`` by name for one (s, s, 3) float32 image."""
     names = list(net.getUnconnectedOutLayersNames())
-    with _lock:
-        net.setInput(np.ascontiguousarray(image.transpose(2, 0, 1)[None]))
-        return dict(zip(names, net.forward(names), strict=True))
+    return dict(zip(names, run_net(net, image, names), strict=True))
 
 
 def _upright(wrist: np.ndarray, knuckle: np.ndarray) -> float:
@@ -96,7 +83,7 @@ def _roi_from_points(points: np.ndarray) -> tuple[np.ndarray, float, float]:
 
 def _hand_pass(image: np.ndarray, centre: np.ndarray, size: float, angle: float) -> tuple[np.ndarray, float]:
     matrix = crop_matrix(centre, size, angle, HAND_SIZE)
-    out = _run(_net(model_dir()), crop_image(image, matrix, HAND_SIZE))
+    out = _run(thread_net(model_dir() / HAND_MODEL), crop_image(image, matrix, HAND_SIZE))
     flat = [v.reshape(-1) for v in out.values()]
     # the outputs: 21 points (x, y, z in crop pixels), their world copy, presence, handedness;
     # MediaPipe's graph reads the points from "Identity" and the presence from "Identity_1"

@@ -32,10 +32,6 @@ the segmentation and the jaw line work from one photo.
 
 from __future__ import annotations
 
-import threading
-from functools import cache
-from pathlib import Path
-
 import cv2
 import numpy as np
 
@@ -44,6 +40,7 @@ from photomodel.landmarks.detect import EYE_OUTER, detect_468
 from photomodel.landmarks.hands import hand_mask
 from photomodel.landmarks.mapping import PROFILE_FROM_DEG, estimate_yaw_deg, far_side_jaw, ibug68_from_mesh
 from photomodel.landmarks.models import SEGMENTATION_MODEL, model_dir
+from photomodel.landmarks.nets import run_net, thread_net
 from photomodel.landmarks.outline import CONFIRMED, SEARCH_IN, face_height, jaw_edges
 
 __all__ = ["JAW_MARGIN", "PERSON_FROM", "below_jaw", "beside_jaw", "face_pixels", "person_probability"]
@@ -81,13 +78,6 @@ SKIN_DARKER_L = 20.0
 #: Below this spread of the face's chroma (CIELAB a*, b* standard deviation) a photo is grey.
 MIN_CHROMA_SPREAD = 1.0
 
-_lock = threading.Lock()
-
-
-@cache
-def _net(folder: Path) -> cv2.dnn.Net:
-    return cv2.dnn.readNetFromTFLite(str(folder / SEGMENTATION_MODEL), engine=cv2.dnn.ENGINE_CLASSIC)
-
 
 def person_probability(image: np.ndarray) -> np.ndarray:
     """(H, W) float32 in [0, 1]: the probability that each pixel of ``image`` ((H, W, 3) uint8 RGB)
@@ -99,10 +89,8 @@ def person_probability(image: np.ndarray) -> np.ndarray:
     y0, x0 = (side - h) // 2, (side - w) // 2
     square[y0 : y0 + h, x0 : x0 + w] = image
     x = cv2.resize(square, (SEGMENT_SIZE, SEGMENT_SIZE), interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0
-    net = _net(model_dir())
-    with _lock:
-        net.setInput(np.ascontiguousarray(x.transpose(2, 0, 1)[None]))
-        out = net.forward().reshape(SEGMENT_SIZE, SEGMENT_SIZE)
+    (out,) = run_net(thread_net(model_dir() / SEGMENTATION_MODEL), x)
+    out = out.reshape(SEGMENT_SIZE, SEGMENT_SIZE)
     full = cv2.resize(out, (side, side), interpolation=cv2.INTER_LINEAR)
     return np.clip(full[y0 : y0 + h, x0 : x0 + w], 0.0, 1.0).astype(np.float32)
 
