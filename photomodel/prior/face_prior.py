@@ -121,9 +121,10 @@ CLICK_RIDGE = 2.0
 #: (module notes, *Choosing the photo fit's settings*), not on the sample.
 LOCAL_AFTER_GLOBAL_RIDGE = 8.0
 #: Length (mm) over which :func:`slide_onto`'s normal offset fades outside the clicks' outline.
-#: Chosen on ICT people out of the prior's span (a prior trained on a random half of ICT's
-#: identity space, people drawn from all of it, their 68 landmark vertices as targets with
-#: σ = 1 mm noise; docs/modeling.md), not on the sample.
+#: First looked at on the sample, then chosen on ICT people out of the prior's span (a prior
+#: trained on a random half of ICT's identity space, people drawn from all of it, their 68
+#: landmark vertices as targets with σ = 1 mm noise: 2.5–10 mm alike, no fade worse;
+#: docs/modeling.md).
 OFFSET_FADE_MM = 5.0
 #: Prior fits kept by a :class:`PriorDeformer` for its warm refits (one per constrained-vertex set).
 KEPT_SHAPES = 4
