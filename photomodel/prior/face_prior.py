@@ -41,7 +41,9 @@ Fitting (:func:`fit_face_prior`, paper §5)
 -----------------------------------------
 1. **Landmark stage**: a similarity (Umeyama) of the model's target vertices onto the targets,
    then each level's weights by bounded linear least squares (normal equations, active set)
-   against the targets, coarse to fine, with the loose box :data:`LANDMARK_BOX`; three rounds.
+   against the targets, coarse to fine, with the loose box :data:`LANDMARK_BOX`; three rounds
+   (the photo fit's similarity after the first round from the model's surface instead of its
+   target vertices, :func:`_surface_similarity`).
    The paper minimises its (multilinear, so nonlinear) energies with L-BFGS-B; ours is linear in
    the weights once correspondences are fixed, so a bounded least-squares solve is exact.
 2. **Dense stage** (scans): robust point-to-plane ICP (paper Eq. 6): each face vertex's nearest
