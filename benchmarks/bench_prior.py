@@ -88,9 +88,10 @@ class Bench:
     def deformer(self, method):
         if method == "rbf":
             return deform_vertices
+        outline = self.mesh.landmarks  # the face's outline for slide_onto's offset, as `fit`
         if method == "global":
-            return PriorDeformer(self.priors["global"], deform_vertices)
-        return PriorDeformer(self.priors["local"], deform_vertices, coarse=self.priors["global"])  # as `fit`
+            return PriorDeformer(self.priors["global"], deform_vertices, outline=outline)
+        return PriorDeformer(self.priors["local"], deform_vertices, coarse=self.priors["global"], outline=outline)
 
     def score(self, result) -> float:
         s, R, t = similarity_transform(result.points_3d, self.truth.true_points(result.feature_names))

@@ -41,7 +41,9 @@ Fitting (:func:`fit_face_prior`, paper §5)
 -----------------------------------------
 1. **Landmark stage**: a similarity (Umeyama) of the model's target vertices onto the targets,
    then each level's weights by bounded linear least squares (normal equations, active set)
-   against the targets, coarse to fine, with the loose box :data:`LANDMARK_BOX`; three rounds.
+   against the targets, coarse to fine, with the loose box :data:`LANDMARK_BOX`; three rounds
+   (the photo fit's similarity after the first round from the model's surface instead of its
+   target vertices, :func:`_surface_similarity`).
    The paper minimises its (multilinear, so nonlinear) energies with L-BFGS-B; ours is linear in
    the weights once correspondences are fixed, so a bounded least-squares solve is exact.
 2. **Dense stage** (scans): robust point-to-plane ICP (paper Eq. 6): each face vertex's nearest
@@ -68,7 +70,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sparse
 from scipy.linalg import cho_factor, cho_solve
-from scipy.spatial import cKDTree
+from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from photomodel.alignment import similarity_transform
 from photomodel.closest_points import TriangleSurface
@@ -98,6 +100,7 @@ __all__ = [
     "RIDGE",
     "CLICK_RIDGE",
     "LOCAL_AFTER_GLOBAL_RIDGE",
+    "OFFSET_FADE_MM",
 ]
 
 #: Levels, coarse to fine: (patch radius mm or None for one global patch, most modes per patch).
@@ -119,6 +122,12 @@ CLICK_RIDGE = 2.0
 #: global model left, and are held nearer zero. Chosen on ICT identities held out of the prior
 #: (module notes, *Choosing the photo fit's settings*), not on the sample.
 LOCAL_AFTER_GLOBAL_RIDGE = 8.0
+#: Length (mm) over which :func:`slide_onto`'s normal offset fades outside the clicks' outline.
+#: First looked at on the sample, then chosen on ICT people out of the prior's span (a prior
+#: trained on a random half of ICT's identity space, people drawn from all of it, their 68
+#: landmark vertices as targets with σ = 1 mm noise: 2.5–10 mm alike, no fade worse;
+#: docs/modeling.md).
+OFFSET_FADE_MM = 5.0
 #: Prior fits kept by a :class:`PriorDeformer` for its warm refits (one per constrained-vertex set).
 KEPT_SHAPES = 4
 #: Point-to-plane cut-off (mm) of the dense stage per level (coarse to fine).
@@ -435,6 +444,7 @@ def fit_face_prior(
     similarity: bool = True,
     tangent_weight: float = 1.0,
     surface_weight: float = 0.0,
+    similarity_on_surface: bool = False,
 ) -> PriorFit:
     """Fit the prior to vertex targets and (optionally) a scan, coarse to fine (module notes).
 
@@ -448,6 +458,8 @@ def fit_face_prior(
     face : (N,) bool, the vertices the dense stage fits (default: where the prior has support).
     similarity : fit a similarity model → targets (False: the identity; targets in the model frame).
     tangent_weight : weight of a target's residual along the surface (its normal's is 1).
+    similarity_on_surface : after the first round, the similarity onto the targets from the model's
+        surface, not its targeted vertices (:func:`_surface_similarity`; for ``tangent_weight`` 0).
 
     Returns
     -------
@@ -474,10 +486,10 @@ def fit_face_prior(
         return (Y - t) @ R / s
 
     fitted = np.flatnonzero(prior.support > 0.5)
-    for _ in range(rounds):
+    for n_round in range(rounds):
         X = shape()
         if similarity:
-            s, R, t = similarity_transform(X[idx], P, wt)
+            s, R, t = _landmark_similarity(X, prior.faces, idx, P, wt, (s, R, t), similarity_on_surface and n_round > 0)
         Pm = to_model(P)
         for cols in levels:
             X = shape()
@@ -494,6 +506,31 @@ def fit_face_prior(
     V = shape() @ (s * R).T + t
     report["rms_mm"] = _rms(V[idx] - P)
     return PriorFit(V, b, float(s), R, t, report)
+
+
+def _landmark_similarity(X, faces, idx, P, wt, sim, on_surface: bool):
+    """The landmark stage's similarity model → targets: from the surface (:func:`_surface_similarity`)
+    or from the targeted vertices ``X[idx]``."""
+    return _surface_similarity(X, faces, P, wt, sim) if on_surface else similarity_transform(X[idx], P, wt)
+
+
+def _surface_similarity(X, faces, P, wt, sim, iterations: int = 3):
+    """The similarity model → targets that pairs each target ``P`` (k, 3) with its closest point on
+    the model's surface ``X`` (N, 3) / ``faces`` (Umeyama, re-paired ``iterations`` times from
+    ``sim``): blind, like the point-to-plane shape step, to where along the skin a target lies.
+
+    Why: the photo fit's landmark stage fits the shape to the targets' normal components only,
+    while the similarity was fitted vertex to vertex, chasing the 8–9 mm by which a landmark's
+    vertex and its click differ along the skin. Alternating the two did not settle: on the
+    sample's 68 landmarks the scale went 0.93 → 0.99 → 1.07 over 1, 3, 6 rounds and the fit from
+    1.03 (1 round) through 0.94 (3) to 1.20 mm (6). With the similarity on the surface both steps
+    minimise one energy (docs/modeling.md)."""
+    s, R, t = sim
+    surface = TriangleSurface(X, faces)
+    for _ in range(iterations):
+        closest = surface.closest((P - t) @ R / s)[0]
+        s, R, t = similarity_transform(closest, P, wt)
+    return s, R, t
 
 
 def _surface_rows(prior, X, fitted, Pm, w, cols, b):
@@ -605,10 +642,13 @@ class PriorDeformer:
         holds the face's overall shape better than the local prior's 12 global modes (ICT
         identities held out of the prior: 0.85 → 0.82 mm; the sample, measured after choosing:
         0.98 → 0.95 mm), and the local patches still fit what it cannot.
+    outline : (k,) int, optional: vertices (the mesh's 68 landmarks) whose place on the prior's
+        surface bounds, with the clicks, where :func:`slide_onto`'s offset is not faded.
     """
 
-    def __init__(self, prior: FacePrior, inner, coarse: FacePrior | None = None, refit=None):
+    def __init__(self, prior: FacePrior, inner, coarse: FacePrior | None = None, refit=None, outline=None):
         self.prior = prior
+        self.outline = outline
         self.inner = inner
         self.coarse = coarse
         self.refit = refit
@@ -634,13 +674,24 @@ class PriorDeformer:
         """:meth:`__call__`'s work: the prior's fit (coarse to fine), the RBF onto every target."""
         ridge = CLICK_RIDGE
         if self.coarse is not None:
-            first = fit_face_prior(self.coarse, V, idx, T, tangent_weight=0.0, surface_weight=1.0, ridge=CLICK_RIDGE)
+            first = fit_face_prior(
+                self.coarse,
+                V,
+                idx,
+                T,
+                tangent_weight=0.0,
+                surface_weight=1.0,
+                ridge=CLICK_RIDGE,
+                similarity_on_surface=True,
+            )
             V = (first.vertices - first.translation) @ first.rotation / first.scale  # its shape, model frame
             ridge = LOCAL_AFTER_GLOBAL_RIDGE
-        fit = fit_face_prior(self.prior, V, idx, T, tangent_weight=0.0, surface_weight=1.0, ridge=ridge)
+        fit = fit_face_prior(
+            self.prior, V, idx, T, tangent_weight=0.0, surface_weight=1.0, ridge=ridge, similarity_on_surface=True
+        )
         self.last = fit
         moved = self.inner(fit.vertices, idx, T, **kw)
-        out = slide_onto(fit.vertices, self.prior.faces, moved, idx, T)
+        out = slide_onto(fit.vertices, self.prior.faces, moved, idx, T, outline=self.outline)
         if self.refit is not None:
             key = idx.astype(np.int64).tobytes()
             self.shapes[key] = out
@@ -663,13 +714,33 @@ class PriorDeformer:
         return self.refit(base, constrained, targets, **kw)
 
 
-def slide_onto(surface: np.ndarray, faces: np.ndarray, moved: np.ndarray, idx: np.ndarray, targets: np.ndarray):
+def slide_onto(
+    surface: np.ndarray,
+    faces: np.ndarray,
+    moved: np.ndarray,
+    idx: np.ndarray,
+    targets: np.ndarray,
+    fade_mm: float = OFFSET_FADE_MM,
+    outline: np.ndarray | None = None,
+):
     """The RBF's answer ``moved`` (N, 3) laid back onto the prior's surface ``surface`` (N, 3) plus
     a smooth offset along its normal that meets every target: each vertex goes to its closest point
     ``c`` on the prior's surface, then ``h(c)`` along the surface normal there, ``h`` the RBF
     interpolant of the targets' signed distances from that surface. The clicks' sliding along the
     skin (the RBF's tangential moves) is kept, its bending of the surface between clicks is not;
     the targeted vertices land on their targets (snapped, as the RBF snaps them).
+
+    **Only between the clicks.** The interpolant has an affine part, so beyond the clicks it goes
+    on along the trend of their offsets (above the brows, where the 68 landmarks end, it lifted the
+    forehead: 1.17 mm from the james scan for the prior's own surface, 1.92 mm after the offset).
+    So ``h`` is kept as it is inside the outline of the clicks and of the vertices ``outline`` on
+    the prior's surface (the face's 68 landmark vertices: the face's own outline, clicked or not —
+    the detector's jaw clicks are often too unsure to be targets, and there the offset's trend
+    towards the jaw helped: the sample's detector fit 1.223 mm with them, 1.247 without) and
+    faded as ``exp(−(d/fade_mm)²)`` with ``d`` a point's distance outside it
+    (:func:`_outside_clicks`); ``fade_mm`` 0 or None: no fade. Fading by the distance to the
+    *nearest* click instead (tried earlier) also weakens the offset on the cheeks, between clicks
+    far apart, where it carries the face's shape.
 
     The normal at ``c`` is the vertex normals interpolated (smooth across edges). With the
     triangle's own normal (before 2026-12-04) a closest point on an edge took either neighbour's,
@@ -685,12 +756,38 @@ def slide_onto(surface: np.ndarray, faces: np.ndarray, moved: np.ndarray, idx: n
     c_t, _, tri_t = surf.closest(targets)
     h_t = np.sum(surf.normals_at(c_t, tri_t) * (targets - c_t), axis=1)
     f = RBFInterpolant.fit(c_t, np.column_stack([h_t, np.zeros((len(h_t), 2))]), smoothing=0.0)
-    out = closest + normal * f(closest)[:, :1]
+    h = f(closest)[:, 0]
+    if fade_mm:
+        hull = c_t if outline is None else np.concatenate([c_t, surface[np.asarray(outline, dtype=np.int64)]])
+        h = h * np.exp(-((_outside_clicks(closest, hull) / fade_mm) ** 2))
+    out = closest + normal * h[:, None]
     out[idx] = targets
     return out
 
 
+def _outside_clicks(points: np.ndarray, clicks: np.ndarray) -> np.ndarray:
+    """(n,) mm how far each of ``points`` (n, 3) lies outside the clicks' outline (0 inside): the
+    convex hull of ``clicks`` (k, 3) seen along their direction of least spread — the face's
+    front axis for clicks spread over a face, whatever the frame. Zeros where the clicks span no
+    area (fewer than three, or on a line)."""
+    centre = clicks.mean(axis=0)
+    axes = np.linalg.svd(clicks - centre, full_matrices=False)[2][:2]  # the two of most spread
+    flat = (clicks - centre) @ axes.T
+    try:
+        planes = ConvexHull(flat).equations  # n·x + c ≤ 0 inside
+    except (QhullError, ValueError):
+        return np.zeros(len(points))
+    return np.maximum(((points - centre) @ axes.T @ planes[:, :2].T + planes[:, 2]).max(axis=1), 0.0)
+
+
 def prior_deformer(mesh, inner, refit=None) -> PriorDeformer:
     """:class:`PriorDeformer` of the built-in mesh's local prior around ``inner`` (the RBF), the
-    global model fitted first (coarse to fine); ``refit`` as for :class:`PriorDeformer`."""
-    return PriorDeformer(load_face_prior(mesh, "local"), inner, coarse=load_face_prior(mesh, "global"), refit=refit)
+    global model fitted first (coarse to fine), the mesh's 68 landmarks as the face's outline;
+    ``refit`` as for :class:`PriorDeformer`."""
+    return PriorDeformer(
+        load_face_prior(mesh, "local"),
+        inner,
+        coarse=load_face_prior(mesh, "global"),
+        refit=refit,
+        outline=mesh.landmarks,
+    )
