@@ -373,6 +373,7 @@ def track_shot(
             save_every=save_every,
             progress=progress,
             cancel=cancel,
+            segments=1,  # the shots are the parallel work here (and a Dask worker may not start processes)
         )
     except FaceStudioError as exc:
         return ShotResult(video, out_dir, "failed", worker=worker, error=f"{type(exc).__name__}: {exc}")

@@ -79,6 +79,7 @@ from tracking.first_pose import (
 from tracking.frame_fit import DIVERGED_RMS, FrameFitter, TrackOptions, single_threaded_blas, track_frames
 from tracking.overlay_stream import OverlayStream
 from tracking.plots import track_plots
+from tracking.segments import SegmentWorker, Split, plan_split
 from tracking.track_result import (
     continue_results,
     default_out_dir,
@@ -90,7 +91,7 @@ from tracking.track_result import (
     state_of,
 )
 
-__all__ = ["SAVE_EVERY", "WORK_FACE_PX", "TrackResult", "track_video"]
+__all__ = ["SAVE_EVERY", "SEGMENTS", "WORK_FACE_PX", "TrackResult", "track_segment", "track_video"]
 
 #: Results are written after every this many tracked frames (and at the end, on cancel, on Ctrl-C).
 SAVE_EVERY = 5
@@ -98,6 +99,9 @@ SAVE_EVERY = 5
 #: long as writing the file did (saves cost at most ~5 % of the fitting; on the real clip's first 60
 #: frames, re-encoding the growing track.json every 5 frames took 8 % and grew with every frame).
 SAVE_OVERHEAD = 20.0
+#: :func:`track_video`'s default ``segments``: two (a fresh run of a long clip tracked as two
+#: segments at once, :mod:`tracking.segments`) where the machine has two cores or more.
+SEGMENTS = 2 if (os.cpu_count() or 1) >= 2 else 1
 #: Frames are fitted reduced by an integer factor so that the face is at most about this tall (px):
 #: the cost grows with the covered pixels, and the benchmark's 300×300 sample (face ~150 px) is
 #: tracked to 0.5° at full size. The real clip's face (~265 px of 640×360) is fitted at 320×180.
@@ -169,6 +173,7 @@ def track_video(
     redetect: int = REDETECT_EVERY,
     progress: Callable[[int, int | None], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    segments: int = SEGMENTS,
 ) -> TrackResult:
     """Track ``video`` with the face model of the project at ``project_path``; write the results.
 
@@ -209,6 +214,10 @@ def track_video(
         (:class:`tracking.detected_pose.Redetector`); 0 turns it off.
     progress : ``progress(done, total)`` after each frame (``total`` None if the video does not say).
     cancel : ``cancel() -> bool`` checked after each frame; True saves and stops.
+    segments : 2 (the default, :data:`SEGMENTS`): a fresh run of a long clip is tracked as two
+        segments at once, the second in another process (:mod:`tracking.segments`); 1: one chain
+        of frames, as the paper tracks (a caller running several tracks at once, like
+        :mod:`tracking.many_shots`, passes 1).
 
     Returns
     -------
@@ -234,7 +243,15 @@ def track_video(
     try:
         for rec in doc["frames"] if stream is not None else ():  # tracked before (resumed, corrected)
             stream.add(rec)
-        ended, cancelled, seconds = _fit_frames(run, doc, fitter, starts, start, save_every, progress, cancel, stream)
+        split = plan_split(run, start, correct_frame, segments)
+        if split is None:
+            ended, cancelled, seconds = _fit_frames(
+                run, doc, fitter, starts, start, save_every, progress, cancel, stream
+            )
+        else:
+            ended, cancelled, seconds = _fit_in_segments(
+                run, doc, fitter, starts, save_every, progress, cancel, stream, split
+            )
         files = _write_outputs(run, doc, ended, plots, stream)
     finally:
         if stream is not None:
@@ -307,6 +324,7 @@ class _Run:
     redetect: int = REDETECT_EVERY
     work: FrameFitter | None = None  # the fitter of the reduced frames (:func:`_work_fitter`)
     work_factor: int = 1
+    project_path: Path | None = None  # the project file (a second segment opens it again)
 
     @classmethod
     def open(
@@ -342,7 +360,18 @@ class _Run:
         if max_frames is not None and max_frames < 1:
             raise FaceStudioError(f"the frame limit must be at least 1, got {max_frames}")
         out = Path(out_dir).absolute() if out_dir is not None else default_out_dir(project_path, video)
-        return cls(project, frames_in, model, model_source, fp, options, max_frames, out, basis)
+        return cls(
+            project,
+            frames_in,
+            model,
+            model_source,
+            fp,
+            options,
+            max_frames,
+            out,
+            basis,
+            project_path=Path(project_path),
+        )
 
     @property
     def json_path(self) -> Path:
@@ -440,15 +469,26 @@ def _fit_starts(run: _Run, doc: dict, start: int) -> dict[int, tuple[str, FirstP
 
 
 def _fit_frames(
-    run: _Run, doc: dict, fitter: FrameFitter, starts: dict, start: int, save_every: int, progress, cancel, stream
+    run: _Run,
+    doc: dict,
+    fitter: FrameFitter,
+    starts: dict,
+    start: int,
+    save_every: int,
+    progress,
+    cancel,
+    stream,
+    stop: int | None = None,
 ) -> tuple[bool, bool, float]:
-    """Fit frames ``start`` .. (to the end or the frame limit) into ``doc["frames"]``, saving every
-    ``save_every`` frames and on Ctrl-C (re-raised), each new record handed to ``stream`` (an
-    :class:`~tracking.overlay_stream.OverlayStream`, or None). Returns (ended: the loop ran out of
-    frames, cancelled, seconds of fitting)."""
+    """Fit frames ``start`` .. (to the end or the frame limit; before ``stop`` when given) into
+    ``doc["frames"]``, saving every ``save_every`` frames and on Ctrl-C (re-raised), each new record
+    handed to ``stream`` (an :class:`~tracking.overlay_stream.OverlayStream`, or None). Returns
+    (ended: the loop ran out of frames, cancelled, seconds of fitting)."""
     records = doc["frames"]
     count, limit = run.video.count, run.max_frames
     total = count if limit is None else (limit if count is None else min(limit, count))
+    if stop is not None:
+        limit = stop if limit is None else min(limit, stop)
     # the prediction restored from the last two saved frames, not reaching back across a start
     # (the first pose, a correction, a re-detection)
     detected = [r["frame"] for r in records[:start] if r.get("start") == "detected"]
@@ -491,6 +531,81 @@ def _fit_frames(
             save_results(run.out, doc, False)
             raise
     return ended, cancelled, seconds
+
+
+def _fit_in_segments(
+    run: _Run, doc: dict, fitter: FrameFitter, starts: dict, save_every: int, progress, cancel, stream, split: Split
+) -> tuple[bool, bool, float]:
+    """:func:`_fit_frames` of a fresh run in two segments (:mod:`tracking.segments`): frames before
+    ``split.seam`` here, the rest in a second process, its records appended once this one has
+    reached the seam. Progress counts both; a cancel stops both and keeps this segment's frames.
+    Returns (ended, cancelled, seconds of the whole fit, wall clock)."""
+    t0 = time.perf_counter()
+    conf = {
+        "project": str(run.project_path),
+        "video": str(run.video.path),
+        "model": run.model,
+        "model_source": run.model_source,
+        "first_pose": run.first.spec,
+        "focal_px": run.first.focal_px,
+        "max_frames": run.max_frames,
+        "options": run.options,
+        "redetect": run.redetect,
+    }
+    worker = SegmentWorker(track_segment, conf, split, run.max_frames)
+    total = [None]
+
+    def both(done: int, of) -> None:
+        total[0] = of
+        if progress is not None:
+            progress(done + worker.done.value, of)
+
+    try:
+        ended, cancelled, _ = _fit_frames(run, doc, fitter, starts, 0, save_every, both, cancel, stream, split.seam)
+        if cancelled or len(doc["frames"]) < split.seam:  # cancelled, or the clip ended before the seam
+            return ended and not cancelled, cancelled, time.perf_counter() - t0
+
+        def wait() -> bool:
+            both(split.seam, total[0])
+            return cancel is not None and bool(cancel())
+
+        records, ended, cancelled = worker.results(wait)
+        for rec in records:
+            doc["frames"].append(rec)
+            if stream is not None:
+                stream.add(rec)
+        if progress is not None and records:
+            progress(len(doc["frames"]), total[0])
+        return ended, cancelled, time.perf_counter() - t0
+    finally:
+        worker.stop()
+
+
+def track_segment(conf: dict, split: Split, stop: int | None, progress, cancel) -> tuple[list[dict], bool, bool]:
+    """The second segment of :func:`_fit_in_segments`, run in its own process
+    (:class:`tracking.segments.SegmentWorker`): the run of ``conf`` opened again, frame
+    ``split.begin`` fitted from the detector's pose ``split.spec`` in several rounds, the frames
+    after it tracked up to ``stop`` (None: the end). Returns (records, ended, cancelled)."""
+    run = _Run.open(
+        conf["project"],
+        conf["video"],
+        None,
+        conf["model"],
+        conf["model_source"],
+        None,
+        conf["first_pose"],
+        conf["focal_px"],
+        conf["max_frames"],
+        conf["options"],
+    )
+    run.redetect = conf["redetect"]
+    fitter = FrameFitter(run.model, run.first.focal_px, run.video.width, run.video.height, run.options)
+    run.work = _work_fitter(fitter, run.first.state)
+    pose = run.pose(split.spec, f"detector on frame {split.begin}", split.begin)
+    doc: dict = {"frames": []}
+    starts = {split.begin: ("detected", pose)}
+    ended, cancelled, _ = _fit_frames(run, doc, fitter, starts, split.begin, 1 << 30, progress, cancel, None, stop)
+    return doc["frames"], ended, cancelled
 
 
 def _work_fitter(fitter: FrameFitter, state) -> FrameFitter:
