@@ -83,3 +83,18 @@ def test_what_is_not_split(fitted_sample, tmp_path, short_segments):
     split = segments.plan_split(run, 0, None, 2)
     assert split is not None and 12 <= split.begin <= 18 and split.seam == split.begin + segments.WARM_FRAMES
     assert len(split.spec["clicks"]) >= 6
+
+
+def test_a_failed_second_process_leaves_its_frames_to_this_one(fitted_sample, tmp_path, short_segments, monkeypatch):
+    # whatever stops the second process (here: its results refused), this process tracks the
+    # frames after the seam itself, from its own prediction: the same frames as one chain
+    from photomodel.errors import FaceStudioError
+
+    def refuse(self, wait):
+        self.stop()
+        raise FaceStudioError("the second tracking segment's process ended without results (exit code 1)")
+
+    monkeypatch.setattr(segments.SegmentWorker, "results", refuse)
+    res = track_video(fitted_sample, VIDEO, tmp_path / "out", max_frames=FRAMES, plots=False, overlay=False)
+    assert [r["frame"] for r in res.frames] == list(range(FRAMES))
+    assert [r["start"] for r in res.frames] == ["first_pose"] + ["predicted"] * (FRAMES - 1)

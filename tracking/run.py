@@ -53,6 +53,7 @@ the final results, plots and overlay video.
 from __future__ import annotations
 
 import os
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -552,7 +553,11 @@ def _fit_in_segments(
         "options": run.options,
         "redetect": run.redetect,
     }
-    worker = SegmentWorker(track_segment, conf, split, run.max_frames)
+    try:
+        worker = SegmentWorker(track_segment, conf, split, run.max_frames)
+    except Exception as exc:  # noqa: BLE001 — no second process here (a daemonic one, no __main__ guard): one chain
+        print(f"facestudio: no second process for tracking ({exc!r}); one segment", file=sys.stderr)
+        return _fit_frames(run, doc, fitter, starts, 0, save_every, progress, cancel, stream)
     total = [None]
 
     def both(done: int, of) -> None:
@@ -569,7 +574,12 @@ def _fit_in_segments(
             both(split.seam, total[0])
             return cancel is not None and bool(cancel())
 
-        records, ended, cancelled = worker.results(wait)
+        try:
+            records, ended, cancelled = worker.results(wait)
+        except FaceStudioError as exc:  # the second process failed: its frames are tracked here
+            print(f"facestudio: {exc}; tracking frames {split.seam}.. in this process", file=sys.stderr)
+            ended, cancelled, _ = _fit_frames(run, doc, fitter, starts, split.seam, save_every, both, cancel, stream)
+            return ended, cancelled, time.perf_counter() - t0
         for rec in records:
             doc["frames"].append(rec)
             if stream is not None:

@@ -100,7 +100,7 @@ class SegmentWorker:
     ``track``: :func:`tracking.run.track_segment` (passed by name to the process), ``conf`` what it
     needs to open the same run there (the project's path, the video's, the face model, the first
     pose, the options); ``split`` the :class:`Split`; ``stop`` the frame after the last to track
-    (None: the end)."""
+    (None: the end). Raises what ``multiprocessing`` raises when the process cannot start."""
 
     def __init__(self, track: Callable, conf: dict, split: Split, stop: int | None):
         ctx = mp.get_context("spawn")
@@ -108,13 +108,20 @@ class SegmentWorker:
         self.done = ctx.Value("i", 0)  # frames from the seam on tracked so far
         self._stop = ctx.Event()
         self._queue = ctx.Queue()
+        # the work goes through a queue (its feeder thread never blocks this one), not as the
+        # process's arguments: those are written to the new process's pipe by start(), which
+        # blocks on a process that died while starting (a script without a __main__ guard)
+        # (put after start(): a start that raises — a daemonic process, a script without the
+        # guard re-run in the new process — leaves no feeder thread to wait for at exit)
+        self._jobs = ctx.Queue()
         self._process = ctx.Process(
             target=_main,
-            args=(track, conf, split, stop, self._stop, self.done, self._queue),
+            args=(self._jobs, self._stop, self.done, self._queue),
             name="facestudio-track-segment",
             daemon=True,
         )
         self._process.start()
+        self._jobs.put((track, conf, split, stop))
 
     def results(self, wait: Callable[[], bool]) -> tuple[list[dict], bool, bool]:
         """The second segment's records (frames from the seam on), whether it ran to its end and
@@ -132,7 +139,7 @@ class SegmentWorker:
                 if not self._process.is_alive() and self._queue.empty():
                     raise FaceStudioError(
                         f"the second tracking segment's process ended without results "
-                        f"(exit code {self._process.exitcode}); track with segments=1"
+                        f"(exit code {self._process.exitcode})"
                     ) from None
         self._process.join(timeout=10)
         if kind == "error":
@@ -143,17 +150,19 @@ class SegmentWorker:
     def stop(self) -> None:
         """Stop the process (after the frame it is fitting; killed if it does not end in 10 s)."""
         self._stop.set()
+        self._jobs.cancel_join_thread()  # a process that never read its work: do not wait to hand it over
         self._process.join(timeout=10)
         if self._process.is_alive():
             self._process.kill()
             self._process.join()
 
 
-def _main(track: Callable, conf: dict, split: Split, stop, stop_event, done, results) -> None:
-    """The second process: track the segment, put ``("ok", records, ended, cancelled)`` or
-    ``("error", message)`` on ``results``."""
+def _main(jobs, stop_event, done, results) -> None:
+    """The second process: track the segment ``jobs`` holds, put ``("ok", records, ended,
+    cancelled)`` or ``("error", message)`` on ``results``."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the first process's to handle
     try:
+        track, conf, split, stop = jobs.get()
 
         def progress(done_frames: int, _total) -> None:  # frames 0 .. done_frames − 1 are behind
             done.value = max(0, done_frames - split.seam)
