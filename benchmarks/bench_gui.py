@@ -27,7 +27,11 @@ a QThreadPool task runs under a fresh Python thread state, so the per-thread ren
 shaders compiled, for every refit), the overlay's depth map is read back alone
 (``Renderer.render_depth``), and the refinement triangulates every point and curve vertex in one
 batched call. Per refit on the sample (thread CPU time, the same loaded host, main → now): the
-worker's fit 31 → 22 ms, its overlay 30 → 6 ms, the GUI thread ~65 ms unchanged.
+worker's fit 31 → 22 ms, its overlay 30 → 6 ms, the GUI thread ~65 ms unchanged. Since 2026-12-05
+the GUI thread's part is smaller: the overlay is drawn as one ``QPainterPath`` per kind read from a
+numpy buffer (:func:`app.qt.photo_items.segments_path`), the worker's snapshot copies the clicks
+as one array per photo, the 3D view keeps its features' visibility per render and draws its image
+with ``Renderer.render_rgb8``: GUI-thread CPU of an applied result ~34–43 → ~26 ms.
 
     .venv/bin/python benchmarks/bench_gui.py [--repeats 7] [--json]
 

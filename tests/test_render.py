@@ -177,6 +177,24 @@ def test_depth_only_render_is_the_renders_depth(renderer):
     assert np.isinf(renderer.render_depth(cam, tri, np.zeros((0, 3), int))).all()
 
 
+def test_rgb8_render_is_the_renders_colour_in_8_bits(renderer):
+    """``render_rgb8`` (the studio's 3D view) gives ``render()``'s colour clipped and rounded to
+    ``uint8``, background included, and its depth, bit for bit — shaded and textured."""
+    V, F = bumpy_mesh()
+    bg = (0.16, 0.16, 0.18)
+    rng = np.random.default_rng(0)
+    tex = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
+    uv = rng.random((len(V), 2))
+    for cam in CAMERAS.values():
+        for kw in ({"shading": "lambert"}, {"uv": uv, "texture": tex}):
+            out = renderer.render(cam, V, F, background=bg, **kw)
+            rgb, depth = renderer.render_rgb8(cam, V, F, background=bg, **kw)
+            np.testing.assert_array_equal(rgb, (np.clip(out.color[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8))
+            np.testing.assert_array_equal(depth, out.depth)
+    rgb, depth = renderer.render_rgb8(CAMERAS["front 640x480"], BIG_TRIANGLE, np.zeros((0, 3), int), background=0.5)
+    assert (rgb == 128).all() and np.isinf(depth).all()
+
+
 # ----------------------------------------------------------------------------- textures
 
 

@@ -36,6 +36,25 @@ def test_signal_calls_in_order_and_disconnects():
     assert got == [("a", 1), ("b", 1), ("b", 2)]
 
 
+def test_fit_snapshot_is_an_independent_copy(model):
+    """The worker's snapshot equals the project and shares no click, curve or set with it."""
+    snap = model.fit_snapshot()
+    assert snap == model.project and snap is not model.project
+    for e, f in zip(model.project.expressions, snap.expressions, strict=True):
+        assert e is not f and e.result is not f.result or e.result is None
+        for a, b in zip(e.photos, f.photos, strict=True):
+            assert a == b and a is not b
+            assert a.hidden is not b.hidden and a.sources is not b.sources and a.confidence is not b.confidence
+            for k in a.points:
+                assert not np.shares_memory(a.points[k], b.points[k])
+            for k in a.curves:
+                assert not np.shares_memory(a.curves[k], b.curves[k])
+    name = next(iter(model.project.expressions[0].photos[0].points))
+    before = snap.expressions[0].photos[0].points[name].copy()
+    model.project.expressions[0].photos[0].points[name] += 5.0  # an edit in place after the snapshot
+    np.testing.assert_array_equal(snap.expressions[0].photos[0].points[name], before)
+
+
 def test_edits_emit_events_and_mark_modified(model):
     events = []
     model.points_changed.connect(lambda *a: events.append(("point", *a)))

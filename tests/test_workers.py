@@ -127,3 +127,42 @@ def test_window_paints_the_refit_overlay_without_computing_it(qtbot, studio_wind
     qtbot.waitUntil(lambda: other.isVisible())
     assert overlay_threads[-1] == main and not other.overlay_from_cache and other.overlay_item.count > 500
     w.model.modified = False
+
+
+def test_overlay_lines_paint_as_one_line_per_segment(qtbot):
+    """The overlay's lines, drawn as one path per kind (built from a numpy buffer), are the pixels
+    of drawing one QLineF per segment with the same cosmetic pens."""
+    from PySide6.QtCore import QLineF, QRectF
+    from PySide6.QtGui import QImage, QPainter, QPen, QTransform
+
+    from app.qt.photo_items import OVERLAY_COLORS, LinesItem
+
+    rng = np.random.default_rng(1)
+    uv = rng.uniform(0, 200, (600, 2, 2))
+    kinds = rng.integers(0, 3, 600).astype(np.uint8)
+    item = LinesItem(QRectF(0, 0, 200, 200))
+    item.set_lines(uv, kinds)
+    assert item.count == 600
+
+    def image(draw):
+        img = QImage(250, 250, QImage.Format.Format_ARGB32_Premultiplied)
+        img.fill(0)
+        p = QPainter(img)
+        p.setTransform(QTransform(1.1, 0, 0, 1.1, 3.3, 4.4))
+        draw(p)
+        p.end()
+        return np.frombuffer(img.constBits(), np.uint8).reshape(250, 250, 4).copy()
+
+    def one_per_segment(p):
+        p.setRenderHint(QPainter.RenderHint.Antialiasing)
+        for k in np.unique(kinds):
+            pen = QPen(OVERLAY_COLORS[int(k)], 1.6 if k else 1.0)
+            pen.setCosmetic(True)
+            p.setPen(pen)
+            p.drawLines([QLineF(*row) for row in uv[kinds == k].reshape(-1, 4).tolist()])
+
+    drawn = image(lambda p: item.paint(p, None))
+    assert drawn.any()
+    np.testing.assert_array_equal(drawn, image(one_per_segment))
+    item.clear()
+    assert item.count == 0 and not image(lambda p: item.paint(p, None)).any()

@@ -86,6 +86,8 @@ class View3D(QWidget):
         self._image: QImage | None = None
         self._depth = None
         self._camera = None
+        self._render_serial = 0  # renders so far: what _visible_features was computed for
+        self._features_cache = None
         self._dirty = True
         self._press = None
         self._orbiting = False
@@ -236,20 +238,20 @@ class View3D(QWidget):
             # the GPU path with the flow registration (floating textures), as a still frame;
             # its depth serves the feature dots
             out = vd.render(cam, background=BACKGROUND)
-            color = out.color
+            rgb = np.ascontiguousarray((np.clip(out.color[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8))
+            depth = out.depth
         elif texture is not None:
             uv, image, index, tfaces = texture
             Vt, Ft = (V, faces) if index is None else (V[index], tfaces)
             # the photographs hold the lighting: no shading on top (as the view-dependent image)
-            out = get_renderer().render(cam, Vt, Ft, background=BACKGROUND, uv=uv, texture=image)
-            color = out.color
+            rgb, depth = get_renderer().render_rgb8(cam, Vt, Ft, background=BACKGROUND, uv=uv, texture=image)
         else:
-            out = get_renderer().render(cam, V, faces, shading="lambert", background=BACKGROUND)
-            color = out.color
-        rgb = np.ascontiguousarray((np.clip(color[..., :3], 0, 1) * 255 + 0.5).astype(np.uint8))
+            # the same image as render(...).color in 8 bits, without the face ids it does not need
+            rgb, depth = get_renderer().render_rgb8(cam, V, faces, shading="lambert", background=BACKGROUND)
         self._image = QImage(rgb.data, w, h, 3 * w, QImage.Format.Format_RGB888).copy()
-        self._depth = out.depth
+        self._depth = depth
         self._camera = cam
+        self._render_serial += 1
         self.last_render_s = time.perf_counter() - t0
         self._dirty = False
         return self._image
@@ -288,13 +290,25 @@ class View3D(QWidget):
             p.end()
 
     def _visible_features(self):
-        """(names, uv (n, 2), visible (n,)) of the project's features in the last render."""
+        """(names, uv (n, 2), visible (n,)) of the project's features in the last render.
+
+        Kept until the next render or a change of the features: the view is painted again
+        without a new render after every edit (the next feature to click may change), and the
+        visibility test against the depth map is most of a paint's time."""
         if self._camera is None:
             return [], np.zeros((0, 2)), np.zeros(0, bool)
         V, _ = self.vertices()
-        names = [name for name, _, in_project, _ in self.model.catalogue() if in_project]
-        verts = np.array([self.model.project.feature(n).vertex for n in names], dtype=int)
-        return (names,) + self._project_visible(V[verts]) if len(names) else ([], np.zeros((0, 2)), np.zeros(0, bool))
+        features = self.model.project.features  # the catalogue's features in the project, in order
+        names = [f.name for f in features]
+        verts = np.array([f.vertex for f in features], dtype=int)
+        key = (self._render_serial, V, names, verts)
+        cached = self._features_cache
+        if cached is not None and cached[0][0] == key[0] and cached[0][1] is V and cached[0][2] == names:
+            if np.array_equal(cached[0][3], verts):
+                return cached[1]
+        out = (names,) + self._project_visible(V[verts]) if len(names) else ([], np.zeros((0, 2)), np.zeros(0, bool))
+        self._features_cache = (key, out)
+        return out
 
     def _project_visible(self, X: np.ndarray):
 
