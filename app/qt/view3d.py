@@ -301,13 +301,17 @@ class View3D(QWidget):
         features = self.model.project.features  # the catalogue's features in the project, in order
         names = [f.name for f in features]
         verts = np.array([f.vertex for f in features], dtype=int)
-        key = (self._render_serial, V, names, verts)
-        cached = self._features_cache
-        if cached is not None and cached[0][0] == key[0] and cached[0][1] is V and cached[0][2] == names:
-            if np.array_equal(cached[0][3], verts):
-                return cached[1]
+        cached = self._features_cache  # (render serial, V, names, vertices, answer)
+        if (
+            cached is not None
+            and cached[0] == self._render_serial
+            and cached[1] is V
+            and cached[2] == names
+            and np.array_equal(cached[3], verts)
+        ):
+            return cached[4]
         out = (names,) + self._project_visible(V[verts]) if len(names) else ([], np.zeros((0, 2)), np.zeros(0, bool))
-        self._features_cache = (key, out)
+        self._features_cache = (self._render_serial, V, names, verts, out)
         return out
 
     def _project_visible(self, X: np.ndarray):

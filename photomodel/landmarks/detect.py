@@ -135,9 +135,6 @@ def _nets(folder: Path) -> tuple[cv2.dnn.Net, cv2.dnn.Net]:
     return thread_net(folder / DETECTION_MODEL), thread_net(folder / LANDMARK_MODEL)
 
 
-_run = run_net
-
-
 # ----------------------------------------------------------------------------- crops
 
 
@@ -304,7 +301,7 @@ def _detect_in(image: np.ndarray, centre: np.ndarray, side: float):
     detector, _ = _nets(model_dir())
     matrix = crop_matrix(centre, side, 0.0, DETECT_SIZE)
     crop = crop_image(image, matrix, DETECT_SIZE) * 2.0 - 1.0  # the detector wants [-1, 1]
-    scores, raw = _run(detector, crop, ["classificators", "regressors"])
+    scores, raw = run_net(detector, crop, ["classificators", "regressors"])
     boxes, keypoints, score = _decode(scores, raw)
     corners = to_photo(matrix, boxes.reshape(-1, 2) * DETECT_SIZE).reshape(-1, 4)
     kps = to_photo(matrix, keypoints.reshape(-1, 2) * DETECT_SIZE).reshape(-1, 6, 2)
@@ -356,10 +353,10 @@ def _mesh_pass(image: np.ndarray, centre: np.ndarray, size: float, angle: float)
     _, mesh = _nets(model_dir())
     matrix = crop_matrix(centre, size, angle, MESH_SIZE)
     crop = crop_image(image, matrix, MESH_SIZE)
-    flag, raw = _run(mesh, crop, ["conv2d_31", "conv2d_21"])
+    flag, raw = run_net(mesh, crop, ["conv2d_31", "conv2d_21"])
     crop_points, logits = raw.reshape(468, 3), [float(flag.reshape(-1)[0])]
     if FLIP_AVERAGE:
-        flag_m, raw_m = _run(mesh, np.ascontiguousarray(crop[:, ::-1]), ["conv2d_31", "conv2d_21"])
+        flag_m, raw_m = run_net(mesh, np.ascontiguousarray(crop[:, ::-1]), ["conv2d_31", "conv2d_21"])
         mirrored = raw_m.reshape(468, 3)[MIRROR_468] * np.array([-1.0, 1.0, 1.0]) + np.array([MESH_SIZE, 0.0, 0.0])
         crop_points = (crop_points + mirrored) / 2.0
         logits.append(float(flag_m.reshape(-1)[0]))

@@ -511,6 +511,19 @@ class Renderer:
         self._check_usable()
         self._collect()
         ss = self._check_frame(camera, supersample)
+        frame = camera if ss == 1 else Camera(camera.R, camera.t, camera.f * ss, camera.width * ss, camera.height * ss)
+        color, depth, face, bg, near, far = self._render_pass(
+            camera, frame, vertices, faces, uv, texture, colors, background, shading, near, far, cull_backfaces, True
+        )
+        return _resolve(color, depth, face, bg, ss, near, far)
+
+    def _render_pass(
+        self, camera, frame, vertices, faces, uv, texture, colors, background, shading, near, far, cull, read_face
+    ):
+        """The checks and the draw :meth:`render` and :meth:`render_rgb8` share: the mesh as
+        ``camera`` sees it, drawn into a framebuffer of ``frame`` (the camera, or its supersampled
+        copy; checked by the caller). Returns (colour, ``Z_cam``, face ids + 1 or None, background,
+        near, far)."""
         V, F = _check_mesh(vertices, faces)
         if texture is not None and colors is not None:
             raise ValueError("give either texture (with uv) or colors, not both")
@@ -521,12 +534,11 @@ class Renderer:
         Xc = camera.to_camera(V)  # float64 on the CPU, float32 on the GPU
         near, far, F = _clip_planes(Xc, F, near, far)
         normals = vertex_normals(V, F) @ camera.R.T if shading == "lambert" and len(F) else np.zeros((len(V), 3))
-        frame = camera if ss == 1 else Camera(camera.R, camera.t, camera.f * ss, camera.width * ss, camera.height * ss)
         with self.ctx:
             fbo = self._framebuffer("render", (frame.width, frame.height))
-            self._set_state(fbo, gl_projection(frame, near, far), channels.mode, shading, cull_backfaces)
-            color, depth, face = self._draw(fbo, Xc, F, normals, channels)
-        return _resolve(color, depth, face, bg, ss, near, far)
+            self._set_state(fbo, gl_projection(frame, near, far), channels.mode, shading, cull)
+            color, depth, face = self._draw(fbo, Xc, F, normals, channels, read_face=read_face)
+        return color, depth, face, bg, near, far
 
     def render_rgb8(
         self,
@@ -556,18 +568,9 @@ class Renderer:
         self._check_usable()
         self._collect()
         self._check_frame(camera, 1)
-        V, F = _check_mesh(vertices, faces)
-        if shading not in _SHADING:
-            raise ValueError(f"shading must be None, 'lambert' or 'flat', got {shading!r}")
-        channels = self._channels(len(V), uv, texture, None)
-        bg = _background(background, channels.count)
-        Xc = camera.to_camera(V)
-        near, far, F = _clip_planes(Xc, F, near=None, far=None)
-        normals = vertex_normals(V, F) @ camera.R.T if shading == "lambert" and len(F) else np.zeros((len(V), 3))
-        with self.ctx:
-            fbo = self._framebuffer("render", (camera.width, camera.height))
-            self._set_state(fbo, gl_projection(camera, near, far), channels.mode, shading, False)
-            color, depth, _ = self._draw(fbo, Xc, F, normals, channels, read_face=False)
+        color, depth, _, bg, _, _ = self._render_pass(
+            camera, camera, vertices, faces, uv, texture, None, background, shading, None, None, False, False
+        )
         background_px = ~(depth > 0)  # cleared to 0; a drawn fragment lies beyond the near plane (> 0)
         np.putmask(depth, background_px, np.inf)
         rgb = color[..., :3]
