@@ -266,3 +266,29 @@ def test_coherence_prior_costs_what_a_region_shows_beyond_the_home_region(frown_
     # on the same quadratic pieces, the gradient changes by H·step
     g2 = on._penalty(model.region_weights(alpha + step), render, on._sides(weights))[1]
     np.testing.assert_allclose(g2 - g, H @ step, rtol=1e-6, atol=1e-9 * np.abs(g).max())
+
+
+def test_colour_match_undoes_a_change_of_the_footages_colour(setup):
+    # TrackOptions.colour_match: footage whose channels are scaled and offset (another camera's
+    # white balance) against the model's texture; the match is the inverse map, learnt from the
+    # fitted frames (smoothing 1: each frame's own estimate)
+    model, truth = setup
+    fitter = FrameFitter(model, truth.focal_px, truth.width, truth.height, TrackOptions(colour_smoothing=1.0))
+    assert fitter.colour is None
+    gain, offset = np.float32([1.10, 0.92, 1.05]), np.float32([0.04, -0.03, 0.0])
+    blank = np.zeros((truth.height, truth.width, 3), np.float32)
+    for i in (4, 5, 6):  # each frame from the one before's true state (8 frames: fast motion)
+        true = _state(model, truth, i)
+        frame = fitter._evaluate(blank, true, False).render.image * gain + offset
+        fitter.fit(frame, _state(model, truth, i - 1))
+    a, b = fitter.colour
+    # exact inverse: gain 1/g, offset −o/g; the tolerance (1 %, 0.01) allows for the last frame's
+    # fit being off by a fraction of a pixel (its residual enters the regression)
+    np.testing.assert_allclose(a, 1.0 / gain, rtol=0.01)
+    np.testing.assert_allclose(b, -offset / gain, atol=0.01)
+
+
+@pytest.mark.parametrize("bad", [{"robust_window": 2}, {"robust_window": 0}, {"colour_smoothing": 0.0}])
+def test_track_options_refuse_a_bad_window_or_smoothing(bad):
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        TrackOptions(**bad)
