@@ -1306,6 +1306,17 @@ class FrameFitter:
         compared (:attr:`TrackOptions.colour_match`), or None before the first fitted frame."""
         return None if self._colour is None else self._colour.copy()
 
+    @colour.setter
+    def colour(self, value) -> None:
+        """Restore a match (a resumed run continues with the one its last saved frame left)."""
+        if value is None:
+            self._colour = None
+            return
+        a = np.array(value, float)
+        if a.shape != (2, 3) or not np.all(np.isfinite(a)):
+            raise ValueError(f"a colour match is (2, 3) finite gains and offsets, got {value!r}")
+        self._colour = a
+
     def _matched(self, frame: np.ndarray) -> np.ndarray:
         """``frame`` with the running colour match applied (:attr:`TrackOptions.colour_match`;
         as is before the first fitted frame). The whole-clip solve's :meth:`linearise_expression`

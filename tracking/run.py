@@ -498,6 +498,9 @@ def _fit_frames(
     watch = Redetector(run.project, run.first.focal_px, run.redetect)
     if records[:start]:
         watch.last_diverged = bool(records[start - 1]["diverged"])
+        # the colour match the last saved frame left (TrackOptions.colour_match): exactly where an
+        # uninterrupted run would be
+        run.work.colour = records[start - 1].get("colour_match")
     cancelled, ended, seconds = False, False, 0.0
     unsaved, since_save, save_cost = 0, 0.0, 0.0
     # BLAS single-threaded over the whole loop, not frame by frame (see single_threaded_blas)
@@ -510,6 +513,8 @@ def _fit_frames(
                 seconds += dt
                 records.append(frame_record(i, res, run.model, dt, kind))
                 records[-1]["landmarks_xy"] = watch.landmarks(fitter, res.state)
+                if run.work.colour is not None:
+                    records[-1]["colour_match"] = run.work.colour.tolist()
                 if stream is not None:
                     stream.add(records[-1])
                 states = (states + [res.state])[-2:]

@@ -206,8 +206,10 @@ def frame_record(index: int, result, model: FaceModel, seconds: float, start: st
     ``seconds``; ``start``: where the fit started (:data:`STARTS`: ``"first_pose"``,
     ``"predicted"``, ``"user"`` for a corrected frame, ``"detected"`` for a frame fitted again from
     the detector's pose). :func:`tracking.run.track_video` adds ``landmarks_xy``
-    {feature: [u, v]} px, the model's projected pose features. Floats at full precision: a run continues
-    from them exactly.
+    {feature: [u, v]} px, the model's projected pose features, and ``colour_match`` [[gain ×3],
+    [offset ×3]] — the footage's colour match after the frame
+    (:attr:`tracking.frame_fit.TrackOptions.colour_match`; absent before the first). Floats at full
+    precision: a run continues from them exactly.
     """
     if start not in STARTS:
         raise ValueError(f"start must be one of {STARTS}, got {start!r}")
