@@ -17,7 +17,7 @@ from tracking import detected_pose
 from tracking.detected_pose import DEFAULT_FOCAL_WIDTHS, Redetector, landmark_error_px, video_focal_px
 from tracking.first_pose import pose_from_spec
 from tracking.frame_fit import FrameFitter, FrameResult, FrameState
-from tracking.run import _work_fitter, _work_frame, track_video
+from tracking.run import WORK_FACE_PX, _work_fitter, _work_frame, track_video
 from tracking.synthetic_sequences.ground_truth import fitted_sample_model, model_gauge
 from tracking.track_result import load_track_results
 
@@ -139,3 +139,22 @@ def test_a_large_face_is_fitted_on_frames_reduced_by_an_integer_factor(truth):
     np.testing.assert_allclose(big.camera(state).project(X), 2 * (work.camera(state).project(X) + 0.5) - 0.5, atol=1e-9)
     frame = np.random.default_rng(0).random((2 * truth.height, 2 * truth.width, 3)).astype(np.float32)
     np.testing.assert_allclose(_work_frame(frame, work)[5, 7], frame[10:12, 14:16].mean(axis=(0, 1)), atol=1e-6)
+
+
+def test_a_face_on_its_side_is_reduced_as_an_upright_one(truth):
+    # a phone clip whose rotation was not applied shows the face lying on its side: its longer
+    # extent (~254 px here, ~224 across) runs across the frame, and it costs as many pixels as the
+    # upright face; measured by its height alone it would be fitted at full size (4× the pixels)
+    model = fitted_sample_model()
+    s, Rg, tg = model_gauge(model)
+    state = FrameState(
+        truth.R[0] @ Rg, (truth.t[0] + truth.R[0] @ (s * Rg @ model.centre + tg)) / s, np.zeros(sum(model.n_alpha))
+    )
+    roll = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90° about the optical axis
+    side = FrameState(roll @ state.R, roll @ state.t, state.alpha)
+    big = FrameFitter(model, 1.6 * truth.focal_px, 480, 480)
+    uv = big.camera(side).project(model.geometry_at(side.alpha)[model.face_mask])
+    width, height = np.ptp(uv, axis=0)
+    assert height < 2 * WORK_FACE_PX <= width  # lying on its side, longer than two working faces
+    upright, lying = _work_fitter(big, state), _work_fitter(big, side)
+    assert (lying.W, lying.H, lying.f) == (upright.W, upright.H, upright.f) == (240, 240, 0.8 * truth.focal_px)

@@ -103,10 +103,12 @@ SAVE_OVERHEAD = 20.0
 #: :func:`track_video`'s default ``segments``: two (a fresh run of a long clip tracked as two
 #: segments at once, :mod:`tracking.segments`) where the machine has two cores or more.
 SEGMENTS = 2 if (os.cpu_count() or 1) >= 2 else 1
-#: Frames are fitted reduced by an integer factor so that the face is at most about this tall (px):
-#: the cost grows with the covered pixels, and the benchmark's 300×300 sample (face ~150 px) is
-#: tracked to 0.5° at full size. The real clip's face (~265 px of 640×360) is fitted at 320×180.
-#: Poses do not depend on the image scale; ``track.json`` keeps the video's camera and pixels.
+#: Frames are fitted reduced by an integer factor so that the face is at most about this long (px;
+#: its longer side in the image, so that a face lying on its side — a phone clip whose rotation
+#: was not applied — is reduced as an upright one is): the cost grows with the covered pixels, and
+#: the benchmark's 300×300 sample (face ~150 px) is tracked to 0.5° at full size. The real clip's
+#: face (~265 px of 640×360) is fitted at 320×180. Poses do not depend on the image scale;
+#: ``track.json`` keeps the video's camera and pixels.
 WORK_FACE_PX = 120
 
 
@@ -625,10 +627,10 @@ def track_segment(conf: dict, split: Split, stop: int | None, progress, cancel) 
 
 def _work_fitter(fitter: FrameFitter, state) -> FrameFitter:
     """The fitter of the frames reduced by an integer factor so that the face at ``state`` (frame
-    0's pose) is at most about :data:`WORK_FACE_PX` tall; ``fitter`` itself when no reduction."""
+    0's pose) is at most about :data:`WORK_FACE_PX` long; ``fitter`` itself when no reduction."""
     model = fitter.model
     uv = fitter.camera(state).project(model.geometry_at(state.alpha)[model.face_mask])
-    k = max(1, int(np.ptp(uv[:, 1]) // WORK_FACE_PX)) if np.all(np.isfinite(uv)) else 1
+    k = max(1, int(np.ptp(uv, axis=0).max() // WORK_FACE_PX)) if np.all(np.isfinite(uv)) else 1
     if k == 1:
         return fitter
     return FrameFitter(model, fitter.f / k, fitter.W // k, fitter.H // k, fitter.options, fitter.renderer)
