@@ -114,6 +114,8 @@ def test_the_focal_length_comes_from_the_projects_cameras_of_the_videos_size(fit
     assert f == pytest.approx(float(np.median(same))) and "fitted cameras" in source
     f, source = video_focal_px(project, 123, 45)  # no camera of that size: estimated from the width
     assert f == pytest.approx(DEFAULT_FOCAL_WIDTHS * 123) and source.startswith("estimated")
+    # a phone held upright: the same lens, so the same focal length as the landscape frame's
+    assert video_focal_px(project, 45, 123)[0] == pytest.approx(f)
 
 
 def test_landmark_error_is_the_mean_distance_over_common_features():

@@ -20,7 +20,7 @@ no face there, or finds its features further than :data:`LOST_PX`, does the full
 
 The video camera's focal length (:func:`video_focal_px`): the project's fitted cameras of the
 video's image size (a camera group made from frames of the same video, ``facestudio new
---camera-group``) when there are any, else :data:`DEFAULT_FOCAL_WIDTHS` × the frame width.
+--camera-group``) when there are any, else :data:`DEFAULT_FOCAL_WIDTHS` × the frame's longer side.
 """
 
 from __future__ import annotations
@@ -45,9 +45,10 @@ __all__ = [
     "video_focal_px",
 ]
 
-#: Focal length (in frame widths) assumed when the project has no camera of the video's size: a
-#: horizontal field of view of 58°, between a phone's main camera (~65–70°) and a webcam's or a
-#: camcorder's (~50°). The real sample's frames were fitted at 0.91 widths.
+#: Focal length, in widths of a landscape frame (of a portrait one: its height, the longer side),
+#: assumed when the project has no camera of the video's size: a horizontal field of view of 58°,
+#: between a phone's main camera (~65–70°) and a webcam's or a camcorder's (~50°). The real
+#: sample's frames were fitted at 0.91 widths.
 DEFAULT_FOCAL_WIDTHS = 0.9
 #: Detected features with a lower confidence are not used to pose the model (the detector's jaw
 #: outline: 0.1–0.3; eye, nose and mouth points are ≥ 0.59).
@@ -65,7 +66,9 @@ def video_focal_px(project, width: int, height: int) -> tuple[float, str]:
 
     The median focal length of the project's fitted cameras whose image is ``width × height``
     (frames of the same video, or photos of the same camera), else :data:`DEFAULT_FOCAL_WIDTHS`
-    × ``width``.
+    × the longer of ``width`` and ``height`` — the width of a landscape frame; a phone held upright
+    films through the same lens, its frame's height is what the width was (0.9 × the width gave a
+    portrait clip's camera twice the true field of view).
     """
     found = [
         (f"{e.name}/{pid}", cam.f)
@@ -77,9 +80,9 @@ def video_focal_px(project, width: int, height: int) -> tuple[float, str]:
     if found:
         f = float(np.median([f for _, f in found]))
         return f, f"the project's fitted cameras of {width}x{height} images ({', '.join(n for n, _ in found)})"
-    f = DEFAULT_FOCAL_WIDTHS * width
+    f = DEFAULT_FOCAL_WIDTHS * max(width, height)
     return f, (
-        f"estimated: {DEFAULT_FOCAL_WIDTHS} x the frame width (no fitted camera of {width}x{height} "
+        f"estimated: {DEFAULT_FOCAL_WIDTHS} x the frame's longer side (no fitted camera of {width}x{height} "
         f"images in the project; pass --focal-px if known)"
     )
 
