@@ -44,8 +44,12 @@ POINTS_CROP_SCALE = 2.0  #: the second pass's crop over the 21 points' long side
 #: ``dx, dy`` face sizes from the face's (a hand over the eyes, the nose, the mouth, a cheek, the
 #: chin), all upright: the model finds a hand turned within a window, and the second pass turns
 #: its crop to the hand's own angle. A hand above the forehead or well beside the face is not
-#: looked for (it covers no face).
+#: looked for (it covers no face). The offsets and the windows turn with the face's roll (the eye
+#: line's angle, :func:`hand_points`' ``angle``, to the nearest quarter turn): a face lying on its
+#: side has its chin beside it.
 WINDOWS = ((-0.35, 0.0, 0), (0.0, 0.0, 0), (0.35, 0.0, 0), (-0.35, 0.35, 0), (0.0, 0.35, 0), (0.35, 0.35, 0))
+#: A quarter turn (radians): the face's roll is taken to the nearest one for the windows.
+QUARTER = np.pi / 2
 #: A window's side over the face's.
 WINDOW_SCALE = 1.4
 #: A finger's thickness in palm widths (index to little finger knuckles: four fingers side by side).
@@ -94,9 +98,10 @@ def _hand_pass(image: np.ndarray, centre: np.ndarray, size: float, angle: float)
     return to_photo(matrix, np.asarray(points).reshape(21, 3)[:, :2]), presence
 
 
-def _windows(image: np.ndarray, face_box) -> list[tuple[np.ndarray, float, float]]:
+def _windows(image: np.ndarray, face_box, angle: float = 0.0) -> list[tuple[np.ndarray, float, float]]:
     """Crops ``(centre, size, angle)`` the hand model looks in: around the face (the module
-    docstring), or tiles of the whole photo when no face is known."""
+    docstring; offsets and crops turned by the face's roll ``angle``, radians), or tiles of the
+    whole photo when no face is known."""
     h, w = image.shape[:2]
     if face_box is None:
         side = float(min(h, w))
@@ -106,7 +111,12 @@ def _windows(image: np.ndarray, face_box) -> list[tuple[np.ndarray, float, float
     x0, y0, x1, y1 = face_box
     centre = np.array([(x0 + x1) / 2.0, (y0 + y1) / 2.0])
     size = float(max(x1 - x0, y1 - y0))
-    return [(centre + size * np.array([dx, dy]), WINDOW_SCALE * size, np.radians(angle)) for dx, dy, angle in WINDOWS]
+    # to the nearest quarter turn: an upright face's windows stay as they were (the model finds a
+    # hand turned within a window); a face on its side or upside down gets them turned with it
+    angle = QUARTER * round(angle / QUARTER)
+    c, s = np.cos(angle), np.sin(angle)
+    turn = np.array([[c, -s], [s, c]])  # the face's right and down in the photo (crop_matrix's turn)
+    return [(centre + size * (turn @ [dx, dy]), WINDOW_SCALE * size, angle + np.radians(a)) for dx, dy, a in WINDOWS]
 
 
 def _same_hand(a: np.ndarray, b: np.ndarray) -> bool:
@@ -116,7 +126,7 @@ def _same_hand(a: np.ndarray, b: np.ndarray) -> bool:
     return inter > 0.5 * max(area, 1e-9)
 
 
-def hand_points(image: np.ndarray, face_box=None) -> list[tuple[np.ndarray, float]]:
+def hand_points(image: np.ndarray, face_box=None, angle: float = 0.0) -> list[tuple[np.ndarray, float]]:
     """The hands near the face in a photo: for each, its 21 points ((21, 2) photo pixels:
     MediaPipe's wrist, thumb, index … little finger, base to tip) and its presence in [0, 1].
 
@@ -128,6 +138,10 @@ def hand_points(image: np.ndarray, face_box=None) -> list[tuple[np.ndarray, floa
         ``x0, y0, x1, y1`` of the face (:attr:`photomodel.landmarks.detect.Face468.box`); the hand
         model looks at :data:`WINDOWS` around it. None: the face is detected first, and where
         there is none the photo is searched in tiles.
+    angle : float
+        the face's roll with ``face_box``: the angle (radians, image y down) of its eye line from
+        the subject's right eye to the left (:func:`photomodel.landmarks.mapping.level_frame`);
+        0 for an upright face.
     """
     if face_box is None:
         try:
@@ -135,7 +149,7 @@ def hand_points(image: np.ndarray, face_box=None) -> list[tuple[np.ndarray, floa
         except NoFaceFound:
             face_box = None
     hands: list[tuple[np.ndarray, float]] = []
-    for window in _windows(image, face_box):
+    for window in _windows(image, face_box, angle if face_box is not None else 0.0):
         points, presence = _hand_pass(image, *window)
         if presence < MIN_HAND_SCORE:
             continue
@@ -167,14 +181,14 @@ def mask_of_hand(shape: tuple[int, int], points: np.ndarray) -> np.ndarray:
     return cv2.dilate(out, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))) > 0
 
 
-def hand_mask(image: np.ndarray, face_box=None) -> np.ndarray:
+def hand_mask(image: np.ndarray, face_box=None, angle: float = 0.0) -> np.ndarray:
     """(H, W) bool: the pixels of ``image`` ((H, W, 3) uint8 RGB) covered by a hand near the face
     (every hand :func:`hand_points` finds, drawn by :func:`mask_of_hand`); all False when there
-    is none. ``face_box``: see :func:`hand_points`.
+    is none. ``face_box``, ``angle``: see :func:`hand_points`.
 
     For texturing (:func:`photomodel.landmarks.segment.face_pixels` leaves these pixels out)
     and for tracking (a hand in front of the face is an occluder, not the face)."""
     mask = np.zeros(image.shape[:2], bool)
-    for points, _ in hand_points(image, face_box):
+    for points, _ in hand_points(image, face_box, angle):
         mask |= mask_of_hand(image.shape[:2], points)
     return mask

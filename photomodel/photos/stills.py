@@ -195,6 +195,8 @@ class FrameLook:
     lips_px: np.ndarray | None = None
     face_box: tuple[float, float, float, float] | None = None
     hand_over_lips: float | None = None
+    #: the eye line's angle in the frame (radians, image y down; 0 upright): where to look for hands
+    roll: float = 0.0
 
 
 def _eye_frame(points: np.ndarray) -> tuple[np.ndarray, float]:
@@ -239,7 +241,15 @@ def look_from_face(frame: int, face: Face468, image: np.ndarray) -> FrameLook:
         eye_px=d,
         lips_px=np.asarray(face.points, float)[list(_LIPS_OUTER), :2].copy(),
         face_box=tuple(float(v) for v in face.box),
+        roll=face_roll(face.points),
     )
+
+
+def face_roll(points: np.ndarray) -> float:
+    """The angle (radians, image y down) of the face mesh ``points``' eye line, from the subject's
+    right eye to the left: 0 for an upright face, ±π/2 for one lying on its side."""
+    _, rot = level_frame(points)
+    return float(np.arctan2(rot[0, 1], rot[0, 0]))
 
 
 def look_at_frame(frame: int, image: np.ndarray) -> FrameLook | None:
@@ -298,7 +308,7 @@ def hands_over_lips(image: np.ndarray, look: FrameLook) -> float:
     if not lips.any():
         return 0.0
     hands = np.zeros(image.shape[:2], bool)
-    for points, _ in hand_points(image, look.face_box):
+    for points, _ in hand_points(image, look.face_box, look.roll):
         hands |= mask_of_hand(image.shape[:2], points)
     return float(hands[lips > 0].mean())
 
