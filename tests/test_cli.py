@@ -60,7 +60,7 @@ def test_fit_writes_results_into_the_project(project_copy, capsys):
 
 
 def test_fit_prints_a_table(project_copy, capsys):
-    assert main(["fit", str(project_copy), "--dry-run"]) == 0
+    assert main(["fit", str(project_copy), "--dry-run", "--expression", "neutral"]) == 0
     out = capsys.readouterr().out
     assert "reprojection RMS" in out and "worst points" in out and "front" in out
     assert load_project(project_copy).expression("neutral").result is None  # dry run wrote nothing
@@ -83,7 +83,7 @@ def test_missing_project_file(tmp_path, capsys):
 
 def test_missing_photo_is_named_but_the_fit_uses_the_clicks(project_copy, capsys):
     (project_copy.parent / "photos" / "neutral_left.png").unlink()
-    assert main(["fit", str(project_copy), "--dry-run"]) == 0
+    assert main(["fit", str(project_copy), "--dry-run", "--expression", "neutral"]) == 0
     assert "neutral_left.png" in capsys.readouterr().err
 
 

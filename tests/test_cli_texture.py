@@ -1,4 +1,5 @@
-"""``facestudio texture`` as a user runs it: on a copy of the sample project, fitted first.
+"""``facestudio texture`` as a user runs it: on a copy of the sample project, fitted first (the
+session's fitted sample).
 
 Textures are 256² here (the default is 1024²) to keep the file fast; the command does the same
 work at any size.
@@ -32,12 +33,10 @@ PHOTOS = {"right", "three_quarter_right", "front", "three_quarter_left", "left"}
 
 
 @pytest.fixture(scope="module")
-def fitted(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("fitted") / "james"
-    shutil.copytree(SAMPLE, folder)
-    project = folder / "james.facestudio.json"
-    assert main(["fit", str(project), "--json"]) == 0
-    return folder
+def fitted(fitted_sample):
+    """The folder of the sample fitted (and textured) once per session (conftest's
+    ``fitted_sample``; read it, do not change it): the texture command textures it again."""
+    return fitted_sample.parent
 
 
 @pytest.fixture
@@ -170,7 +169,7 @@ def test_a_new_fit_drops_the_texture_record(textured, tmp_path):
     shutil.copytree(textured[0].parent, tmp_path / "james")
     project = tmp_path / "james" / "james.facestudio.json"
     assert load_project(project).expression("neutral").result.texture is not None
-    assert main(["fit", str(project), "--json", "--no-refine"]) == 0
+    assert main(["fit", str(project), "--json", "--no-refine", "--expression", "neutral"]) == 0
     assert load_project(project).expression("neutral").result.texture is None  # it was for the old mesh
 
 
@@ -183,7 +182,7 @@ def test_ctrl_c_while_saving_waits_until_everything_is_saved(project_copy, capsy
         return real(batch)
 
     monkeypatch.setattr(files, "write_files", write_files_interrupted)
-    assert main(["texture", str(project_copy), "--size", "64"]) == 0
+    assert main(["texture", str(project_copy), "--size", "64", "--expression", "neutral"]) == 0
     assert "the results were saved completely" in capsys.readouterr().err
     tex = load_project(project_copy).expression("neutral").result.texture
     assert tex is not None and (project_copy.parent / tex.exports["glb"]).is_file()
