@@ -125,12 +125,18 @@ def test_landmark_error_is_the_mean_distance_over_common_features():
     assert landmark_error_px(a, {}) == float("inf")
 
 
-def test_a_large_face_is_fitted_on_frames_reduced_by_an_integer_factor(truth):
+def _frame0(truth):
+    """The fitted sample's model and its true pose in the sample video's frame 0 (neutral face)."""
     model = fitted_sample_model()
     s, Rg, tg = model_gauge(model)
     state = FrameState(
         truth.R[0] @ Rg, (truth.t[0] + truth.R[0] @ (s * Rg @ model.centre + tg)) / s, np.zeros(sum(model.n_alpha))
     )
+    return model, state
+
+
+def test_a_large_face_is_fitted_on_frames_reduced_by_an_integer_factor(truth):
+    model, state = _frame0(truth)
     small = FrameFitter(model, truth.focal_px, truth.width, truth.height)
     assert _work_fitter(small, state) is small  # the sample's ~150 px face: fitted as it is
     big = FrameFitter(model, 2 * truth.focal_px, 2 * truth.width, 2 * truth.height)  # a ~300 px face
@@ -147,11 +153,7 @@ def test_a_face_on_its_side_is_reduced_as_an_upright_one(truth):
     # a phone clip whose rotation was not applied shows the face lying on its side: its longer
     # extent (~254 px here, ~224 across) runs across the frame, and it costs as many pixels as the
     # upright face; measured by its height alone it would be fitted at full size (4× the pixels)
-    model = fitted_sample_model()
-    s, Rg, tg = model_gauge(model)
-    state = FrameState(
-        truth.R[0] @ Rg, (truth.t[0] + truth.R[0] @ (s * Rg @ model.centre + tg)) / s, np.zeros(sum(model.n_alpha))
-    )
+    model, state = _frame0(truth)
     roll = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90° about the optical axis
     side = FrameState(roll @ state.R, roll @ state.t, state.alpha)
     big = FrameFitter(model, 1.6 * truth.focal_px, 480, 480)

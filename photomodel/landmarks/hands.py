@@ -140,8 +140,8 @@ def hand_points(image: np.ndarray, face_box=None, angle: float = 0.0) -> list[tu
         there is none the photo is searched in tiles.
     angle : float
         the face's roll with ``face_box``: the angle (radians, image y down) of its eye line from
-        the subject's right eye to the left (:func:`photomodel.landmarks.mapping.level_frame`);
-        0 for an upright face.
+        the subject's right eye to the left (:func:`photomodel.landmarks.mapping.face_roll`);
+        0 for an upright face; not used without ``face_box``.
     """
     if face_box is None:
         try:
@@ -149,7 +149,7 @@ def hand_points(image: np.ndarray, face_box=None, angle: float = 0.0) -> list[tu
         except NoFaceFound:
             face_box = None
     hands: list[tuple[np.ndarray, float]] = []
-    for window in _windows(image, face_box, angle if face_box is not None else 0.0):
+    for window in _windows(image, face_box, angle):
         points, presence = _hand_pass(image, *window)
         if presence < MIN_HAND_SCORE:
             continue

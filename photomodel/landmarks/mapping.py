@@ -232,6 +232,13 @@ def level_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a, np.array([[c, s], [-s, c]])
 
 
+def face_roll(points: np.ndarray) -> float:
+    """The angle (radians, image y down) of the face mesh ``points``' eye line (:func:`level_frame`),
+    from the subject's right eye to the left: 0 for an upright face, ±π/2 for one on its side."""
+    _, rot = level_frame(points)
+    return float(np.arctan2(rot[0, 1], rot[0, 0]))
+
+
 def _hull_x(hull: np.ndarray, y: float, side: int) -> float | None:
     """Outermost x (``side`` -1: smallest, +1: largest) of a closed polygon on the line at ``y``."""
     p0, p1 = hull, np.roll(hull, -1, axis=0)

@@ -38,7 +38,7 @@ import numpy as np
 from photomodel.errors import NoFaceFound
 from photomodel.landmarks.detect import EYE_OUTER, detect_468
 from photomodel.landmarks.hands import hand_mask
-from photomodel.landmarks.mapping import PROFILE_FROM_DEG, estimate_yaw_deg, far_side_jaw, ibug68_from_mesh, level_frame
+from photomodel.landmarks.mapping import PROFILE_FROM_DEG, estimate_yaw_deg, face_roll, far_side_jaw, ibug68_from_mesh
 from photomodel.landmarks.models import SEGMENTATION_MODEL, model_dir
 from photomodel.landmarks.nets import run_net, thread_net
 from photomodel.landmarks.outline import CONFIRMED, SEARCH_IN, face_height, jaw_edges
@@ -252,6 +252,5 @@ def face_pixels(image: np.ndarray, points: np.ndarray | None = None, *, hands: b
     keep &= ~under
     if hands:  # a hand in front of the face is not its skin (hands.py)
         p = np.asarray(points, float)[:, :2]
-        _, turn = level_frame(points)
-        keep &= ~hand_mask(image, (*p.min(axis=0), *p.max(axis=0)), float(np.arctan2(turn[0, 1], turn[0, 0])))
+        keep &= ~hand_mask(image, (*p.min(axis=0), *p.max(axis=0)), face_roll(points))
     return keep

@@ -82,7 +82,7 @@ from photomodel.errors import FaceStudioError, NoFaceFound
 from photomodel.exchange.files import atomic_write_bytes
 from photomodel.landmarks.detect import EYE_OUTER, Face468, detect_468
 from photomodel.landmarks.hands import hand_points, mask_of_hand
-from photomodel.landmarks.mapping import estimate_yaw_deg, level_frame
+from photomodel.landmarks.mapping import estimate_yaw_deg, face_roll, level_frame
 from photomodel.photos.intake import new_project_from_photos
 from photomodel.photos.video import VideoFrames, frame_uint8
 from photomodel.project import FILE_SUFFIX, CurveDef, Feature, Project, save_project
@@ -243,13 +243,6 @@ def look_from_face(frame: int, face: Face468, image: np.ndarray) -> FrameLook:
         face_box=tuple(float(v) for v in face.box),
         roll=face_roll(face.points),
     )
-
-
-def face_roll(points: np.ndarray) -> float:
-    """The angle (radians, image y down) of the face mesh ``points``' eye line, from the subject's
-    right eye to the left: 0 for an upright face, ±π/2 for one lying on its side."""
-    _, rot = level_frame(points)
-    return float(np.arctan2(rot[0, 1], rot[0, 0]))
 
 
 def look_at_frame(frame: int, image: np.ndarray) -> FrameLook | None:
